@@ -1,0 +1,148 @@
+"""The one place where bearing_id fixes its signs, axes, phases, node numbers and units.
+
+Everything else imports from here; tests in ``test/test_conventions.py`` pin each rule.
+
+Axes and rotation
+    x horizontal, y vertical (up), z along the shaft from the non-drive end; gravity acts along -y.
+    The shaft spins from +x towards +y (counter-clockwise seen from +z looking back at the origin).
+    Forward whirl is an orbit that turns the same way as the shaft (+x -> +y).
+
+Degrees of freedom
+    4 per node, ordered ``[x, y, theta_x, theta_y]`` with theta_x = -dy/dz (rotation about x) and
+    theta_y = +dx/dz (rotation about y); the same as Nelson (1980) and ROSS's lateral subset
+    ``[x, y, alpha, beta]``.  Global DOF index = 4 * (node - 1) + local index.
+
+Node numbers
+    1-based in files, messages, reports and the command line (as in the paper: bearings at nodes 2 and 10);
+    0-based only inside arrays.  :func:`node_index` is the single conversion.
+
+Equation of motion (SI units: m, kg, s, N, rad)
+    M q'' + (C + Omega G) q' + K q = f,  with Omega the spin speed [rad/s] and G the gyroscopic matrix
+    (skew-symmetric; with this sign forward-whirl frequencies rise with speed).
+
+Bearing force on the shaft
+    f = -K q - C q',  K [N/m] and C [N s/m] as 2x2 blocks ``[[xx, xy], [yx, yy]]`` on (x, y) of the bearing node.
+    Flat order everywhere (messages, JSON, arrays): ``xx, xy, yx, yy``.
+
+Bearing-literature frame
+    Journal-bearing formulas (Ocvirk, Lund) use X along the static load and Y 90 deg ahead in the spin
+    direction.  With the load along -y and spin +x -> +y, X_lit = -y and Y_lit = +x; :func:`lit_to_xy`
+    maps 2x2 coefficient blocks from that frame into ours.
+
+Phasors and phase reference
+    x(t) = Re{X exp(j phi(t))} where phi(t) is the rotor angle measured from the keyphasor mark
+    (phi = 0 when the key mark passes the keyphasor probe; phi = Omega t at constant speed).
+    Phase angles reported to people are arg(X) in degrees; all other angles are radians.
+
+Unbalance
+    A mass-radius product ``me`` [kg m] at angle ``phase`` [rad] from the key mark (in the spin direction)
+    gives the rotating force f = me Omega^2 [cos(phi + phase), sin(phi + phase)], i.e. phasors
+    Fx = me Omega^2 exp(j phase), Fy = -j Fx.
+
+Units at the edges
+    rpm, micrometres and degrees only where a person reads; the helpers below convert.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DOF_PER_NODE = 4
+LOCAL_DOF = {"x": 0, "y": 1, "tx": 2, "ty": 3}
+COEFF_ORDER = ("xx", "xy", "yx", "yy")
+GRAVITY = 9.80665  # m/s^2, acts along -y
+
+RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
+
+
+def node_index(node: int, n_nodes: int | None = None) -> int:
+    """1-based node number -> 0-based array index; raises ValueError on nonsense."""
+    if isinstance(node, bool) or int(node) != node:
+        raise ValueError(f"node numbers are whole numbers, got {node!r}")
+    node = int(node)
+    if node < 1:
+        raise ValueError(f"node numbers are 1-based (first node is 1), got {node}")
+    if n_nodes is not None and node > n_nodes:
+        raise ValueError(f"node {node} does not exist: the model has nodes 1..{n_nodes}")
+    return node - 1
+
+
+def dof_index(node: int, direction: str, n_nodes: int | None = None) -> int:
+    """Global 0-based DOF index of ``direction`` ('x', 'y', 'tx', 'ty') at 1-based ``node``."""
+    if direction not in LOCAL_DOF:
+        raise ValueError(f"direction must be one of {sorted(LOCAL_DOF)}, got {direction!r}")
+    return DOF_PER_NODE * node_index(node, n_nodes) + LOCAL_DOF[direction]
+
+
+def rpm_to_rad_s(rpm):
+    """Speed in rev/min -> rad/s (scalar or array)."""
+    return np.asarray(rpm, dtype=float) / RPM_PER_RAD_S if np.ndim(rpm) else float(rpm) / RPM_PER_RAD_S
+
+
+def rad_s_to_rpm(speed):
+    """Speed in rad/s -> rev/min (scalar or array)."""
+    return np.asarray(speed, dtype=float) * RPM_PER_RAD_S if np.ndim(speed) else float(speed) * RPM_PER_RAD_S
+
+
+def m_to_um(x):
+    """Metres -> micrometres (for people)."""
+    return np.asarray(x) * 1e6
+
+
+def unbalance_phasors(me: float, phase: float, speed: float) -> tuple[complex, complex]:
+    """Force phasors (Fx, Fy) [N] of an unbalance ``me`` [kg m] at ``phase`` [rad] spinning at ``speed`` [rad/s]."""
+    fx = me * speed**2 * np.exp(1j * phase)
+    return complex(fx), complex(-1j * fx)
+
+
+def force_phasors(magnitude: float, phase: float, direction: str) -> tuple[complex, complex]:
+    """Force phasors (Fx, Fy) [N] of a directional force of ``magnitude`` [N] and ``phase`` [rad].
+
+    ``direction`` is 'x' or 'y' (a shaker along one axis) or 'forward'/'backward' (a rotating force).
+    """
+    f = magnitude * np.exp(1j * phase)
+    if direction == "x":
+        return complex(f), 0j
+    if direction == "y":
+        return 0j, complex(f)
+    if direction == "forward":
+        return complex(f), complex(-1j * f)
+    if direction == "backward":
+        return complex(f), complex(1j * f)
+    raise ValueError(f"force direction must be 'x', 'y', 'forward' or 'backward', got {direction!r}")
+
+
+def phasor_to_time(X, angle):
+    """Time signal Re{X exp(j angle)}; ``angle`` is the rotor angle [rad] times the harmonic order."""
+    return np.real(np.asarray(X)[..., None] * np.exp(1j * np.asarray(angle))) if np.ndim(X) else np.real(
+        X * np.exp(1j * np.asarray(angle)))
+
+
+def whirl_direction(X: complex, Y: complex) -> str:
+    """'forward' or 'backward' for the orbit with phasors (X, Y) (x(t) = Re{X e^{jwt}}, same for y)."""
+    forward = abs(X - 1j * Y) / 2  # component turning +x -> +y
+    backward = abs(X + 1j * Y) / 2
+    return "forward" if forward >= backward else "backward"
+
+
+# Rotation from our (x, y) to the bearing-literature frame (X along load = -y, Y = +x): q_lit = T q.
+_T_LIT = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+def lit_to_xy(block_lit: np.ndarray) -> np.ndarray:
+    """Map a 2x2 coefficient block from the bearing-literature frame (X = load, Y = 90 deg ahead) to (x, y).
+
+    Force and displacement transform alike: f_lit = T f, q_lit = T q, so K_xy = T^T K_lit T.
+    """
+    return _T_LIT.T @ np.asarray(block_lit, dtype=float) @ _T_LIT
+
+
+def flat4(block: np.ndarray) -> np.ndarray:
+    """2x2 block -> flat (xx, xy, yx, yy)."""
+    return np.asarray(block).reshape(4)
+
+
+def block2(flat: np.ndarray) -> np.ndarray:
+    """Flat (xx, xy, yx, yy) -> 2x2 block."""
+    return np.asarray(flat).reshape(2, 2)

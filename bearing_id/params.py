@@ -1,0 +1,374 @@
+"""Load and validate the rig/model YAML (``params/rig.yaml``) into small frozen dataclasses.
+
+Every error names the offending field (``bearings[1].clearance``) and the expected unit and range, so that a
+malformed file fails at load time with a message a person can act on.  SI units throughout.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .conventions import GRAVITY
+
+PACKAGE_PARAMS = Path(__file__).resolve().parent.parent / "params"
+
+
+class ParamError(ValueError):
+    """A parameter file or value is invalid; the message names the field."""
+
+
+# ---------------------------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True)
+class Shaft:
+    length: float                 # m
+    diameter: float               # m (outer)
+    inner_diameter: float         # m (0 for solid)
+    n_elements: int
+    element_lengths: tuple        # m, one per element, sums to length
+    density: float                # kg/m^3
+    youngs_modulus: float         # Pa
+    poisson_ratio: float          # -
+    damping_alpha: float = 0.0    # 1/s  (C_rotor = alpha M + beta K)
+    damping_beta: float = 0.0     # s
+
+    @property
+    def n_nodes(self) -> int:
+        return self.n_elements + 1
+
+    @property
+    def node_z(self) -> tuple:
+        """Axial position of each node [m], node 1 at z = 0."""
+        z = [0.0]
+        for le in self.element_lengths:
+            z.append(z[-1] + le)
+        return tuple(z)
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def mass(self) -> float:
+        a = math.pi / 4 * (self.diameter**2 - self.inner_diameter**2)
+        return self.density * a * self.length
+
+
+@dataclass(frozen=True)
+class Disc:
+    node: int
+    outer_diameter: float         # m
+    inner_diameter: float         # m
+    thickness: float              # m
+    density: float                # kg/m^3
+    mass_factor: float = 1.0      # model-updating factor on mass and inertias
+
+    @property
+    def mass(self) -> float:
+        """Disc mass [kg]."""
+        return self.mass_factor * self.density * math.pi / 4 * (self.outer_diameter**2 - self.inner_diameter**2) \
+            * self.thickness
+
+    @property
+    def polar_inertia(self) -> float:
+        """Polar moment of inertia Ip [kg m^2] (thick annulus)."""
+        return self.mass * (self.outer_diameter**2 + self.inner_diameter**2) / 8.0
+
+    @property
+    def diametral_inertia(self) -> float:
+        """Diametral moment of inertia Id [kg m^2] about a diameter through the centre (thick annulus)."""
+        return self.mass * ((self.outer_diameter**2 + self.inner_diameter**2) / 16.0 + self.thickness**2 / 12.0)
+
+
+@dataclass(frozen=True)
+class Bearing:
+    name: str
+    node: int
+    diameter: float               # m, journal diameter D
+    length: float                 # m, bearing length L
+    clearance: float              # m, radial clearance c
+    viscosity: float              # Pa s
+    load: float | None            # N static load (None = from the rotor's weight, see rotor.static_bearing_loads)
+    model: str = "short"          # 'short' | 'finite'
+
+
+@dataclass(frozen=True)
+class Probe:
+    name: str
+    node: int
+    direction: str                # 'x' | 'y'
+
+
+@dataclass(frozen=True)
+class ExcitationEntry:
+    kind: str                     # 'unbalance' | 'force'
+    node: int
+    magnitude: float              # kg m (unbalance) or N (force)
+    phase: float                  # rad, relative to the keyphasor
+    direction: str                # 'forward' (unbalance) | 'x' | 'y' (force)
+    frequency_ratio: float = 1.0  # excitation frequency / rotor speed
+
+
+@dataclass(frozen=True)
+class Run:
+    id: str
+    excitation: tuple             # of ExcitationEntry
+
+
+@dataclass(frozen=True)
+class Truth:
+    bearing_model: str            # 'short' | 'finite'
+    viscosity_factor: tuple       # per bearing, true / nominal
+    clearance_factor: tuple       # per bearing, true / nominal
+
+
+@dataclass(frozen=True)
+class Simulation:
+    sample_rate: float            # Hz
+    block_size: int
+    speeds_rpm: tuple
+    dwell: float                  # s
+    noise: float                  # fraction of channel RMS
+    seed: int
+    truth: Truth
+    runs: tuple                   # of Run
+
+
+@dataclass(frozen=True)
+class ModalTest:
+    measured_hz: tuple
+    paper_initial_hz: tuple = ()
+    paper_updated_hz: tuple = ()
+
+
+@dataclass(frozen=True)
+class RigParams:
+    name: str
+    shaft: Shaft
+    discs: tuple
+    bearings: tuple
+    probes: tuple
+    simulation: Simulation | None = None
+    modal_test: ModalTest | None = None
+    extra: dict = field(default_factory=dict, compare=False)   # augmentations written by diagnose
+
+    def replace(self, **kw) -> "RigParams":
+        return dataclasses.replace(self, **kw)
+
+    def bearing_nodes(self) -> tuple:
+        return tuple(b.node for b in self.bearings)
+
+
+# ---------------------------------------------------------------------------------------------- validation
+def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any = ..., allow_none=False):
+    if key not in d:
+        if default is ...:
+            raise ParamError(f"{where}.{key} is missing ({unit})".replace(" ()", ""))
+        return default
+    v = d[key]
+    if v is None and allow_none:
+        return None
+    if isinstance(v, str):  # YAML 1.1 reads 2.06e11 (no dot, no sign) as a string
+        try:
+            v = float(v)
+        except ValueError:
+            raise ParamError(f"{where}.{key} must be a number [{unit}], got {v!r}") from None
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ParamError(f"{where}.{key} must be a number [{unit}], got {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ParamError(f"{where}.{key} must be finite [{unit}], got {v!r}")
+    if lo is not None and v < lo or hi is not None and v > hi:
+        raise ParamError(f"{where}.{key} = {v!r} [{unit}] is outside the allowed range [{lo}, {hi}]")
+    return v
+
+
+def _int(d, key, where, lo=None, hi=None, default: Any = ...):
+    v = _num(d, key, where, lo, hi, default=default)
+    if v is not None and v is not ... and float(v) != int(v):
+        raise ParamError(f"{where}.{key} must be a whole number, got {v!r}")
+    return int(v)
+
+
+def _choice(d, key, where, choices, default: Any = ...):
+    if key not in d:
+        if default is ...:
+            raise ParamError(f"{where}.{key} is missing (one of {choices})")
+        return default
+    v = d[key]
+    if v not in choices:
+        raise ParamError(f"{where}.{key} must be one of {choices}, got {v!r}")
+    return v
+
+
+def _section(d, key, where, kind=dict, optional=False):
+    if key not in d or d[key] is None:
+        if optional:
+            return None
+        raise ParamError(f"{where}.{key} is missing")
+    v = d[key]
+    if not isinstance(v, kind):
+        raise ParamError(f"{where}.{key} must be a {'mapping' if kind is dict else 'list'}, got {type(v).__name__}")
+    return v
+
+
+def _node(d, key, where, n_nodes):
+    v = _int(d, key, where, 1, n_nodes)
+    return v
+
+
+def parse_shaft(d: dict) -> Shaft:
+    w = "shaft"
+    length = _num(d, "length", w, 1e-3, 100, "m")
+    n_el = _int(d, "n_elements", w, 1, 500)
+    el = d.get("element_lengths")
+    if el is None:
+        el = (length / n_el,) * n_el
+    else:
+        if not isinstance(el, list) or len(el) != n_el:
+            raise ParamError(f"{w}.element_lengths must be a list of {n_el} lengths [m] or null")
+        el = tuple(_num({"v": x}, "v", f"{w}.element_lengths[{i}]", 1e-5, 100, "m") for i, x in enumerate(el))
+        if abs(sum(el) - length) > 1e-9 * max(1.0, length):
+            raise ParamError(f"{w}.element_lengths sum to {sum(el)!r} m, not shaft.length = {length!r} m")
+    return Shaft(
+        length=length,
+        diameter=_num(d, "diameter", w, 1e-4, 10, "m"),
+        inner_diameter=_num(d, "inner_diameter", w, 0, 10, "m", default=0.0),
+        n_elements=n_el,
+        element_lengths=tuple(el),
+        density=_num(d, "density", w, 100, 30000, "kg/m^3"),
+        youngs_modulus=_num(d, "youngs_modulus", w, 1e6, 1e13, "Pa"),
+        poisson_ratio=_num(d, "poisson_ratio", w, 0, 0.5, "-"),
+        damping_alpha=_num(d, "damping_alpha", w, 0, 1e4, "1/s", default=0.0),
+        damping_beta=_num(d, "damping_beta", w, 0, 1, "s", default=0.0),
+    )
+
+
+def parse_excitation(d: dict, where: str, n_nodes: int) -> ExcitationEntry:
+    kind = _choice(d, "kind", where, ("unbalance", "force"))
+    direction = _choice(d, "direction", where, ("forward", "x", "y") if kind == "force" else ("forward",),
+                        default="forward" if kind == "unbalance" else ...)
+    if "phase" in d and "phase_deg" in d:
+        raise ParamError(f"{where}: give phase [rad] or phase_deg [deg], not both")
+    phase = _num(d, "phase", where, -1e3, 1e3, "rad", default=None)
+    if phase is None:
+        phase = math.radians(_num(d, "phase_deg", where, -1e5, 1e5, "deg", default=0.0))
+    return ExcitationEntry(
+        kind=kind,
+        node=_node(d, "node", where, n_nodes),
+        magnitude=_num(d, "magnitude", where, 0, 1e6, "kg m" if kind == "unbalance" else "N"),
+        phase=phase,
+        direction=direction,
+        frequency_ratio=_num(d, "frequency_ratio", where, 1e-3, 20, "-", default=1.0),
+    )
+
+
+def parse_rig(d: dict) -> RigParams:
+    """Validate a rig mapping (as loaded from YAML) into :class:`RigParams`."""
+    if not isinstance(d, dict):
+        raise ParamError("the rig file must be a YAML mapping")
+    shaft = parse_shaft(_section(d, "shaft", "rig"))
+    nn = shaft.n_nodes
+    discs = []
+    for i, dd in enumerate(_section(d, "discs", "rig", list, optional=True) or []):
+        w = f"discs[{i}]"
+        od = _num(dd, "outer_diameter", w, 1e-4, 10, "m")
+        idd = _num(dd, "inner_diameter", w, 0, od, "m", default=shaft.diameter)
+        discs.append(Disc(node=_node(dd, "node", w, nn), outer_diameter=od, inner_diameter=idd,
+                          thickness=_num(dd, "thickness", w, 1e-5, 10, "m"),
+                          density=_num(dd, "density", w, 100, 30000, "kg/m^3", default=shaft.density),
+                          mass_factor=_num(dd, "mass_factor", w, 0.01, 100, "-", default=1.0)))
+    bearings = []
+    for i, bd in enumerate(_section(d, "bearings", "rig", list)):
+        w = f"bearings[{i}]"
+        bearings.append(Bearing(
+            name=str(bd.get("name", f"bearing{i + 1}")), node=_node(bd, "node", w, nn),
+            diameter=_num(bd, "diameter", w, 1e-4, 10, "m"), length=_num(bd, "length", w, 1e-5, 10, "m"),
+            clearance=_num(bd, "clearance", w, 1e-7, 1e-2, "m"),
+            viscosity=_num(bd, "viscosity", w, 1e-5, 10, "Pa s"),
+            load=_num(bd, "load", w, 0, 1e7, "N", default=None, allow_none=True),
+            model=_choice(bd, "model", w, ("short", "finite"), default="short")))
+    if len({b.node for b in bearings}) != len(bearings):
+        raise ParamError("bearings: two bearings on one node")
+    probes = []
+    for i, pd in enumerate(_section(d, "probes", "rig", list, optional=True) or []):
+        w = f"probes[{i}]"
+        probes.append(Probe(name=str(pd.get("name", f"probe{i}")), node=_node(pd, "node", w, nn),
+                            direction=_choice(pd, "direction", w, ("x", "y"))))
+    sim = None
+    sd = _section(d, "simulation", "rig", optional=True)
+    if sd is not None:
+        w = "simulation"
+        td = _section(sd, "truth", w)
+        nb = len(bearings)
+
+        def per_bearing(key):
+            v = td.get(key, [1.0] * nb)
+            if not isinstance(v, list) or len(v) != nb:
+                raise ParamError(f"simulation.truth.{key} must be a list with one factor per bearing ({nb})")
+            return tuple(_num({"v": x}, "v", f"simulation.truth.{key}[{j}]", 0.05, 20, "-") for j, x in enumerate(v))
+
+        truth = Truth(bearing_model=_choice(td, "bearing_model", f"{w}.truth", ("short", "finite"), default="short"),
+                      viscosity_factor=per_bearing("viscosity_factor"),
+                      clearance_factor=per_bearing("clearance_factor"))
+        runs = []
+        for j, rd in enumerate(_section(sd, "runs", w, list)):
+            ex = tuple(parse_excitation(e, f"{w}.runs[{j}].excitation[{k}]", nn)
+                       for k, e in enumerate(_section(rd, "excitation", f"{w}.runs[{j}]", list)))
+            runs.append(Run(id=str(rd.get("id", chr(ord("A") + j))), excitation=ex))
+        speeds = _section(sd, "speeds_rpm", w, list)
+        sim = Simulation(
+            sample_rate=_num(sd, "sample_rate", w, 10, 1e7, "Hz"),
+            block_size=_int(sd, "block_size", w, 16, 1 << 20, default=1024),
+            speeds_rpm=tuple(_num({"v": s}, "v", f"{w}.speeds_rpm[{k}]", 0, 1e6, "rpm") for k, s in enumerate(speeds)),
+            dwell=_num(sd, "dwell", w, 1e-3, 1e5, "s"),
+            noise=_num(sd, "noise", w, 0, 1, "-", default=0.0),
+            seed=_int(sd, "seed", w, 0, 2**31, default=0),
+            truth=truth, runs=tuple(runs))
+    mt = None
+    md = _section(d, "modal_test", "rig", optional=True)
+    if md is not None:
+        mt = ModalTest(measured_hz=tuple(float(x) for x in md.get("measured_hz", [])),
+                       paper_initial_hz=tuple(float(x) for x in md.get("paper_initial_hz", [])),
+                       paper_updated_hz=tuple(float(x) for x in md.get("paper_updated_hz", [])))
+    return RigParams(name=str(d.get("name", "rig")), shaft=shaft, discs=tuple(discs), bearings=tuple(bearings),
+                     probes=tuple(probes), simulation=sim, modal_test=mt, extra=dict(d.get("extra", {}) or {}))
+
+
+def load_rig(path: str | Path | None = None) -> RigParams:
+    """Load a rig YAML file; ``None`` loads the packaged default ``params/rig.yaml``."""
+    path = Path(path) if path is not None else default_rig_path()
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ParamError(f"cannot read parameter file {path}: {exc}") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ParamError(f"{path} is not valid YAML: {exc}") from exc
+    try:
+        return parse_rig(data)
+    except ParamError as exc:
+        raise ParamError(f"{path}: {exc}") from exc
+
+
+def default_rig_path() -> Path:
+    """The packaged rig file: the source tree's params/ or the installed share/bearing_id/params/."""
+    cand = [PACKAGE_PARAMS / "rig.yaml"]
+    try:  # installed by colcon: <prefix>/share/bearing_id/params/rig.yaml
+        import sys
+        cand.append(Path(sys.prefix) / "share" / "bearing_id" / "params" / "rig.yaml")
+    except Exception:  # pragma: no cover
+        pass
+    for c in cand:
+        if c.exists():
+            return c
+    raise ParamError("no default params/rig.yaml found; pass --params")
+
+
+__all__ = ["ParamError", "Shaft", "Disc", "Bearing", "Probe", "ExcitationEntry", "Run", "Truth", "Simulation",
+           "ModalTest", "RigParams", "parse_rig", "load_rig", "default_rig_path", "GRAVITY"]
