@@ -121,9 +121,20 @@ def phasor_to_time(X, angle):
 
 def whirl_direction(X: complex, Y: complex) -> str:
     """'forward' or 'backward' for the orbit with phasors (X, Y) (x(t) = Re{X e^{jwt}}, same for y)."""
-    forward = abs(X - 1j * Y) / 2  # component turning +x -> +y
-    backward = abs(X + 1j * Y) / 2
+    # z = x + j y = (X + jY)/2 e^{j phi} + conj((X - jY)/2) e^{-j phi}: the first term turns +x -> +y
+    forward = abs(X + 1j * Y) / 2
+    backward = abs(X - 1j * Y) / 2
     return "forward" if forward >= backward else "backward"
+
+
+def orbit_semi_axes(X: complex, Y: complex) -> tuple[float, float]:
+    """Semi-major and semi-minor axes [same unit as X] of the elliptical orbit with phasors (X, Y).
+
+    The orbit is the sum of a forward circle of radius |X + jY|/2 and a backward one of radius |X - jY|/2.
+    """
+    f = abs(X + 1j * Y) / 2
+    b = abs(X - 1j * Y) / 2
+    return f + b, abs(f - b)
 
 
 # Rotation from our (x, y) to the bearing-literature frame (X along load = -y, Y = +x): q_lit = T q.
