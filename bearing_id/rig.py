@@ -176,15 +176,12 @@ def nominal_bearing_fn(rig: RigParams):
 
 
 def system_matrices(model, speed: float, coeffs: dict, effects=()):
-    """Truth (M, C, K) at ``speed`` [rad/s]: rotor + bearings (+ gyroscopics in C), then each effect's changes."""
-    M = model.M.copy()
-    C = model.C + speed * model.G
-    K = model.K.copy()
-    n = model.n_nodes
-    for node, (kb, cb) in coeffs.items():
-        i = dof_index(node, "x", n)
-        K[i:i + 2, i:i + 2] += kb
-        C[i:i + 2, i:i + 2] += cb
+    """Truth (M, C, K) at ``speed`` [rad/s]: rotor + bearings (+ gyroscopics in C), then each effect's changes.
+
+    Effects may append DOFs; the first ``model.ndof`` DOFs stay the rotor's.  Returned arrays are fresh copies.
+    """
+    from .rotor.assembly import system_matrices as rotor_system
+    M, C, K = (a.copy() for a in rotor_system(model, speed, coeffs))
     for e in effects:
         if hasattr(e, "modify_system"):
             M, C, K = e.modify_system(M, C, K, speed, model)
