@@ -1,0 +1,133 @@
+"""``bearing-id identify``: bearing coefficients per speed from recordings (.npz per run, or a bag), offline.
+
+Exit codes: 0 every printed coefficient is determined by the data (or --allow-undetermined was given);
+1 some coefficient is not determined by the data (they are named, never printed as numbers); 2 bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from ..params import ParamError, load_rig
+
+UNITS = {"K": "N/m", "C": "N s/m"}
+
+
+def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = sub.add_parser("identify", help="identify the bearing stiffness and damping coefficients per speed",
+                       description="Identify K [N/m] and C [N s/m] of each bearing per steady speed from .npz "
+                                   "recordings (one file per excitation run) or a bag. Coefficients the data do "
+                                   "not determine are named and the command exits 1 unless --allow-undetermined.")
+    p.add_argument("inputs", nargs="+", help=".npz recordings (one per run) or one bag (directory or .mcap)")
+    p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
+    p.add_argument("--method", default="paper", choices=("paper", "conventional", "direct", "physical"))
+    p.add_argument("--json", help="write the results to this JSON file")
+    p.add_argument("--plot", help="write coefficients-vs-speed plot (PNG)")
+    p.add_argument("--allow-undetermined", action="store_true",
+                   help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
+    p.add_argument("--Q", type=float, default=None, help="paper method: KF process noise (default 1e-16)")
+    return p
+
+
+def load_data(inputs):
+    """HarmonicData from .npz files or a bag."""
+    from ..identify import harmonics
+    paths = [Path(s) for s in inputs]
+    for p in paths:
+        if not p.exists():
+            raise FileNotFoundError(f"no such file: {p}")
+    if all(p.suffix == ".npz" for p in paths):
+        try:
+            return harmonics.from_npz(paths)
+        except ValueError as exc:
+            raise ParamError(str(exc)) from exc
+    if len(paths) != 1:
+        raise ParamError("give .npz recordings (one per run) or a single bag")
+    from ..io.bags import BagError
+    try:
+        return harmonics.from_bag(paths[0])
+    except (ValueError, BagError) as exc:
+        raise ParamError(str(exc)) from exc
+
+
+def _fmt(v):
+    return "nan" if not math.isfinite(v) else f"{v:.4g}"
+
+
+def format_results(results, allow_undetermined: bool) -> str:
+    """Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged."""
+    lines = []
+    for r in results:
+        lines.append(f"speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  "
+                     f"condition {_fmt(r.condition)}  residual {_fmt(r.residual)}")
+        lines.append(f"  {'bearing':10s} {'coeff':5s} {'value':>12s} {'1-sigma':>12s}  unit")
+        for b, name in enumerate(r.bearings):
+            for sym in ("K", "C"):
+                val, std, det = getattr(r, sym), getattr(r, sym + "_std"), getattr(r, sym + "_determined")
+                for k, lab in enumerate(("xx", "xy", "yx", "yy")):
+                    i, j = divmod(k, 2)
+                    if det[b, i, j]:
+                        lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} "
+                                     f"{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}")
+                    elif allow_undetermined:
+                        lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
+                                     f"{UNITS[sym]} (prior)")
+                    else:
+                        lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
+        for n in r.notes:
+            lines.append(f"  note: {n}")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from ..identify import identify
+    from ..rotor.assembly import RotorModel
+    rig = load_rig(args.params)
+    model = RotorModel.from_params(rig)
+    data = load_data(args.inputs)
+    for p in data.probes:
+        if p.node > model.n_nodes:
+            raise ParamError(f"probe {p.name} is at node {p.node} but the model has nodes 1..{model.n_nodes}")
+    opts = {}
+    if args.Q is not None:
+        if args.method != "paper":
+            raise ParamError("--Q applies to --method paper only")
+        opts["Q"] = args.Q
+    try:
+        results = identify(args.method, model, rig, data, options=opts or None)
+    except ValueError as exc:   # the data cannot feed this method (e.g. conventional without two probes per bearing)
+        raise ParamError(f"--method {args.method}: {exc}") from exc
+    print("units: speed rpm, K N/m, C N s/m")
+    print(format_results(results, args.allow_undetermined))
+    undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined]
+    if args.json:
+        out = []
+        for r in results:
+            d = r.to_dict()
+            if not args.allow_undetermined:  # never publish undetermined values as plain numbers
+                for b in d["bearings"]:
+                    for sym in ("K", "C"):
+                        b[sym] = [[v if ok else None for v, ok in zip(row, okr)]
+                                  for row, okr in zip(b[sym], b["determined"][sym])]
+            out.append(d)
+        Path(args.json).write_text(json.dumps({"method": args.method, "results": out}, indent=1))
+    if args.plot:
+        from ..plots import plot_coefficients
+        truth_fn = None
+        if data.truth:
+            truth_fn = lambda w: data.truth[min(data.truth, key=lambda s: abs(s - w))]  # noqa: E731
+        plot_coefficients(results, args.plot, truth_fn=truth_fn, title=f"method {args.method}")
+    if undet:
+        print("\nUNDETERMINED by the data (prior/theory-dominated"
+              + (", printed flagged '(prior)'" if args.allow_undetermined else ", not printed") + "):",
+              file=sys.stderr)
+        for rpm, names in undet:
+            print(f"  {rpm:.0f} rpm: {', '.join(names)}", file=sys.stderr)
+        if not args.allow_undetermined:
+            print("exit 1: add probes or directional-force runs (see the design check), or pass "
+                  "--allow-undetermined to print prior-dominated values flagged", file=sys.stderr)
+            return 1
+    return 0

@@ -1,0 +1,51 @@
+"""Bearing-coefficient identification: four methods, one result type, one experiment-design check.
+
+Every method returns ``list[IdentResult]`` (one per speed, :mod:`bearing_id.identify.result`), with K, C (nb, 2, 2)
+in N/m and N s/m, 1-sigma std, ``K_determined`` / ``C_determined`` masks, rank, unknowns, condition and residual.
+
+Methods and the agreed call signature (all four take the same positional arguments)::
+
+    identify_<method>(model, rig, data, probes, runs, options=None) -> list[IdentResult]
+
+    model   : rotor.assembly.RotorModel (the FE rotor WITHOUT bearings; nominal/updated).
+    rig     : params.RigParams (bearing geometry and nominal oil for the theory/prior).
+    data    : harmonics.HarmonicData -- measured 1X phasors per run and speed:
+              data.speeds (ns,) rad/s, data.X complex (nr, ns, nch) [m], data.X_std (nr, ns, nch) [m] (1-sigma of the
+              real and of the imaginary part), data.probes, data.runs; optionally data.recordings (the raw
+              rig.Recording list, needed by the KF route of the paper method).
+    probes  : tuple of params.Probe, one per channel of data.X (same order).
+    runs    : tuple of params.Run, one per run of data.X (the known excitation).
+    options : dict of method options (None = defaults); unknown keys are an error.
+
+* ``paper``        (paper.py)        -- KF bearing-node estimates, then eqs 19-37 least squares (Kang et al. 2020).
+* ``conventional`` (conventional.py) -- two probes per bearing interpolated to the bearing node, same solve.
+* ``direct``       (direct.py)       -- output-error fit of the impedances to all probes/runs through the FE model.
+* ``physical``     (physical.py)     -- viscosity/clearance per bearing fitted over all speeds at once.
+
+The experiment-design check is :func:`bearing_id.identify.design.check_design`.
+"""
+from __future__ import annotations
+
+import importlib
+
+from .result import IdentResult, eq38_error
+
+METHODS = ("paper", "conventional", "direct", "physical")
+
+
+def get_method(name: str):
+    """The identification function ``identify_<name>`` (see the module docstring for its signature)."""
+    if name not in METHODS:
+        raise ValueError(f"unknown identification method {name!r}: one of {METHODS}")
+    mod = importlib.import_module(f"bearing_id.identify.{name}")
+    return getattr(mod, f"identify_{name}")
+
+
+def identify(method: str, model, rig, data, probes=None, runs=None, options=None) -> list[IdentResult]:
+    """Run ``method`` on harmonic ``data`` (probes and runs default to the data's own)."""
+    fn = get_method(method)
+    return fn(model, rig, data, tuple(probes if probes is not None else data.probes),
+              tuple(runs if runs is not None else data.runs), options)
+
+
+__all__ = ["IdentResult", "eq38_error", "METHODS", "get_method", "identify"]

@@ -1,0 +1,100 @@
+"""The conventional two-probe method (De Santiago & San Andres 2007, as used by Kang et al. 2020 for comparison).
+
+For each bearing and direction, the shaft displacement at the bearing node is the straight-line interpolation (or
+extrapolation) along the shaft axis of two probes in that direction:
+    z_B = X_1 + (X_2 - X_1) (z_bearing - z_1) / (z_2 - z_1)      (z = axial position [m])
+then the same eqs 30-37 solve as the paper method (:func:`bearing_id.identify.paper.solve_coefficients`).
+Probe choice (default): the nearest probe node on each side of the bearing when there is one, otherwise the two
+nearest probe nodes on the same side; ``options['pairs'] = {bearing_node: (node_a, node_b)}`` overrides it.
+The straight line ignores the shaft's curvature: that bias is the method's, not the data's, and is not in the std.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .paper import DEFAULT_RTOL, build_result, forces_at, noise_rel_of, solve_coefficients
+from .result import IdentResult
+
+
+def probe_pairs(model, probes, pairs=None) -> dict:
+    """{(bearing_node, direction): ((channel_a, weight_a), (channel_b, weight_b))} for the interpolation.
+
+    Raises ValueError naming the bearing and direction that lack two probe nodes.
+    """
+    z = np.asarray(model.node_z, dtype=float)
+    out = {}
+    for n in model.bearing_nodes:
+        zb = z[n - 1]
+        for d in ("x", "y"):
+            chans = {}
+            for c, p in enumerate(probes):
+                if p.direction == d:
+                    chans.setdefault(p.node, c)
+            if pairs and n in pairs:
+                na, nb_ = pairs[n]
+                if na not in chans or nb_ not in chans:
+                    raise ValueError(f"conventional: pair {pairs[n]} for bearing node {n} needs probes in {d} at "
+                                     f"both nodes")
+            else:
+                if len(chans) < 2:
+                    raise ValueError(f"conventional method: bearing at node {n} has {len(chans)} probe node(s) in "
+                                     f"direction {d}; it needs two (one each side, or two on one side)")
+                left = sorted((k for k in chans if z[k - 1] < zb), key=lambda k: zb - z[k - 1])
+                right = sorted((k for k in chans if z[k - 1] >= zb), key=lambda k: z[k - 1] - zb)
+                if left and right:
+                    na, nb_ = left[0], right[0]
+                else:
+                    na, nb_ = (left or right)[:2]
+            za, zz = z[na - 1], z[nb_ - 1]
+            t = (zb - za) / (zz - za)
+            out[(n, d)] = ((chans[na], 1.0 - t), (chans[nb_], t))
+    return out
+
+
+def interpolate(model, probes, X, X_std=None, pairs=None):
+    """Bearing-node phasors z_B (..., nb, 2) from probe phasors X (..., nch); and their Re/Im 1-sigma if X_std given."""
+    pp = probe_pairs(model, probes, pairs)
+    X = np.asarray(X)
+    nb = len(model.bearing_nodes)
+    z = np.zeros(X.shape[:-1] + (nb, 2), dtype=complex)
+    zs = np.zeros(X.shape[:-1] + (nb, 2))
+    for b, n in enumerate(model.bearing_nodes):
+        for i, d in enumerate(("x", "y")):
+            (ca, wa), (cb, wb) = pp[(n, d)]
+            z[..., b, i] = wa * X[..., ca] + wb * X[..., cb]
+            if X_std is not None:
+                zs[..., b, i] = np.sqrt((wa * X_std[..., ca]) ** 2 + (wb * X_std[..., cb]) ** 2)
+    return z, (zs if X_std is not None else None)
+
+
+def identify_conventional(model, rig, data, probes, runs, options=None) -> list[IdentResult]:
+    """Two probes per bearing and direction, interpolated to the bearing node, then the paper's solve.
+
+    options : 'pairs' ({bearing_node: (node_a, node_b)}), 'bearing_fn' (theory for the data check; default the
+    nominal bearings), 'rtol', 'max_rel_std'.
+    """
+    opts = dict(options or {})
+    bad = set(opts) - {"pairs", "bearing_fn", "rtol", "max_rel_std"}
+    if bad:
+        raise ValueError(f"identify_conventional: unknown option(s) {sorted(bad)}")
+    bfn = opts.get("bearing_fn")
+    if bfn is None:
+        from ..rig import nominal_bearing_fn
+        bfn = nominal_bearing_fn(rig)
+    pp = probe_pairs(model, probes, opts.get("pairs"))
+    used = sorted({probes[c].node for v in pp.values() for c, _ in v})
+    zB_all, zs_all = interpolate(model, probes, data.X, data.X_std, opts.get("pairs"))
+    out = []
+    for s, w in enumerate(data.speeds):
+        w = float(w)
+        F = forces_at(model, runs, w)
+        sol = solve_coefficients(model, w, zB_all[:, s], F, z_B_std=zs_all[:, s],
+                                 rtol=opts.get("rtol", DEFAULT_RTOL))
+        notes = [f"bearing displacements interpolated from probe nodes {used} (straight line along the shaft)"]
+        out.append(build_result("conventional", model, rig, w, sol, probes=probes, forces=list(F),
+                                X_std_rel=noise_rel_of(data, s), theory=bfn(w), truth=data.truth_at(w),
+                                max_rel_std=opts.get("max_rel_std"), notes=notes, extra={"z_B": zB_all[:, s]}))
+    return out
+
+
+__all__ = ["probe_pairs", "interpolate", "identify_conventional"]

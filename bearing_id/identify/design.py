@@ -1,0 +1,281 @@
+"""Experiment-design check: what can a probe set and an excitation plan determine, per speed, and what to add.
+
+Data-driven information (all methods see the same measurements)
+    The measured 1X vectors are X[r, c] = S_c q_r with q_r = Z(beta)^-1 F_r.  Their Jacobian with respect to the 16
+    bearing coefficients beta = [K (nb x xx,xy,yx,yy); Omega C (same)] (both in N/m) is, analytically,
+    dq_r/dbeta_k = -Z^-1 (dZ/dbeta_k) q_r, with dZ/dK_ij = e_i e_j^T and dZ/d(Omega C)_ij = j e_i e_j^T at 1X.
+    Coefficients are scaled by a reference size per bearing and group (the Frobenius size of that bearing's K or
+    Omega C block / 2), and each real measurement (Re and Im of X[r, c]) is divided by its noise std, so the singular
+    values s_k of the whitened, scaled Jacobian give the 1-sigma of the parameter combination v_k as 1/s_k, relative
+    to the coefficient size.
+
+Rank rules (stated)
+    * structural rank: singular values above STRUCTURAL_RTOL x s_max (what no amount of averaging can fix);
+    * rank (noise-based): directions whose relative 1-sigma 1/s_k <= ``max_rel_std`` (default 0.05, i.e. the
+      combination is known to 5 % of the coefficients' size).
+    A coefficient is *determined* when at most NULL_FRACTION of its unit vector lies in the undetermined directions.
+
+Noise model
+    Each real component of X[r, c] has std ``noise_rel`` x RMS over channels of |X[r, :]| (the rig's noise is a
+    fraction of each channel's RMS; a harmonic fit over N samples reduces it by sqrt(N/2):
+    :func:`harmonic_noise_rel`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..conventions import COEFF_ORDER, dof_index, rad_s_to_rpm
+from ..params import ExcitationEntry, Probe, Run
+
+STRUCTURAL_RTOL = 1e-9
+NULL_FRACTION = 0.01
+DEFAULT_MAX_REL_STD = 0.05
+
+
+def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> float:
+    """Std of Re (or Im) of a fitted 1X vector relative to the amplitude, for sample noise ``sample_noise`` x RMS.
+
+    A sinusoid of amplitude a has RMS a/sqrt(2); the least-squares cos/sin coefficients over N samples have std
+    sigma sqrt(2/N); so std / a = sample_noise / sqrt(N).
+    """
+    return float(sample_noise) / math.sqrt(float(n_samples))
+
+
+def coefficient_labels(nodes) -> list[str]:
+    """Names of the 8 nb unknowns in the order used here: K of each bearing, then C of each bearing."""
+    out = [f"node{n}.K{c}" for n in nodes for c in COEFF_ORDER]
+    return out + [f"node{n}.C{c}" for n in nodes for c in COEFF_ORDER]
+
+
+def coefficient_scales(coeffs: dict, speed: float, nodes) -> np.ndarray:
+    """Reference size (8 nb,) [N/m] of each unknown (K, then Omega C) from the coefficients ``coeffs``."""
+    sk = [max(np.linalg.norm(coeffs[n][0]) / 2, 1e-300) for n in nodes]
+    sc = [max(speed * np.linalg.norm(coeffs[n][1]) / 2, 1e-300) for n in nodes]
+    return np.array([s for s in sk for _ in range(4)] + [s for s in sc for _ in range(4)])
+
+
+def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> tuple[np.ndarray, np.ndarray]:
+    """(J, X): J complex (n_runs * nch, 8 nb) d X / d beta [m per N/m] and X complex (n_runs * nch,) [m].
+
+    forces : list of complex (ndof,) 1X force phasors [N], one per run; probes : params.Probe list.
+    beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.
+    """
+    from ..rotor.assembly import dynamic_stiffness, probe_matrix
+    nodes = list(model.bearing_nodes)
+    nb = len(nodes)
+    Z = dynamic_stiffness(model, speed, speed, coeffs)
+    S = probe_matrix(model, probes)
+    F = np.array(forces, dtype=complex).T                     # (ndof, nr)
+    Q = np.linalg.solve(Z, F)                                  # (ndof, nr)
+    W = np.linalg.solve(Z.T, S.T).T                            # S Z^-1 (nch, ndof)
+    nch, nr = S.shape[0], F.shape[1]
+    J = np.zeros((nr, nch, 8 * nb), dtype=complex)
+    for b, n in enumerate(nodes):
+        ix = dof_index(n, "x", model.n_nodes)
+        for i in range(2):
+            for j in range(2):
+                col = -W[:, ix + i][None, :] * Q[ix + j, :][:, None]   # (nr, nch)
+                J[:, :, 4 * b + 2 * i + j] = col
+                J[:, :, 4 * nb + 4 * b + 2 * i + j] = 1j * col
+    X = (S @ Q).T                                              # (nr, nch)
+    return J.reshape(nr * nch, 8 * nb), X.reshape(nr * nch)
+
+
+@dataclass
+class Identifiability:
+    """SVD analysis of a whitened, scaled information matrix (see module docstring)."""
+    singular_values: np.ndarray
+    Vh: np.ndarray
+    rank: int
+    structural_rank: int
+    unknowns: int
+    condition: float
+    determined: np.ndarray          # (unknowns,) bool
+    rel_std: np.ndarray             # (unknowns,) 1-sigma relative to the coefficient scale, NaN if undetermined
+    undetermined_combinations: list = field(default_factory=list)
+
+
+def analyse(Jw: np.ndarray, labels=None, *, max_rel_std=DEFAULT_MAX_REL_STD) -> Identifiability:
+    """Identifiability of a real, whitened and scaled Jacobian ``Jw`` (m, n) (columns = scaled unknowns)."""
+    Jw = np.asarray(Jw, dtype=float)
+    n = Jw.shape[1]
+    _, s, Vh = np.linalg.svd(Jw, full_matrices=True)
+    sv = np.zeros(n)
+    sv[:s.size] = s
+    smax = sv[0] if sv.size and sv[0] > 0 else 1.0
+    structural = int(np.count_nonzero(sv > STRUCTURAL_RTOL * smax))
+    rank = int(np.count_nonzero(sv * max_rel_std >= 1.0))
+    rank = min(rank, structural)
+    null = Vh[rank:]
+    leak = np.sum(null**2, axis=0)
+    det = leak <= NULL_FRACTION
+    Vr = Vh[:rank]
+    with np.errstate(divide="ignore"):
+        var = np.sum((Vr / sv[:rank, None]) ** 2, axis=0) if rank else np.zeros(n)
+    rel_std = np.where(det, np.sqrt(var), np.nan)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    combos = []
+    labels = labels or [f"p{k}" for k in range(n)]
+    for v in null:
+        big = np.argsort(-np.abs(v))
+        terms = [f"{v[k]:+.2f} {labels[k]}" for k in big if abs(v[k]) >= 0.1][:6]
+        combos.append(" ".join(terms))
+    return Identifiability(sv, Vh, rank, structural, n, cond, det, rel_std, combos)
+
+
+def whitened_jacobian(model, speed, coeffs, probes, forces, noise_rel) -> tuple[np.ndarray, np.ndarray]:
+    """(Jw real (2 n_runs nch, 8 nb), scales (8 nb,)): scaled coefficient Jacobian divided by the noise std."""
+    nodes = list(model.bearing_nodes)
+    J, X = coefficient_jacobian(model, speed, coeffs, probes, forces)
+    scale = coefficient_scales(coeffs, speed, nodes)
+    nch = len(probes)
+    Xr = X.reshape(-1, nch)
+    sig = noise_rel * np.sqrt(np.mean(np.abs(Xr) ** 2, axis=1))           # per run
+    sig = np.repeat(np.maximum(sig, 1e-300), nch)
+    Js = J * scale[None, :] / sig[:, None]
+    return np.vstack([Js.real, Js.imag]), scale
+
+
+@dataclass
+class DesignReport:
+    """Design check at one speed.  ``methods`` maps a method name to its Identifiability (or a reason string)."""
+    speed: float
+    data: Identifiability
+    methods: dict
+    advice: list
+    labels: list
+
+    @property
+    def speed_rpm(self) -> float:
+        return float(rad_s_to_rpm(self.speed))
+
+    def summary(self) -> str:
+        lines = [f"{self.speed_rpm:7.0f} rpm: data rank {self.data.rank} of {self.data.unknowns} "
+                 f"(structural {self.data.structural_rank}), condition {self.data.condition:.3g}"]
+        for m, v in self.methods.items():
+            lines.append(f"    {m:12s}: " + (v if isinstance(v, str) else
+                                            f"rank {v.rank} of {v.unknowns}, condition {v.condition:.3g}"))
+        if self.data.undetermined_combinations:
+            lines.append("    undetermined combinations: " + "; ".join(self.data.undetermined_combinations[:4])
+                         + (" ..." if len(self.data.undetermined_combinations) > 4 else ""))
+        for a in self.advice:
+            lines.append(f"    advice: {a}")
+        return "\n".join(lines)
+
+
+def _forces(runs, speed, n_nodes):
+    from ..excitation import harmonic_forces
+    out = []
+    for r in runs:
+        F = harmonic_forces(r.excitation, speed, n_nodes).get(1.0)
+        out.append(F if F is not None else np.zeros(4 * n_nodes, dtype=complex))
+    return out
+
+
+def _score(model, speed, coeffs, probes, forces, noise_rel, max_rel_std):
+    Jw, _ = whitened_jacobian(model, speed, coeffs, probes, forces, noise_rel)
+    a = analyse(Jw, max_rel_std=max_rel_std)
+    s = a.singular_values[: a.unknowns]
+    logdet = float(np.sum(np.log(np.maximum(s, 1e-300))))
+    return a.rank, logdet, a
+
+
+def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT_MAX_REL_STD, max_steps=4,
+           force_magnitude=2.0, disc_nodes=None) -> list[str]:
+    """Greedy advice: add the probe (node, x|y) or directional-force run (disc node, x|y) that raises the rank most.
+
+    Ties on rank are broken by the log-determinant of the information (sum of log singular values).  Stops at full
+    rank or after ``max_steps`` additions.  Returns human-readable lines.
+    """
+    probes, runs = list(probes), list(runs)
+    disc_nodes = disc_nodes if disc_nodes is not None else sorted(model.discs)
+    have = {(p.node, p.direction) for p in probes}
+    out = []
+    rank, logdet, a = _score(model, speed, coeffs, probes, _forces(runs, speed, model.n_nodes), noise_rel,
+                             max_rel_std)
+    for _ in range(max_steps):
+        if rank >= a.unknowns:
+            break
+        best = None
+        cand = [("probe", Probe(f"p{n}{d}", n, d)) for n in range(1, model.n_nodes + 1) for d in ("x", "y")
+                if (n, d) not in have]
+        cand += [("force", Run(f"F{n}{d}", (ExcitationEntry("force", n, force_magnitude, 0.0, d, 1.0),)))
+                 for n in disc_nodes for d in ("x", "y")
+                 if not any(e.kind == "force" and e.node == n and e.direction == d for r in runs
+                            for e in r.excitation)]
+        for kind, c in cand:
+            pr = probes + [c] if kind == "probe" else probes
+            rn = runs + [c] if kind == "force" else runs
+            r2, ld2, a2 = _score(model, speed, coeffs, pr, _forces(rn, speed, model.n_nodes), noise_rel,
+                                 max_rel_std)
+            key = (r2, ld2)
+            if best is None or key > best[0]:
+                best = (key, kind, c, a2)
+        if best is None or best[0][0] <= rank and best[0][1] <= logdet:
+            break
+        (rank, logdet), kind, c, a = best
+        if kind == "probe":
+            probes.append(c)
+            have.add((c.node, c.direction))
+            out.append(f"add a probe at node {c.node} direction {c.direction} -> rank {rank} of {a.unknowns}")
+        else:
+            runs.append(c)
+            e = c.excitation[0]
+            out.append(f"add a run with a {force_magnitude:g} N synchronous force in {e.direction} at node {e.node} "
+                       f"-> rank {rank} of {a.unknowns}")
+    return out
+
+
+def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sample_noise=0.01, n_samples=20480,
+                 max_rel_std=DEFAULT_MAX_REL_STD, advice=True, max_steps=4) -> list[DesignReport]:
+    """Rank and condition per speed [rad/s] for ``probes`` (params.Probe) and ``runs`` (params.Run), with advice.
+
+    bearing_fn : speed -> {node: (K, C)}, the coefficients to linearise at (theory, or an identified result).
+    noise_rel : std of Re/Im of each 1X vector relative to the run's RMS amplitude (default
+        :func:`harmonic_noise_rel` (sample_noise, n_samples)).
+
+    Methods reported: 'direct' (the 16 coefficients from all probes and runs), 'paper' (the same data through the
+    KF -- the data cannot carry more than this -- capped by the eqs 33-37 system on bearing displacements),
+    'conventional' (needs two probes per bearing and direction).
+    """
+    from .paper import ls_system
+    noise_rel = harmonic_noise_rel(sample_noise, n_samples) if noise_rel is None else float(noise_rel)
+    nodes = list(model.bearing_nodes)
+    labels = coefficient_labels(nodes)
+    out = []
+    for w in np.atleast_1d(speeds):
+        w = float(w)
+        coeffs = bearing_fn(w)
+        forces = _forces(runs, w, model.n_nodes)
+        Jw, scale = whitened_jacobian(model, w, coeffs, probes, forces, noise_rel)
+        data = analyse(Jw, labels, max_rel_std=max_rel_std)
+        methods = {"direct": data}
+        # the eqs 33-37 system itself, on the model's bearing displacements (its own algebraic rank)
+        from ..rotor.assembly import harmonic_response
+        zb = []
+        for F in forces:
+            q = harmonic_response(model, w, w, F, coeffs)
+            zb.append([[q[dof_index(n, "x", model.n_nodes)], q[dof_index(n, "y", model.n_nodes)]] for n in nodes])
+        A, _ = ls_system(np.array(zb), np.zeros((len(forces), len(nodes), 2), dtype=complex))
+        s = np.linalg.svd(A * scale[None, :], compute_uv=False)
+        ls_rank = int(np.count_nonzero(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
+        methods["paper"] = (f"rank {min(ls_rank, data.rank)} of {data.unknowns} (eqs 33-37 system rank {ls_rank}; "
+                            f"the KF adds no information beyond the data rank {data.rank})")
+        try:
+            from .conventional import probe_pairs
+            probe_pairs(model, probes)
+            methods["conventional"] = methods["paper"]
+        except ValueError as exc:
+            methods["conventional"] = f"not applicable: {exc}"
+        adv = advise(model, w, coeffs, probes, runs, noise_rel, max_rel_std=max_rel_std, max_steps=max_steps) \
+            if advice and data.rank < data.unknowns else []
+        out.append(DesignReport(w, data, methods, adv, labels))
+    return out
+
+
+__all__ = ["harmonic_noise_rel", "coefficient_labels", "coefficient_scales", "coefficient_jacobian", "analyse",
+           "whitened_jacobian", "Identifiability", "DesignReport", "advise", "check_design", "STRUCTURAL_RTOL",
+           "NULL_FRACTION", "DEFAULT_MAX_REL_STD"]

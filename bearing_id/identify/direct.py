@@ -1,0 +1,354 @@
+"""``direct`` method: output-error fit of both bearings' K and C to the measured 1X phasors through the FE model.
+
+Model (per speed Omega, synchronous excitation, conventions of :mod:`bearing_id.conventions`)::
+
+    Z(beta) q_r = F_r,      Z(beta) = Z_rotor(Omega) + sum_k beta_k dZ_k,      y_r = P_r q_r
+
+``beta`` = the 16 real unknowns (per bearing Kxx Kxy Kyx Kyy [N/m], then Cxx Cxy Cyx Cyy [N s/m]); ``dZ_k`` is a single
+entry (1 for a K entry, j Omega for a C entry) at the bearing's (x, y) DOFs; ``F_r`` the known force phasors of run r
+(:func:`bearing_id.excitation.harmonic_forces`); ``P_r`` its probe selection.  Z is linear in beta, so the Jacobian is
+exact and cheap:  dq/dbeta_k = -Z^-1 dZ_k q.
+
+Fit: weighted least squares on Re and Im of (P q - X) / sigma (sigma = 1-sigma of the measured Re/Im), solved with
+scipy.optimize.least_squares from the theory, in scaled unknowns theta = beta / s (s = the largest |entry| of the
+theory block: the problem is then well conditioned in the parameters).  Optional Gaussian prior toward the theory:
+``prior_weight`` w adds rows sqrt(w) (theta - theta_theory), i.e. a prior 1-sigma of s / sqrt(w) per coefficient
+(w = 4: 50 % of the block scale; w = 0: no prior).
+
+What the data determine: the data-only information matrix I = J^T J (J the weighted Jacobian in theta at the
+solution) is analysed by SVD.  ``rank`` counts singular values of J above 1e-8 x the largest; ``condition`` is
+s_max / s_min of J (inf when rank deficient).  A coefficient is ``determined`` when its unit vector lies in the row
+space of J (its leakage into the numerical null space < 1e-6: an estimable quantity), and, with a prior, when the
+posterior variance is below 0.25 x the prior variance (the data, not the prior, fix it); in both cases its 1-sigma
+must also be below ``max_rel_std`` (default 10 %) of its block scale (an estimable coefficient swamped by noise is
+not "determined").  Std: without prior, the
+pseudo-inverse of I (correct for estimable coefficients), NaN for the others; with a prior, the posterior
+(I + I_prior)^-1.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..conventions import dof_index
+from ..excitation import harmonic_forces
+from ..rotor.assembly import dynamic_stiffness, probe_matrix
+from .result import IdentResult, empty_result
+
+RANK_RTOL = 1e-8          # singular values of the weighted Jacobian below this x the largest count as zero
+LEAK_TOL = 1e-6           # a coefficient is estimable when |projection of e_k onto the null space| < this
+PRIOR_DOMINANCE = 0.25    # with a prior: determined only if posterior var < this x prior var
+MAX_REL_STD = 0.10        # determined only if 1-sigma < this x the block scale (estimable but noise-swamped otherwise)
+K_SCALE_DEFAULT = 1e5     # N/m, scale of the K unknowns when no theory is given
+C_SCALE_DEFAULT = 1e2     # N s/m
+
+
+@dataclass
+class Case:
+    """One excitation run at one speed: the data the output-error fit sees.
+
+    F : complex (ndof,) force phasors [N] at the rotor speed (the synchronous component).
+    probes : sequence of params.Probe (or (node, direction)), one per channel.
+    X : complex (nch,) measured 1X phasors [m].
+    X_std : (nch,) 1-sigma of Re X and of Im X [m].
+    """
+    F: np.ndarray
+    probes: tuple
+    X: np.ndarray
+    X_std: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------------ parametrisation
+def coeffs_to_beta(coeffs: dict, nodes) -> np.ndarray:
+    """{node: (K, C)} -> beta (8 nb,) ordered per bearing [Kxx Kxy Kyx Kyy Cxx Cxy Cyx Cyy]."""
+    return np.concatenate([np.concatenate([np.asarray(coeffs[n][0], float).reshape(4),
+                                           np.asarray(coeffs[n][1], float).reshape(4)]) for n in nodes])
+
+
+def beta_to_coeffs(beta: np.ndarray, nodes) -> dict:
+    """beta (8 nb,) -> {node: (K (2,2), C (2,2))}."""
+    beta = np.asarray(beta, float)
+    return {int(n): (beta[8 * i:8 * i + 4].reshape(2, 2).copy(), beta[8 * i + 4:8 * i + 8].reshape(2, 2).copy())
+            for i, n in enumerate(nodes)}
+
+
+def default_scale(nodes, theory: dict | None = None) -> np.ndarray:
+    """Scale s (8 nb,) of the unknowns: max |entry| of each theory block (K or C per bearing), else 1e5 / 1e2."""
+    s = []
+    for n in nodes:
+        for j, default in ((0, K_SCALE_DEFAULT), (1, C_SCALE_DEFAULT)):
+            v = default
+            if theory is not None and n in theory:
+                m = float(np.max(np.abs(theory[n][j])))
+                if m > 0 and math.isfinite(m):
+                    v = m
+            s.extend([v] * 4)
+    return np.asarray(s)
+
+
+def _bearing_dofs(model, nodes) -> np.ndarray:
+    return np.array([[dof_index(n, "x", model.n_nodes), dof_index(n, "y", model.n_nodes)] for n in nodes])
+
+
+# ------------------------------------------------------------------------------------------------ forward model
+def response_and_jacobian(model, speed: float, cases, beta: np.ndarray, nodes, *, Z0=None):
+    """Predicted probe phasors and their derivatives w.r.t. beta at one speed.
+
+    Parameters
+    ----------
+    model : rotor.assembly.RotorModel (no bearings).   speed : rad/s (the excitation frequency is the speed: 1X).
+    cases : list of :class:`Case`.   beta : (8 nb,) bearing coefficients in SI (see :func:`coeffs_to_beta`).
+    nodes : 1-based bearing nodes (nb,).   Z0 : optional precomputed rotor dynamic stiffness at this speed.
+
+    Returns
+    -------
+    y : list of complex (nch_r,) predicted phasors [m];  dy : list of complex (nch_r, 8 nb) d y / d beta.
+    """
+    if Z0 is None:
+        Z0 = dynamic_stiffness(model, speed, speed, {})
+    Z = Z0.copy()
+    bd = _bearing_dofs(model, nodes)
+    w = speed
+    for i in range(len(nodes)):
+        a = bd[i]
+        blk = beta[8 * i:8 * i + 4].reshape(2, 2) + 1j * w * beta[8 * i + 4:8 * i + 8].reshape(2, 2)
+        Z[np.ix_(a, a)] += blk
+    flat = bd.reshape(-1)                                     # (2 nb,) bearing DOFs
+    E = np.zeros((Z.shape[0], flat.size), dtype=complex)
+    E[flat, np.arange(flat.size)] = 1.0
+    F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
+    sol = np.linalg.solve(Z, np.concatenate([F, E], axis=1))  # q for every run, Z^-1 columns at bearing DOFs
+    Q, Ginv = sol[:, :F.shape[1]], sol[:, F.shape[1]:]
+    ys, dys = [], []
+    for r, c in enumerate(cases):
+        P = probe_matrix(model, c.probes)
+        q = Q[:, r]
+        PG = P @ Ginv                                         # (nch, 2 nb)
+        d = np.zeros((P.shape[0], 8 * len(nodes)), dtype=complex)
+        for i in range(len(nodes)):
+            qb = q[bd[i]]                                     # (2,) bearing-node displacement
+            for row in range(2):
+                col_g = PG[:, 2 * i + row]
+                for col in range(2):
+                    k = 2 * row + col
+                    d[:, 8 * i + k] = -col_g * qb[col]
+                    d[:, 8 * i + 4 + k] = -col_g * qb[col] * (1j * w)
+        ys.append(P @ q)
+        dys.append(d)
+    return ys, dys
+
+
+# ------------------------------------------------------------------------------------------------ information analysis
+def information_analysis(J: np.ndarray):
+    """SVD analysis of a weighted Jacobian J (m, n): rank, condition, pseudo-inverse information, leakage per unknown.
+
+    Returns dict: rank, condition (inf if rank < n), condition_range (s_max / s_rank: conditioning of what is
+    determined), singular (s,), cov_pinv (n, n) = (J^T J)^+, leakage (n,) = norm of e_k's projection on the null space.
+    """
+    n = J.shape[1]
+    if J.shape[0] == 0:
+        return dict(rank=0, condition=math.inf, condition_range=math.inf, singular=np.zeros(0),
+                    cov_pinv=np.full((n, n), np.nan), leakage=np.ones(n))
+    U, s, Vt = np.linalg.svd(J, full_matrices=True)
+    smax = s[0] if s.size else 0.0
+    rank = int(np.count_nonzero(s > RANK_RTOL * smax)) if smax > 0 else 0
+    V = Vt.T
+    Vr, V0 = V[:, :rank], V[:, rank:]
+    cov = (Vr / s[:rank] ** 2) @ Vr.T if rank else np.zeros((n, n))
+    leak = np.linalg.norm(V0, axis=1) if V0.size else np.zeros(n)
+    cond = float(smax / s[n - 1]) if rank == n else math.inf
+    cond_r = float(smax / s[rank - 1]) if rank else math.inf
+    return dict(rank=rank, condition=cond, condition_range=cond_r, singular=s, cov_pinv=cov, leakage=leak)
+
+
+def _sigma(c: Case) -> np.ndarray:
+    X = np.asarray(c.X, dtype=complex)
+    s = np.asarray(c.X_std, dtype=float)
+    floor = 1e-12 * max(float(np.max(np.abs(X))), 1e-30)
+    return np.maximum(np.where(np.isfinite(s), s, np.inf), floor)
+
+
+def weighted_stack(cases, ys, dys, scale):
+    """Weighted real residual (Re and Im of (y - X) / sigma per case) and its Jacobian times ``scale`` (columns)."""
+    r, J = [], []
+    for c, y, d in zip(cases, ys, dys):
+        sg = _sigma(c)
+        e = (y - np.asarray(c.X, dtype=complex)) / sg
+        dd = d * scale[None, :] / sg[:, None]
+        r += [e.real, e.imag]
+        J += [dd.real, dd.imag]
+    return np.concatenate(r), np.vstack(J)
+
+
+# ------------------------------------------------------------------------------------------------ one speed
+def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, start: dict | None = None,
+              prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = "direct",
+              max_nfev: int = 200, max_rel_std: float = MAX_REL_STD) -> IdentResult:
+    """Output-error fit of the 8 nb bearing coefficients at one speed.
+
+    Parameters
+    ----------
+    model : RotorModel without bearings.   speed : rad/s.   cases : list of :class:`Case` (runs at this speed).
+    nodes : 1-based bearing nodes.   theory : {node: (K, C)} theory (scale, start and prior mean).
+    start : {node: (K, C)} start of the iteration (default: theory).
+    prior_weight : w >= 0; prior 1-sigma = scale / sqrt(w) per coefficient (0 = no prior).
+    scale : (8 nb,) scale of the unknowns (default :func:`default_scale`).
+
+    Returns
+    -------
+    IdentResult (method 'direct'); ``extra`` holds theta covariance, singular values, chi2 and the prior used.
+    """
+    nodes = tuple(int(n) for n in nodes)
+    nb = len(nodes)
+    n = 8 * nb
+    names = bearings or tuple(f"bearing{i + 1}" for i in range(nb))
+    if prior_weight < 0 or not math.isfinite(prior_weight):
+        raise ValueError(f"prior_weight must be a finite number >= 0, got {prior_weight!r}")
+    if prior_weight > 0 and theory is None:
+        raise ValueError("a prior (prior_weight > 0) needs the theory coefficients")
+    res = empty_result(speed, method_name, names, nodes)
+    cases = [c for c in cases if np.all(np.isfinite(np.asarray(c.X)))]
+    if not cases:
+        res.notes.append("no finite measurements at this speed")
+        return res
+    scale = np.asarray(scale if scale is not None else default_scale(nodes, theory), float)
+    beta0 = coeffs_to_beta(start if start is not None else theory, nodes) if (start or theory) is not None \
+        else np.zeros(n)
+    theta0 = beta0 / scale
+    theta_p = coeffs_to_beta(theory, nodes) / scale if theory is not None else None
+    sw = math.sqrt(prior_weight)
+    Z0 = dynamic_stiffness(model, speed, speed, {})
+
+    def fun_jac(theta):
+        ys, dys = response_and_jacobian(model, speed, cases, theta * scale, nodes, Z0=Z0)
+        r, J = weighted_stack(cases, ys, dys, scale)
+        if sw > 0:
+            r = np.concatenate([r, sw * (theta - theta_p)])
+            J = np.vstack([J, sw * np.eye(n)])
+        return r, J
+
+    cache = {}
+
+    def f(theta):
+        cache["rj"] = fun_jac(theta)
+        cache["x"] = theta.copy()
+        return cache["rj"][0]
+
+    def jac(theta):
+        if "x" not in cache or not np.array_equal(cache["x"], theta):
+            f(theta)
+        return cache["rj"][1]
+
+    m = f(theta0).size
+    sol = least_squares(f, theta0, jac=jac, method="lm" if m >= n else "trf", x_scale=1.0, xtol=1e-12, ftol=1e-12,
+                        gtol=1e-12, max_nfev=max_nfev)
+    theta = sol.x
+    beta = theta * scale
+    ys, dys = response_and_jacobian(model, speed, cases, beta, nodes, Z0=Z0)
+    r_data, J_data = weighted_stack(cases, ys, dys, scale)
+    info = information_analysis(J_data)
+    dof = max(r_data.size - info["rank"], 1)
+    chi2 = float(r_data @ r_data)
+    if sw > 0:
+        post = np.linalg.inv(J_data.T @ J_data + prior_weight * np.eye(n))
+        prior_var = 1.0 / prior_weight
+        var = np.diag(post)
+        determined = (info["leakage"] < LEAK_TOL) & (var < PRIOR_DOMINANCE * prior_var)
+        std_theta = np.sqrt(var)
+        cov_theta = post
+    else:
+        determined = info["leakage"] < LEAK_TOL
+        cov_theta = info["cov_pinv"]
+        std_theta = np.where(determined, np.sqrt(np.clip(np.diag(cov_theta), 0, None)), np.nan)
+    determined = determined & (std_theta < max_rel_std)      # theta is in units of the block scale
+    std = std_theta * scale
+    num = math.sqrt(sum(float(np.sum(np.abs(y - c.X) ** 2)) for c, y in zip(cases, ys)))
+    den = math.sqrt(sum(float(np.sum(np.abs(c.X) ** 2)) for c in cases))
+    for i in range(nb):
+        res.K[i] = beta[8 * i:8 * i + 4].reshape(2, 2)
+        res.C[i] = beta[8 * i + 4:8 * i + 8].reshape(2, 2)
+        res.K_std[i] = std[8 * i:8 * i + 4].reshape(2, 2)
+        res.C_std[i] = std[8 * i + 4:8 * i + 8].reshape(2, 2)
+        res.K_determined[i] = determined[8 * i:8 * i + 4].reshape(2, 2)
+        res.C_determined[i] = determined[8 * i + 4:8 * i + 8].reshape(2, 2)
+    res.rank, res.unknowns, res.condition = info["rank"], n, info["condition"]
+    res.residual = num / den if den > 0 else math.nan
+    nund = int(np.count_nonzero(~determined))
+    res.notes.append(f"direct output-error fit: {len(cases)} run(s), {r_data.size} real equations, rank "
+                     f"{info['rank']} of {n}; chi2/dof = {chi2 / dof:.3g}")
+    if nund:
+        res.notes.append(f"{nund} of {n} coefficients not determined by the data (outside the data's row space, "
+                         f"or 1-sigma > {max_rel_std:.0%} of scale"
+                         + ("; values are prior-dominated)" if sw > 0 else "; values are the start's)"))
+    if not sol.success:
+        res.notes.append(f"least_squares did not converge: {sol.message}")
+    res.extra.update(theta=theta, scale=scale, cov_theta=cov_theta, singular=info["singular"],
+                     condition_range=info["condition_range"], leakage=info["leakage"], chi2=chi2, dof=dof,
+                     prior_weight=prior_weight, theory=theory, nfev=sol.nfev)
+    return res
+
+
+# ------------------------------------------------------------------------------------------------ all speeds
+def cases_from_data(model, data, probes, runs, i_speed: int) -> list[Case]:
+    """The :class:`Case` list of speed index ``i_speed`` from harmonic data (X (nr, ns, nch), X_std alike)."""
+    W = float(data.speeds[i_speed])
+    out = []
+    for r, run in enumerate(runs):
+        X = np.asarray(data.X[r, i_speed], dtype=complex)
+        if not np.all(np.isfinite(X)):
+            continue
+        F = harmonic_forces(run.excitation, W, model.n_nodes).get(1.0)
+        if F is None:
+            continue  # no synchronous excitation in this run: nothing for a 1X fit
+        out.append(Case(F=F, probes=tuple(probes), X=X, X_std=np.asarray(data.X_std[r, i_speed], dtype=float)))
+    return out
+
+
+OPTIONS = {"prior_weight": 0.0, "theory": None, "bearing_model": None, "max_nfev": 200, "max_rel_std": MAX_REL_STD}
+
+
+def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
+    """``direct`` identification at every speed of ``data`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : rotor.assembly.RotorModel (no bearings).   rig : params.RigParams (bearing nodes/names, theory).
+    data : harmonic data with ``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]
+        (1-sigma of Re and Im), ``probes``, ``runs``.
+    probes, runs : override data.probes / data.runs.
+    options / keywords : ``prior_weight`` (>= 0, default 0 = no prior), ``theory`` (bearing_fn speed -> coeffs;
+        default the nominal theory of ``rig`` with ``bearing_model``), ``bearing_model`` ('short'/'finite'/None =
+        the rig's), ``max_nfev``, ``max_rel_std`` (0.10).
+
+    Returns
+    -------
+    list of IdentResult (one per speed), method 'direct'.
+    """
+    opts = dict(OPTIONS)
+    for k, v in {**(options or {}), **kw}.items():
+        if k not in OPTIONS:
+            raise ValueError(f"direct: unknown option {k!r} (known: {sorted(OPTIONS)})")
+        opts[k] = v
+    probes = tuple(probes if probes is not None else data.probes)
+    runs = tuple(runs if runs is not None else data.runs)
+    theory_fn = opts["theory"]
+    if theory_fn is None:
+        from .. import bearings
+        theory_fn = bearings.bearing_fn(rig, model=opts["bearing_model"])
+    nodes = tuple(b.node for b in rig.bearings)
+    names = tuple(b.name for b in rig.bearings)
+    out = []
+    for i, W in enumerate(np.asarray(data.speeds, float)):
+        cases = cases_from_data(model, data, probes, runs, i)
+        th = theory_fn(float(W))
+        out.append(fit_speed(model, float(W), cases, nodes, theory=th, prior_weight=float(opts["prior_weight"]),
+                             bearings=names, max_nfev=int(opts["max_nfev"]),
+                             max_rel_std=float(opts["max_rel_std"])))
+    return out
+
+
+__all__ = ["Case", "coeffs_to_beta", "beta_to_coeffs", "default_scale", "response_and_jacobian",
+           "information_analysis", "weighted_stack", "fit_speed", "cases_from_data", "identify_direct"]

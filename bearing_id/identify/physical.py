@@ -1,0 +1,282 @@
+"""``physical`` method: a few bearing-model parameters per bearing, fitted across all speeds at once.
+
+Instead of 16 free coefficients per speed, each bearing's K and C at every speed come from the bearing model
+(:func:`bearing_id.bearings.coefficients`, short/Ocvirk or finite Reynolds) with unknown effective viscosity mu [Pa s]
+and radial clearance c [m] (and, as an option, static load W [N]).  The unknowns are p = log(mu_i), log(c_i)
+(, log(W_i)) -- positive by construction, and the std of a log-parameter is the relative std of the parameter.
+
+Fit: weighted output-error least squares of the predicted probe phasors P Z(beta(p, Omega))^-1 F_r to the measured
+1X phasors of every run and speed (sigma = their 1-sigma), scipy.optimize.least_squares (trust region, bounds a factor
+10 either side of the nominal).  Jacobian: d y / d p = (d y / d beta)(d beta / d p) with d y / d beta exact
+(:func:`bearing_id.identify.direct.response_and_jacobian`) and d beta / d p by central differences through the
+bearing model (relative step 1e-4).
+
+Uncertainty: parameter covariance (J^T J)^+ (J weighted, in log p) at the solution; rank and condition from its SVD
+(:func:`bearing_id.identify.direct.information_analysis`).  The coefficients at each speed follow by the delta method,
+cov_beta = G cov_p G^T with G = d beta / d p.  A coefficient is ``determined`` when its gradient G_k lies in the row
+space of J (relative leakage into the null space < 1e-4), so it stays determined even when the parameters themselves
+are not (e.g. with ``load=True``: in a Reynolds bearing model of fixed geometry K = (W/c) k(eps), C = W/(c Omega)
+c(eps) and eps depends on mu Omega / (W c^2) only, so (mu, c, W) enter through two combinations: rank 2 per bearing).
+
+Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is biased
+(the benchmark reports by how much).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..rotor.assembly import dynamic_stiffness, static_bearing_loads
+from .direct import cases_from_data, information_analysis, response_and_jacobian, weighted_stack
+from .result import IdentResult, empty_result
+
+PARAM_NAMES = ("viscosity", "clearance", "load")
+FD_STEP = 1e-4               # central-difference step in log-parameter
+BOUND_FACTOR = 10.0          # parameters are kept within [nominal / 10, nominal x 10]
+LEAK_TOL = 1e-4              # relative leakage of a coefficient gradient into the parameter null space
+
+
+@dataclass
+class PhysicalFit:
+    """Fitted bearing-model parameters.
+
+    names : ('bearing1.viscosity', ...).   values : (np,) SI [Pa s, m, N].   nominal : (np,) starting values.
+    rel_std : (np,) 1-sigma of log(value) = relative std (NaN where undetermined).   cov_log : (np, np).
+    determined : (np,) bool.   rank, unknowns, condition, residual (relative, all data), chi2, dof.
+    bearing_model : 'short' | 'finite'.   loads : {node: W [N]} used for bearings whose load is not fitted.
+    """
+    names: tuple
+    values: np.ndarray
+    nominal: np.ndarray
+    rel_std: np.ndarray
+    cov_log: np.ndarray
+    determined: np.ndarray
+    rank: int
+    unknowns: int
+    condition: float
+    residual: float
+    chi2: float
+    dof: int
+    bearing_model: str
+    loads: dict
+    notes: list = field(default_factory=list)
+
+    @property
+    def std(self) -> np.ndarray:
+        """Absolute 1-sigma [SI] (first order: value x rel_std)."""
+        return self.values * self.rel_std
+
+    def as_dict(self) -> dict:
+        return {n: {"value": float(v), "rel_std": float(s), "determined": bool(d)}
+                for n, v, s, d in zip(self.names, self.values, self.rel_std, self.determined)}
+
+
+class _Parametrisation:
+    """log-parameters p <-> per-bearing (viscosity, clearance, load), and the coefficients they give."""
+
+    def __init__(self, model, rig, params, load, bearing_model):
+        from .. import bearings as bearing_models
+        self._bm = bearing_models
+        for p in params:
+            if p not in ("viscosity", "clearance"):
+                raise ValueError(f"physical: params must be among ('viscosity', 'clearance'), got {p!r}")
+        self.fitted = tuple(params) + (("load",) if load else ())
+        if not self.fitted:
+            raise ValueError("physical: nothing to fit")
+        self.rig = rig
+        self.bearings = tuple(rig.bearings)
+        self.nodes = tuple(b.node for b in self.bearings)
+        self.model_name = bearing_model
+        statics = None
+        self.loads = {}
+        for b in self.bearings:
+            if b.load is not None:
+                self.loads[b.node] = float(b.load)
+            else:
+                statics = statics or static_bearing_loads(model, self.nodes)
+                self.loads[b.node] = float(statics[b.node])
+        self.names = tuple(f"{b.name}.{p}" for b in self.bearings for p in self.fitted)
+        nom = []
+        for b in self.bearings:
+            base = {"viscosity": b.viscosity, "clearance": b.clearance, "load": self.loads[b.node]}
+            nom += [base[p] for p in self.fitted]
+        self.nominal = np.asarray(nom, float)
+        self.npb = len(self.fitted)
+
+    def bearing_values(self, p: np.ndarray, i: int) -> dict:
+        b = self.bearings[i]
+        v = {"viscosity": b.viscosity, "clearance": b.clearance, "load": self.loads[b.node]}
+        for k, name in enumerate(self.fitted):
+            v[name] = float(np.exp(p[i * self.npb + k]))
+        return v
+
+    def bearing_beta(self, p, i, speed) -> np.ndarray:
+        v = self.bearing_values(p, i)
+        K, C = self._bm.coefficients(self.bearings[i], speed, v["load"], viscosity=v["viscosity"],
+                                     clearance=v["clearance"], model=self.model_name)
+        return np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
+
+    def beta(self, p, speed) -> np.ndarray:
+        return np.concatenate([self.bearing_beta(p, i, speed) for i in range(len(self.bearings))])
+
+    def beta_and_grad(self, p, speed):
+        """beta (8 nb,) and d beta / d p (8 nb, np) by central differences (each bearing depends on its own p)."""
+        nb = len(self.bearings)
+        beta = np.zeros(8 * nb)
+        G = np.zeros((8 * nb, p.size))
+        for i in range(nb):
+            beta[8 * i:8 * i + 8] = self.bearing_beta(p, i, speed)
+            for k in range(self.npb):
+                j = i * self.npb + k
+                dp = np.zeros_like(p)
+                dp[j] = FD_STEP
+                G[8 * i:8 * i + 8, j] = (self.bearing_beta(p + dp, i, speed)
+                                         - self.bearing_beta(p - dp, i, speed)) / (2 * FD_STEP)
+        return beta, G
+
+    def coeffs(self, p, speed) -> dict:
+        beta = self.beta(p, speed)
+        return {n: (beta[8 * i:8 * i + 4].reshape(2, 2), beta[8 * i + 4:8 * i + 8].reshape(2, 2))
+                for i, n in enumerate(self.nodes)}
+
+
+def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=False, bearing_model="short",
+                 probes=None, runs=None, max_nfev: int = 100):
+    """Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
+
+    Parameters
+    ----------
+    model : rotor.assembly.RotorModel (no bearings).   rig : params.RigParams (bearing geometry, nominal oil).
+    data : harmonic data (``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]).
+    params : which of ('viscosity', 'clearance') to fit per bearing.   load : also fit the static load per bearing.
+    bearing_model : 'short' (Ocvirk) or 'finite' (Reynolds) -- the estimator's model of the bearing.
+    probes, runs : override data.probes / data.runs.
+
+    Returns
+    -------
+    (PhysicalFit, list[IdentResult]) -- the parameters, and K, C per speed with delta-method std (method 'physical').
+    """
+    probes = tuple(probes if probes is not None else data.probes)
+    runs = tuple(runs if runs is not None else data.runs)
+    par = _Parametrisation(model, rig, params, load, bearing_model)
+    speeds = [float(w) for w in np.asarray(data.speeds, float)]
+    cases = [cases_from_data(model, data, probes, runs, i) for i in range(len(speeds))]
+    keep = [i for i, c in enumerate(cases) if c]
+    if not keep:
+        raise ValueError("physical: no finite synchronous measurements at any speed")
+    Z0 = {i: dynamic_stiffness(model, speeds[i], speeds[i], {}) for i in keep}
+    nb = len(par.nodes)
+    ones = np.ones(8 * nb)
+
+    def residual_jac(p, want_jac=True):
+        rs, Js = [], []
+        for i in keep:
+            if want_jac:
+                beta, G = par.beta_and_grad(p, speeds[i])
+            else:
+                beta, G = par.beta(p, speeds[i]), None
+            ys, dys = response_and_jacobian(model, speeds[i], cases[i], beta, par.nodes, Z0=Z0[i])
+            r, Jb = weighted_stack(cases[i], ys, dys, ones)
+            rs.append(r)
+            if want_jac:
+                Js.append(Jb @ G)
+        return np.concatenate(rs), (np.vstack(Js) if want_jac else None)
+
+    cache = {}
+
+    def f(p):
+        try:
+            return residual_jac(p, want_jac=False)[0]
+        except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+            return np.full(cache.get("m", 1), 1e10)
+
+    def jac(p):
+        return residual_jac(p)[1]
+
+    p0 = np.log(par.nominal)
+    r0 = f(p0)
+    cache["m"] = r0.size
+    lb, ub = p0 - math.log(BOUND_FACTOR), p0 + math.log(BOUND_FACTOR)
+    sol = least_squares(f, p0, jac=jac, bounds=(lb, ub), method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-12,
+                        gtol=1e-12, max_nfev=max_nfev)
+    p = sol.x
+    r, J = residual_jac(p)
+    info = information_analysis(J)
+    cov = info["cov_pinv"]
+    pdet = info["leakage"] < LEAK_TOL
+    rel_std = np.where(pdet, np.sqrt(np.clip(np.diag(cov), 0, None)), np.nan)
+    chi2 = float(r @ r)
+    dof = max(r.size - info["rank"], 1)
+    notes = [f"physical fit ({bearing_model} bearing model) of {', '.join(par.fitted)} per bearing over "
+             f"{len(keep)} speed(s): rank {info['rank']} of {p.size}, chi2/dof = {chi2 / dof:.3g}"]
+    if np.any(p <= lb + 1e-9) or np.any(p >= ub - 1e-9):
+        notes.append(f"a parameter reached its bound (x{BOUND_FACTOR:g} / {BOUND_FACTOR:g} of nominal): "
+                     "the bearing model may not fit these data")
+    if not sol.success:
+        notes.append(f"least_squares did not converge: {sol.message}")
+    if not np.all(pdet):
+        notes.append("parameters not separately determined: " + ", ".join(n for n, d in zip(par.names, pdet) if not d))
+
+    # residual per speed and overall (unweighted, relative)
+    results, num_all, den_all = [], 0.0, 0.0
+    V0 = np.linalg.svd(J, full_matrices=True)[2].T[:, info["rank"]:]
+    names = tuple(b.name for b in par.bearings)
+    for i in keep:
+        W = speeds[i]
+        beta, G = par.beta_and_grad(p, W)
+        ys, _ = response_and_jacobian(model, W, cases[i], beta, par.nodes, Z0=Z0[i])
+        num = sum(float(np.sum(np.abs(y - c.X) ** 2)) for c, y in zip(cases[i], ys))
+        den = sum(float(np.sum(np.abs(c.X) ** 2)) for c in cases[i])
+        num_all += num
+        den_all += den
+        cov_b = G @ cov @ G.T
+        gnorm = np.linalg.norm(G, axis=1)
+        leak = np.linalg.norm(G @ V0, axis=1) / np.where(gnorm > 0, gnorm, 1.0) if V0.size else np.zeros(8 * nb)
+        det = leak < LEAK_TOL
+        std = np.where(det, np.sqrt(np.clip(np.diag(cov_b), 0, None)), np.nan)
+        res = empty_result(W, "physical", names, par.nodes)
+        for b in range(nb):
+            s = slice(8 * b, 8 * b + 4)
+            t = slice(8 * b + 4, 8 * b + 8)
+            res.K[b], res.C[b] = beta[s].reshape(2, 2), beta[t].reshape(2, 2)
+            res.K_std[b], res.C_std[b] = std[s].reshape(2, 2), std[t].reshape(2, 2)
+            res.K_determined[b], res.C_determined[b] = det[s].reshape(2, 2), det[t].reshape(2, 2)
+        res.rank, res.unknowns, res.condition = info["rank"], p.size, info["condition"]
+        res.residual = math.sqrt(num / den) if den > 0 else math.nan
+        res.notes += notes
+        res.extra.update(cov_beta=cov_b, params=dict(zip(par.names, np.exp(p))))
+        results.append(res)
+    fit = PhysicalFit(names=par.names, values=np.exp(p), nominal=par.nominal, rel_std=rel_std, cov_log=cov,
+                      determined=pdet, rank=info["rank"], unknowns=p.size, condition=info["condition"],
+                      residual=math.sqrt(num_all / den_all) if den_all > 0 else math.nan, chi2=chi2, dof=dof,
+                      bearing_model=bearing_model, loads=dict(par.loads), notes=notes)
+    for res in results:
+        res.extra["fit"] = fit
+    return fit, results
+
+
+OPTIONS = {"params": ("viscosity", "clearance"), "load": False, "bearing_model": "short", "max_nfev": 100}
+
+
+def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
+    """``physical`` identification with the common method signature (see :mod:`bearing_id.identify`).
+
+    Options / keywords: ``params`` (default ('viscosity', 'clearance')), ``load`` (False), ``bearing_model``
+    ('short'), ``max_nfev``.  Returns the per-speed IdentResult list; the fitted parameters are in each result's
+    ``extra['fit']`` (a :class:`PhysicalFit`) -- or call :func:`fit_physical` for ``(fit, results)``.
+    """
+    opts = dict(OPTIONS)
+    for k, v in {**(options or {}), **kw}.items():
+        if k not in OPTIONS:
+            raise ValueError(f"physical: unknown option {k!r} (known: {sorted(OPTIONS)})")
+        opts[k] = v
+    _, results = fit_physical(model, rig, data, params=tuple(opts["params"]), load=bool(opts["load"]),
+                              bearing_model=str(opts["bearing_model"]), probes=probes, runs=runs,
+                              max_nfev=int(opts["max_nfev"]))
+    return results
+
+
+__all__ = ["PhysicalFit", "fit_physical", "identify_physical", "PARAM_NAMES"]

@@ -1,0 +1,155 @@
+"""``direct`` identification: output-error fit of the 16 bearing coefficients through the FE model.
+
+References (independent of the fit):
+* the FE model's own frequency response (rotor.assembly.harmonic_response, a plain linear solve) makes the data;
+* the analytic Jacobian is checked against central finite differences of that response;
+* the rank claims follow from a counting argument, not from the code: with synchronous unbalance on an axisymmetric
+  shaft the bearing-node responses of every run lie in one 2-D complex subspace per speed, so one probe location
+  (2 complex equations per run) gives at most 2 x 2 complex = 8 real independent equations however many runs are
+  stacked; the x/y shaker at both discs (4 runs) excites the full 4-D space: 4 x 2 complex = 16 real equations;
+* noise: 1 % of the channel RMS on 2 s x 10240 Hz time series, 75 % of each dwell used (identify.harmonics), gives
+  a 1X phasor error of std noise x |X| / sqrt(N_used) on Re and Im (least squares of a sinusoid in white noise).
+
+Tolerance: the issue's target for ``direct`` with the directional force plan at 1 % noise is <= 3 % eq. 38 error for
+K and for C (the accuracy benchmark, benchmarks/bench_accuracy.py, uses the same target).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from bearing_id.conventions import rpm_to_rad_s
+from bearing_id.excitation import harmonic_forces
+from bearing_id.identify import eq38_error
+from bearing_id.identify.direct import Case, coeffs_to_beta, fit_speed, identify_direct, response_and_jacobian
+from bearing_id.identify.harmonics import simulate_data
+from bearing_id.params import Probe, load_rig
+from bearing_id.rig import scenario
+from bearing_id.rotor.assembly import RotorModel, harmonic_response, probe_matrix
+
+NOISE = 0.01
+N_USED = int(0.75 * 2.0 * 10240)          # samples per 1X fit in the default plan (2 s dwell, 25 % settle dropped)
+P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
+
+# coefficients NOT from the bearing module: an arbitrary non-symmetric set (N/m, N s/m)
+K_ARB = {2: np.array([[3.1e5, 1.2e5], [-2.4e5, 5.2e5]]), 10: np.array([[2.6e5, 0.9e5], [-1.9e5, 4.4e5]])}
+C_ARB = {2: np.array([[420.0, 90.0], [110.0, 640.0]]), 10: np.array([[380.0, 70.0], [95.0, 590.0]])}
+TRUTH_ARB = {n: (K_ARB[n], C_ARB[n]) for n in (2, 10)}
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return load_rig()
+
+
+@pytest.fixture(scope="module")
+def model(rig):
+    return RotorModel.from_params(rig)
+
+
+def exact_cases(model, runs, probes, speed, coeffs):
+    out = []
+    for run in runs:
+        F = harmonic_forces(run.excitation, speed, model.n_nodes)[1.0]
+        X = probe_matrix(model, probes) @ harmonic_response(model, speed, speed, F, coeffs)
+        out.append(Case(F, tuple(probes), X, np.full(X.size, 1e-6 * np.max(np.abs(X)))))
+    return out
+
+
+def noisy(data, seed):
+    """Add the time-domain-equivalent 1X noise (module docstring) to simulate_data output, in place."""
+    rng = np.random.default_rng(seed)
+    std = NOISE * np.abs(data.X) / math.sqrt(N_USED)
+    data.X = data.X + std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))
+    data.X_std = std
+    return data
+
+
+def test_jacobian_matches_finite_differences(model):
+    W = rpm_to_rad_s(1700.0)
+    cases = exact_cases(model, scenario("force"), P6 + (Probe("p3x", 3, "x"),), W, TRUTH_ARB)
+    beta = coeffs_to_beta(TRUTH_ARB, (2, 10))
+    _, dys = response_and_jacobian(model, W, cases, beta, (2, 10))
+    scale = np.repeat([3e5, 500.0, 3e5, 500.0], 4)        # block magnitudes: K then C per bearing
+    for k in range(16):
+        h = 1e-5 * scale[k]
+        bp, bm = beta.copy(), beta.copy()
+        bp[k] += h
+        bm[k] -= h
+        yp, _ = response_and_jacobian(model, W, cases, bp, (2, 10))
+        ym, _ = response_and_jacobian(model, W, cases, bm, (2, 10))
+        for r in range(len(cases)):
+            fd = (yp[r] - ym[r]) / (2 * h)
+            assert np.allclose(dys[r][:, k], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(dys[r]))), (k, r)
+
+
+def test_zero_noise_force_plan_recovers_coefficients_exactly(model):
+    """Algebra check: data from the model itself, start 30 % off -> the 16 coefficients to 1e-6 relative."""
+    W = rpm_to_rad_s(2100.0)
+    theory = {n: (1.3 * K, 0.7 * C) for n, (K, C) in TRUTH_ARB.items()}
+    res = fit_speed(model, W, exact_cases(model, scenario("force"), P6, W, TRUTH_ARB), (2, 10), theory=theory)
+    assert res.rank == 16 and res.unknowns == 16 and res.fully_determined
+    for i, n in enumerate((2, 10)):
+        np.testing.assert_allclose(res.K[i], K_ARB[n], rtol=1e-6, atol=1e-6 * np.abs(K_ARB[n]).max())
+        np.testing.assert_allclose(res.C[i], C_ARB[n], rtol=1e-6, atol=1e-6 * np.abs(C_ARB[n]).max())
+    assert res.residual < 1e-9
+
+
+def test_force_plan_node6_one_percent_noise_within_benchmark_tolerance(rig, model):
+    """Truth = the rig's (viscosity x1.25, clearance x0.8), theory = nominal, node 6 only: <= 3 % (eq. 38)."""
+    speeds = (900, 1500, 2100, 2700)
+    data = noisy(simulate_data(rig, scenario("force"), speeds, probes=P6, model=model), seed=11)
+    res = identify_direct(model, rig, data)
+    err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
+    assert err["K"] <= 3.0 and err["C"] <= 3.0, err
+    for r in res:
+        assert r.rank == 16 and r.fully_determined
+    # the reported 1-sigma describes the actual error: normalised errors have an RMS of order one
+    z = []
+    for r in res:
+        t = data.truth[float(r.speed)]
+        for i, n in enumerate(r.nodes):
+            z += list(((r.K[i] - t[n][0]) / r.K_std[i]).ravel()) + list(((r.C[i] - t[n][1]) / r.C_std[i]).ravel())
+    zr = math.sqrt(np.mean(np.square(z)))
+    assert 0.4 < zr < 2.5, zr
+
+
+@pytest.mark.parametrize("n_runs", [2, 3])
+def test_unbalance_node6_is_rank_8_and_undetermined(rig, model, n_runs):
+    runs = list(rig.simulation.runs)
+    if n_runs == 3:   # a third, different unbalance distribution adds no rank (the 2-D subspace argument)
+        from bearing_id.params import ExcitationEntry, Run
+        runs.append(Run("C", (ExcitationEntry("unbalance", 4, 2.0e-5, 2.0, "forward"),
+                              ExcitationEntry("unbalance", 8, 1.0e-5, -1.0, "forward"))))
+    data = noisy(simulate_data(rig, runs, (1200, 2400), probes=P6, model=model), seed=5)
+    for r in identify_direct(model, rig, data):
+        assert (r.rank, r.unknowns) == (8, 16)
+        assert math.isinf(r.condition)
+        assert not r.K_determined.any() and not r.C_determined.any()
+        assert np.all(np.isnan(r.K_std)) and np.all(np.isnan(r.C_std))
+        assert len(r.undetermined_names()) == 16
+
+
+def test_unbalance_node6_with_prior_is_flagged_prior_dominated(rig, model):
+    data = noisy(simulate_data(rig, rig.simulation.runs, (1800,), probes=P6, model=model), seed=3)
+    (r,) = identify_direct(model, rig, data, prior_weight=4.0)
+    assert r.rank == 8
+    assert not r.K_determined.any() and not r.C_determined.any()
+    assert np.all(np.isfinite(r.K_std)) and np.all(np.isfinite(r.C_std))   # the posterior, flagged as such
+
+
+def test_prior_does_not_spoil_a_determined_problem(rig, model):
+    """With the force plan a weak prior (1-sigma = 100 % of the block scale) changes the answer by << its std."""
+    data = noisy(simulate_data(rig, scenario("force"), (2400,), probes=P6, model=model), seed=8)
+    (a,) = identify_direct(model, rig, data)
+    (b,) = identify_direct(model, rig, data, prior_weight=1.0)
+    assert b.fully_determined
+    assert np.all(np.abs(a.K - b.K) < 0.5 * a.K_std) and np.all(np.abs(a.C - b.C) < 0.5 * a.C_std)
+
+
+def test_unknown_option_is_refused(rig, model):
+    data = simulate_data(rig, rig.simulation.runs, (1200,), probes=P6, model=model)
+    with pytest.raises(ValueError, match="unknown option"):
+        identify_direct(model, rig, data, options={"prior": 1.0})
+    with pytest.raises(ValueError, match="prior_weight"):
+        identify_direct(model, rig, data, prior_weight=-1.0)

@@ -1,0 +1,109 @@
+"""``physical`` identification: viscosity and clearance per bearing, all speeds at once, from node 6 only.
+
+References (independent of the fit):
+* the data come from the FE frequency response with the rig's truth bearings (the bearing model at viscosity x1.25
+  and clearance x0.8 of nominal, params/rig.yaml); the fit starts from nominal, 25 % away;
+* noise: 1 % of the channel RMS on 2 s x 10240 Hz, 75 % of each dwell used, gives a 1X error of std
+  noise x |X| / sqrt(N_used) on Re and Im (least squares of a sinusoid in white noise);
+* the load degeneracy is a scaling argument, not code output: a Reynolds bearing of fixed geometry has K = (W/c) k(eps),
+  C = W / (c Omega) c(eps) with eps a function of mu Omega / (W c^2) only, so (mu, c, W) enter through two
+  combinations: fitting all three per bearing gives rank 2 per bearing;
+* the reported parameter std is checked against the scatter over independent noise draws.
+
+Tolerances: the issue's benchmark targets for ``physical`` from one location, <= 2 % (K) and <= 3 % (C) eq. 38 error;
+viscosity and clearance within 3 % (the "few %" of the issue).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from bearing_id.identify import eq38_error
+from bearing_id.identify.harmonics import simulate_data
+from bearing_id.identify.physical import fit_physical, identify_physical
+from bearing_id.params import Probe, load_rig
+from bearing_id.rotor.assembly import RotorModel
+
+NOISE = 0.01
+N_USED = int(0.75 * 2.0 * 10240)
+P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
+SPEEDS = (600, 1200, 1800, 2400, 3000)
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return load_rig()
+
+
+@pytest.fixture(scope="module")
+def model(rig):
+    return RotorModel.from_params(rig)
+
+
+@pytest.fixture(scope="module")
+def clean(rig, model):
+    return simulate_data(rig, rig.simulation.runs, SPEEDS, probes=P6, model=model)
+
+
+def noisy(data, seed):
+    rng = np.random.default_rng(seed)
+    std = NOISE * np.abs(data.X) / math.sqrt(N_USED)
+    X = data.X + std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))
+    return type(data)(data.speeds, data.probes, data.runs, X, std, [], [], data.truth)
+
+
+def true_params(rig):
+    t = rig.simulation.truth
+    return {f"{b.name}.viscosity": b.viscosity * t.viscosity_factor[i] for i, b in enumerate(rig.bearings)} | \
+        {f"{b.name}.clearance": b.clearance * t.clearance_factor[i] for i, b in enumerate(rig.bearings)}
+
+
+def test_zero_noise_recovers_parameters_to_1e6(rig, model, clean):
+    """Algebra check: truth = the estimator's model; noise-free phasors -> parameters to 1e-6 relative."""
+    data = type(clean)(clean.speeds, clean.probes, clean.runs, clean.X, np.zeros(clean.X.shape), [], [], clean.truth)
+    fit, res = fit_physical(model, rig, data)
+    truth = true_params(rig)
+    for name, v in zip(fit.names, fit.values):
+        assert v == pytest.approx(truth[name], rel=1e-6), name
+    assert fit.rank == 4 and fit.unknowns == 4
+
+
+def test_node6_unbalance_one_percent_noise(rig, model, clean):
+    data = noisy(clean, seed=21)
+    fit, res = fit_physical(model, rig, data)
+    truth = true_params(rig)
+    assert fit.rank == 4 and np.all(fit.determined)
+    for name, v, s in zip(fit.names, fit.values, fit.rel_std):
+        assert abs(v / truth[name] - 1) <= 0.03, (name, v, truth[name])
+        assert 0 < s < 0.03
+    err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
+    assert err["K"] <= 2.0 and err["C"] <= 3.0, err
+    for r in res:
+        assert r.fully_determined and r.unknowns == 4 and r.method == "physical"
+        assert np.all(np.isfinite(r.K_std)) and np.all(r.K_std > 0)
+
+
+def test_parameter_std_matches_scatter_over_noise_draws(rig, model, clean):
+    draws = [fit_physical(model, rig, noisy(clean, seed=100 + k))[0] for k in range(12)]
+    logs = np.log([d.values for d in draws])
+    scatter = logs.std(axis=0, ddof=1)
+    reported = np.mean([d.rel_std for d in draws], axis=0)
+    # 12 draws: the sample std is within a factor ~1.6 of the truth with high probability
+    assert np.all(scatter < 2.0 * reported) and np.all(scatter > 0.4 * reported), (scatter, reported)
+
+
+def test_fitting_the_load_too_is_rank_deficient_but_coefficients_stay_determined(rig, model, clean):
+    data = noisy(clean, seed=4)
+    fit, res = fit_physical(model, rig, data, load=True)
+    assert (fit.rank, fit.unknowns) == (4, 6)
+    assert not np.any(fit.determined) and np.all(np.isnan(fit.rel_std))
+    err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
+    assert err["K"] <= 2.0 and err["C"] <= 3.0, err
+    assert all(r.fully_determined for r in res)
+
+
+def test_dispatcher_signature_and_options(rig, model, clean):
+    res = identify_physical(model, rig, noisy(clean, seed=2), options={"params": ("viscosity", "clearance")})
+    assert len(res) == len(SPEEDS) and "fit" in res[0].extra
+    with pytest.raises(ValueError, match="unknown option"):
+        identify_physical(model, rig, clean, options={"viscosity_only": True})
