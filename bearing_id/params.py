@@ -132,6 +132,7 @@ class Simulation:
     block_size: int
     speeds_rpm: tuple
     dwell: float                  # s
+    ramp: float                   # s, linear ramp between dwell speeds (0 = instant steps)
     noise: float                  # fraction of channel RMS
     seed: int
     truth: Truth
@@ -326,6 +327,7 @@ def parse_rig(d: dict) -> RigParams:
             block_size=_int(sd, "block_size", w, 16, 1 << 20, default=1024),
             speeds_rpm=tuple(_num({"v": s}, "v", f"{w}.speeds_rpm[{k}]", 0, 1e6, "rpm") for k, s in enumerate(speeds)),
             dwell=_num(sd, "dwell", w, 1e-3, 1e5, "s"),
+            ramp=_num(sd, "ramp", w, 0, 1e4, "s", default=0.0),
             noise=_num(sd, "noise", w, 0, 1, "-", default=0.0),
             seed=_int(sd, "seed", w, 0, 2**31, default=0),
             truth=truth, runs=tuple(runs))

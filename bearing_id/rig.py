@@ -47,9 +47,17 @@ class Segment:
     steady: bool = True      # False for the short steps that approximate a ramp
 
 
-def step_schedule(speeds_rpm, dwell: float) -> list[Segment]:
-    """Dwell at each speed [rpm] for ``dwell`` [s] (instant steps between them)."""
-    return [Segment(float(rpm_to_rad_s(s)), float(dwell)) for s in speeds_rpm]
+def step_schedule(speeds_rpm, dwell: float, ramp: float = 0.0) -> list[Segment]:
+    """Dwell at each speed [rpm] for ``dwell`` [s], moving between speeds by linear ramps of ``ramp`` [s].
+
+    ``ramp = 0`` gives instant steps (which ring lightly damped modes well into the next dwell).
+    """
+    out: list[Segment] = []
+    for i, s in enumerate(speeds_rpm):
+        if i and ramp > 0:
+            out += ramp_schedule(speeds_rpm[i - 1], s, ramp)
+        out.append(Segment(float(rpm_to_rad_s(s)), float(dwell)))
+    return out
 
 
 def ramp_schedule(rpm0: float, rpm1: float, duration: float, step: float = DEFAULT_RAMP_STEP) -> list[Segment]:
@@ -241,6 +249,9 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
     probes = tuple(probes if probes is not None else rig.probes)
     fs = float(sample_rate or sim.sample_rate)
     noise = sim.noise if noise is None else float(noise)
+    desc = "truth bearings: " + ("custom bearing_fn" if bearing_fn is not None else
+                                 f"{sim.truth.bearing_model} model, viscosity x{sim.truth.viscosity_factor}, "
+                                 f"clearance x{sim.truth.clearance_factor}")
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     if seed is None:
         seed = (sim.seed * 1000003 + sum(map(ord, run.id))) % (2**32)
@@ -248,7 +259,9 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
     n_nodes = model.n_nodes
     sel = [dof_index(p.node, p.direction, n_nodes) for p in probes]
 
-    counts = [max(1, int(round(s.duration * fs))) for s in schedule]
+    # sample counts from cumulative segment boundaries, so that short ramp steps lose no time to rounding
+    edges = np.round(np.cumsum([0.0] + [s.duration for s in schedule]) * fs).astype(int)
+    counts = [max(1, int(c)) for c in np.diff(edges)]
     N = int(sum(counts))
     t = np.arange(N) / fs
     speed = np.empty(N)
@@ -315,7 +328,6 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
         for a, b, _, _ in segments:
             rms = np.sqrt(np.mean(samples[a:b] ** 2, axis=0))
             samples[a:b] += rng.standard_normal((b - a, len(probes))) * (noise * rms)
-    desc = "truth bearings: " + ("custom bearing_fn" if bearing_fn is not None else "simulation.truth")
     return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples, run=run,
                      segments=segments, truth={"coefficients": truth_coeffs, "description": desc,
                                                "effects": [type(e).__name__ for e in effects]},
@@ -328,11 +340,13 @@ def _state_matrix(M, C, K):
     return np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
 
 
-def simulate_run(rig: RigParams, run: Run, speeds_rpm=None, dwell=None, **kw) -> Recording:
-    """Step through ``speeds_rpm`` (default ``rig.simulation.speeds_rpm``) dwelling ``dwell`` s at each."""
+def simulate_run(rig: RigParams, run: Run, speeds_rpm=None, dwell=None, ramp=None, **kw) -> Recording:
+    """Step through ``speeds_rpm`` (default ``rig.simulation.speeds_rpm``) dwelling ``dwell`` s at each, with
+    ``ramp`` s linear speed ramps between dwells (defaults from ``rig.simulation``)."""
     sim = rig.simulation
     sched = step_schedule(speeds_rpm if speeds_rpm is not None else sim.speeds_rpm,
-                          dwell if dwell is not None else sim.dwell)
+                          dwell if dwell is not None else sim.dwell,
+                          sim.ramp if ramp is None else ramp)
     return simulate(rig, run, sched, **kw)
 
 
@@ -384,6 +398,9 @@ def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=N
     """
     from .rotor.assembly import RotorModel
     model = model or RotorModel.from_params(rig)
+    desc = "truth bearings: " + ("custom bearing_fn" if bearing_fn is not None else
+                                 f"{sim.truth.bearing_model} model, viscosity x{sim.truth.viscosity_factor}, "
+                                 f"clearance x{sim.truth.clearance_factor}")
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     cfac = rig.simulation.truth.clearance_factor if rig.simulation else (1.0,) * len(rig.bearings)
     out = []

@@ -54,7 +54,7 @@ def test_transient_after_speed_step_matches_ode_integration(rig, model):
     run = rig.simulation.runs[0]
     speeds = [1200.0, 1800.0]
     dwell = 0.05
-    rec = rigmod.simulate_run(rig, run, speeds_rpm=speeds, dwell=dwell, noise=0.0)
+    rec = rigmod.simulate_run(rig, run, speeds_rpm=speeds, dwell=dwell, ramp=0.0, noise=0.0)
     # independent route: start from the steady state of segment 1 at t = dwell, integrate segment 2 by solve_ivp
     W1, W2 = (rpm_to_rad_s(s) for s in speeds)
     bf = rigmod.truth_bearing_fn(rig)
@@ -85,6 +85,15 @@ def test_transient_after_speed_step_matches_ode_integration(rig, model):
     q2 = np.linalg.solve(K2 - W2**2 * M2 + 1j * W2 * C2, F2)
     steady = np.real(np.outer(np.exp(1j * (phi1 + W2 * tt)), q2[sel]))
     assert np.max(np.abs(got[:50] - steady[:50])) > 1e-3 * scale
+
+
+def test_ramp_schedule_is_continuous_and_monotonic(rig):
+    rec = rigmod.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[600.0, 1200.0], dwell=0.1, ramp=0.3)
+    rpm = rec.speed * 60 / (2 * math.pi)
+    assert rpm[0] == pytest.approx(600.0) and rpm[-1] == pytest.approx(1200.0)
+    assert np.all(np.diff(rpm) >= 0) and len(rec.t) == int(round(0.5 * rec.sample_rate))
+    # the keyphasor angle advances by speed * dt at every sample (no jump at segment joins)
+    assert np.allclose(np.diff(rec.angle), rec.speed[:-1] / rec.sample_rate, rtol=1e-12)
 
 
 def test_noise_level_is_the_stated_fraction_of_rms(rig):

@@ -72,6 +72,27 @@ def run_windows(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_dura
     return out
 
 
+STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this many sigma count as a transient
+
+
+def stationarity_excess(rec, i0: int, i1: int) -> np.ndarray:
+    """Extra variance [m^2] per channel (per real/imaginary part) when a window is not stationary.
+
+    The 1X vector is fitted on each half of the window.  When the halves differ by more than
+    ``STATIONARITY_SIGMA`` times their combined noise std (a transient still ringing, e.g. a lightly damped mode near
+    running speed after a speed change), half the difference is taken as a bias bound and added in quadrature to the
+    1-sigma of X, so that every downstream std, rank and 'determined' flag accounts for it.  Stationary windows get 0.
+    """
+    mid = (i0 + i1) // 2
+    if mid - i0 < 16 or i1 - mid < 16:
+        return np.zeros(rec.samples.shape[1])
+    a = harmonic_vectors(rec.samples[i0:mid], rec.angle[i0:mid], orders=(1,))
+    b = harmonic_vectors(rec.samples[mid:i1], rec.angle[mid:i1], orders=(1,))
+    d = np.abs(a.X[0] - b.X[0])
+    sig = np.sqrt(a.std[0] ** 2 + b.std[0] ** 2)
+    return np.where(d > STATIONARITY_SIGMA * sig, (d / 2) ** 2 / 2, 0.0)
+
+
 def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2) -> HarmonicData:
     """1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs."""
     recordings = list(recordings)
@@ -108,7 +129,7 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
             rec = recordings[r]
             fit = harmonic_vectors(rec.samples[i0:i1], rec.angle[i0:i1], orders=(1,))
             X[r, s] = fit.X[0]
-            Xs[r, s] = np.maximum(fit.std_re[0], fit.std_im[0])
+            Xs[r, s] = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(rec, i0, i1))
             windows[r][s] = (i0, i1)
     truth = {}
     for rec in recordings:
