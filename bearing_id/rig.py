@@ -398,9 +398,6 @@ def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=N
     """
     from .rotor.assembly import RotorModel
     model = model or RotorModel.from_params(rig)
-    desc = "truth bearings: " + ("custom bearing_fn" if bearing_fn is not None else
-                                 f"{sim.truth.bearing_model} model, viscosity x{sim.truth.viscosity_factor}, "
-                                 f"clearance x{sim.truth.clearance_factor}")
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     cfac = rig.simulation.truth.clearance_factor if rig.simulation else (1.0,) * len(rig.bearings)
     out = []
