@@ -359,13 +359,19 @@ def load_rig(path: str | Path | None = None) -> RigParams:
 
 
 def default_rig_path() -> Path:
-    """The packaged rig file: the source tree's params/ or the installed share/bearing_id/params/."""
+    """The packaged rig file: the source tree's params/, else the installed share/bearing_id/params/.
+
+    Installed by colcon the module sits at <prefix>/lib/pythonX.Y/site-packages/bearing_id/ and the data at
+    <prefix>/share/bearing_id/params/ (ament_index is asked first when it is importable).
+    """
     cand = [PACKAGE_PARAMS / "rig.yaml"]
-    try:  # installed by colcon: <prefix>/share/bearing_id/params/rig.yaml
-        import sys
-        cand.append(Path(sys.prefix) / "share" / "bearing_id" / "params" / "rig.yaml")
-    except Exception:  # pragma: no cover
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        cand.append(Path(get_package_share_directory("bearing_id")) / "params" / "rig.yaml")
+    except Exception:  # no ament index (plain pip / source tree) or package not registered
         pass
+    here = Path(__file__).resolve()
+    cand += [p / "share" / "bearing_id" / "params" / "rig.yaml" for p in here.parents[1:6]]
     for c in cand:
         if c.exists():
             return c
