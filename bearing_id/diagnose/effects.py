@@ -1,0 +1,556 @@
+"""Candidate physics the nominal model may have left out, as parametric augmentations (the fitting side).
+
+Each class is one small piece of physics with its parameters.  Linear parameters (``n_lin``, real) enter the
+prediction as columns (y = y0 + A p); nonlinear ones (``nl_*``) change the dynamic stiffness.  The simulator-side
+versions used to make concealed-effect recordings live in :mod:`bearing_id.truth_effects` and are written along a
+different route.  Units SI; node numbers 1-based; phasors as in :mod:`bearing_id.conventions`.
+
+The augmented model is stored in a params file under ``extra: {effects: [{effect: NAME, ...parameters}]}``;
+:func:`effects_from_extra` rebuilds the effects from it and :func:`augmented_dynamic_stiffness`,
+:func:`augmented_forces`, :func:`augmented_readings` give identification the augmented system.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..conventions import dof_index, rad_s_to_rpm
+from ..excitation import harmonic_forces
+from ..params import ExcitationEntry
+from .predict import forward_force
+
+EFFECT_NAMES = ("support_flexibility", "residual_unbalance", "shaft_bow", "probe_runout", "misalignment",
+                "oil_whirl", "probe_orientation", "disc_mass_error")
+
+
+def _dir_word(d: str) -> str:
+    return "horizontal (x)" if d == "x" else "vertical (y)"
+
+
+class Effect:
+    """Base: a no-op augmentation.  Subclasses set ``name``, ``where`` and override the hooks they need."""
+    name = "none"
+    n_lin = 0
+    nl_names: tuple = ()
+    nl_lo: tuple = ()
+    nl_hi: tuple = ()
+    key = ""
+
+    def __init__(self):
+        self.where = ""
+
+    @property
+    def starts(self) -> list:
+        """Starting points for the nonlinear parameters (several for multi-start)."""
+        return [np.zeros(0)]
+
+    # hooks (see predict.Problem) ------------------------------------------------------------------
+    def bearing_impedance(self, prob, node, Zb, speed, omega, nl):
+        return Zb
+
+    def add_dZ(self, prob, Z, speed, omega, nl):
+        return None
+
+    def force_columns(self, prob, k, ratio, nl):
+        return None
+
+    def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
+        return None
+
+    # reporting --------------------------------------------------------------------------------------
+    def physical(self, nl, lin) -> dict:
+        return {}
+
+    def sentence(self, phys: dict, std: dict) -> str:
+        return self.name
+
+    def to_extra(self, phys: dict) -> dict:
+        return {"effect": self.name, **{k: float(v) for k, v in phys.items()}}
+
+    @property
+    def label(self) -> str:
+        return f"{self.name} [{self.where}]" if self.where else self.name
+
+
+def _pm(value, std) -> str:
+    if std is None or not np.isfinite(std) or value == 0:
+        return ""
+    return f" ± {abs(std / value) * 100:.0f} %"
+
+
+def _complex_lin(lin) -> complex:
+    return complex(lin[0], lin[1])
+
+
+# ------------------------------------------------------------------------------------------------ system
+class SupportFlexibility(Effect):
+    """Flexible pedestal (spring-damper) in series with the oil film at one bearing, in x or y.
+
+    Series impedance per flexible direction d: zs = k_d + j w c_d; the journal sees
+    Zeff = (Zb^-1 + diag(1/zs))^-1 (a rigid direction contributes 0 to the compliance).  The pedestal mass is not
+    fitted (it is indistinguishable from a softer k over a narrow speed range); a ``mass`` in the params file is used.
+    Nonlinear parameters per flexible direction: ln k [ln N/m], c [N s/m].
+    """
+    name = "support_flexibility"
+
+    def __init__(self, bearing_index: int, node: int, directions: str, mass: float = 0.0):
+        super().__init__()
+        self.bearing_index, self.node, self.directions, self.mass = bearing_index, node, directions, float(mass)
+        self.where = f"bearing {bearing_index + 1} (node {node}), " + " and ".join(_dir_word(d) for d in directions)
+        self.nl_names = tuple(f"{p}_{d}" for d in directions for p in ("lnk", "c"))
+        self.nl_lo = tuple(v for _ in directions for v in (math.log(1e3), 0.0))
+        self.nl_hi = tuple(v for _ in directions for v in (math.log(1e10), 1e5))
+        self.key = f"k_{directions[0]}"
+
+    @property
+    def starts(self):
+        return [np.array([v for _ in self.directions for v in (math.log(k), 10.0)]) for k in (2e5, 2e6)]
+
+    def bearing_impedance(self, prob, node, Zb, speed, omega, nl):
+        if node != self.node:
+            return Zb
+        comp = np.zeros((2, 2), complex)
+        for a, d in enumerate(self.directions):
+            lnk, c = nl[2 * a:2 * a + 2]
+            zs = math.exp(lnk) - omega * omega * self.mass + 1j * omega * c
+            i = 0 if d == "x" else 1
+            comp[i, i] = 1.0 / zs
+        return np.linalg.inv(np.linalg.inv(Zb) + comp)
+
+    def physical(self, nl, lin):
+        out = {}
+        for a, d in enumerate(self.directions):
+            out[f"k_{d}"] = math.exp(nl[2 * a])
+            out[f"c_{d}"] = float(nl[2 * a + 1])
+        return out
+
+    def sentence(self, phys, std):
+        parts = [f"k ≈ {phys[f'k_{d}']:.3g} N/m{_pm(phys[f'k_{d}'], std.get(f'k_{d}'))}, "
+                 f"c ≈ {phys[f'c_{d}']:.3g} N·s/m" for d in self.directions]
+        return f"support flexibility at {self.where}: " + "; ".join(parts) + " in series with the oil film"
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "bearing_node": self.node, "directions": self.directions, "mass": self.mass,
+                **{k: float(v) for k, v in phys.items()}}
+
+    @classmethod
+    def from_extra(cls, d, rig):
+        idx = [b.node for b in rig.bearings].index(int(d["bearing_node"]))
+        e = cls(idx, int(d["bearing_node"]), str(d["directions"]), float(d.get("mass", 0.0)))
+        nl = np.array([v for dd in e.directions for v in (math.log(d[f"k_{dd}"]), d.get(f"c_{dd}", 0.0))])
+        return e, nl, np.zeros(0)
+
+
+class DiscMassError(Effect):
+    """The disc at ``node`` weighs ``factor`` x the model's (mass, diametral and polar inertia scaled alike)."""
+    name = "disc_mass_error"
+    nl_names = ("factor",)
+    nl_lo = (0.2,)
+    nl_hi = (5.0,)
+    key = "mass_factor"
+
+    def __init__(self, node: int, disc):
+        super().__init__()
+        self.node, self.disc = node, disc
+        self.where = f"disc at node {node}"
+
+    @property
+    def starts(self):
+        return [np.array([1.0])]
+
+    def add_dZ(self, prob, Z, speed, omega, nl):
+        f = float(nl[0]) - 1.0
+        i = dof_index(self.node, "x", prob.model.n_nodes)
+        Z[i:i + 4, i:i + 4] += f * (-omega * omega * self.disc.M() + 1j * omega * speed * self.disc.G())
+
+    def physical(self, nl, lin):
+        return {"mass_factor": float(nl[0]), "mass_error_kg": (float(nl[0]) - 1.0) * self.disc.m}
+
+    def sentence(self, phys, std):
+        return (f"disc mass error at node {self.node}: mass x{phys['mass_factor']:.3f}"
+                f"{_pm(phys['mass_factor'] - 1 if phys['mass_factor'] != 1 else 1, std.get('mass_factor'))} "
+                f"({phys['mass_error_kg'] * 1e3:+.0f} g)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "node": self.node, "mass_factor": phys["mass_factor"]}
+
+    @classmethod
+    def from_extra(cls, d, rig):
+        from ..rotor.assembly import RotorModel
+        node = int(d["node"])
+        disc = RotorModel.from_params(rig).discs[node]
+        return cls(node, disc), np.array([float(d["mass_factor"])]), np.zeros(0)
+
+
+# ------------------------------------------------------------------------------------------------ forces (linear)
+class ResidualUnbalance(Effect):
+    """Unknown unbalance U = m r e^{j phase} [kg m] at a plane (node): 1X force U Omega^2 (forward)."""
+    name = "residual_unbalance"
+    n_lin = 2
+    key = "me"
+
+    def __init__(self, node: int):
+        super().__init__()
+        self.node = node
+        self.where = f"plane at node {node}"
+
+    def force_columns(self, prob, k, ratio, nl):
+        if ratio != 1.0:
+            return None
+        W = prob.windows[k].speed
+        F = harmonic_forces([ExcitationEntry("unbalance", self.node, 1.0, 0.0, "forward", 1.0)], W,
+                            prob.model.n_nodes)[1.0]
+        return np.column_stack([F, 1j * F])
+
+    def physical(self, nl, lin):
+        U = _complex_lin(lin)
+        return {"me": abs(U), "phase_deg": math.degrees(math.atan2(U.imag, U.real)), "re": U.real, "im": U.imag}
+
+    def sentence(self, phys, std):
+        return (f"residual unbalance at node {self.node}: m·r ≈ {phys['me'] * 1e6:.3g} g·mm"
+                f"{_pm(phys['me'], std.get('me'))} at {phys['phase_deg']:.0f}° from the key mark (1X response growing "
+                f"with speed², absent at slow roll; on a symmetric rotor seen from midspan the mirror plane fits "
+                f"about as well)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "node": self.node, "me": phys["me"], "phase_deg": phys["phase_deg"]}
+
+    @classmethod
+    def from_extra(cls, d, rig):
+        U = d["me"] * np.exp(1j * math.radians(d.get("phase_deg", 0.0)))
+        return cls(int(d["node"])), np.zeros(0), np.array([U.real, U.imag])
+
+
+def bow_shape(model, z_a: float, z_b: float) -> np.ndarray:
+    """Parabolic bow DOF vector (ndof,) complex for a unit forward bow at midway between ``z_a`` and ``z_b`` [m],
+    zero at both (the bearing line): x = s(z), y = -j s(z), theta_x = -dy/dz, theta_y = dx/dz."""
+    z = np.asarray(model.node_z, dtype=float)
+    span = z_b - z_a
+    s = 4.0 * (z - z_a) * (z_b - z) / span**2
+    ds = 4.0 * (z_a + z_b - 2.0 * z) / span**2
+    b = np.zeros(model.ndof, dtype=complex)
+    b[0::4] = s
+    b[1::4] = -1j * s
+    b[2::4] = 1j * ds
+    b[3::4] = ds
+    return b
+
+
+class ShaftBow(Effect):
+    """A bent shaft: bow B [m] at midway between the bearings, relative to the bearing centre line, at ``phase``
+    from the key mark; elastic force K_shaft b (1X, forward, constant with speed: present at slow roll)."""
+    name = "shaft_bow"
+    n_lin = 2
+    key = "bow"
+
+    def __init__(self, model):
+        super().__init__()
+        zb = [model.node_z[n - 1] for n in model.bearing_nodes]
+        self.force = model.K_shaft @ bow_shape(model, min(zb), max(zb))
+        self.where = "between the bearings"
+
+    def force_columns(self, prob, k, ratio, nl):
+        if ratio != 1.0:
+            return None
+        return np.column_stack([self.force, 1j * self.force])
+
+    def physical(self, nl, lin):
+        B = _complex_lin(lin)
+        return {"bow": abs(B), "phase_deg": math.degrees(math.atan2(B.imag, B.real)), "re": B.real, "im": B.imag}
+
+    def sentence(self, phys, std):
+        return (f"shaft bow: {phys['bow'] * 1e6:.3g} µm{_pm(phys['bow'], std.get('bow'))} at midspan relative to the "
+                f"bearing line, {phys['phase_deg']:.0f}° from the key mark (1X present at slow roll, "
+                f"amplified through the critical)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "bow": phys["bow"], "phase_deg": phys["phase_deg"]}
+
+    @classmethod
+    def from_extra(cls, d, rig):
+        from ..rotor.assembly import RotorModel
+        B = d["bow"] * np.exp(1j * math.radians(d.get("phase_deg", 0.0)))
+        return cls(RotorModel.from_params(rig)), np.zeros(0), np.array([B.real, B.imag])
+
+
+class Misalignment(Effect):
+    """Coupling misalignment at the shaft end ``node``: a 2X force, forward + backward rotating parts (complex);
+    the peak force is |F_f| + |F_b| [N].  (The static bearing-load part of misalignment is not modelled.)"""
+    name = "misalignment"
+    n_lin = 4
+    key = "force_2x"
+
+    def __init__(self, node: int):
+        super().__init__()
+        self.node = node
+        self.where = f"coupling end, node {node}"
+
+    def force_columns(self, prob, k, ratio, nl):
+        if ratio != 2.0:
+            return None
+        n = prob.model.n_nodes
+        Ff = forward_force(prob.model.ndof, self.node, n)
+        Fb = np.conj(Ff)
+        return np.column_stack([Ff, 1j * Ff, Fb, 1j * Fb])
+
+    def physical(self, nl, lin):
+        Ff, Fb = complex(lin[0], lin[1]), complex(lin[2], lin[3])
+        return {"force_2x": abs(Ff) + abs(Fb), "forward": abs(Ff), "backward": abs(Fb),
+                "f_re": Ff.real, "f_im": Ff.imag, "b_re": Fb.real, "b_im": Fb.imag}
+
+    def sentence(self, phys, std):
+        return (f"misalignment at the {self.where}: 2X force ≈ {phys['force_2x']:.3g} N"
+                f"{_pm(phys['force_2x'], std.get('force_2x'))} (forward {phys['forward']:.3g} N, backward "
+                f"{phys['backward']:.3g} N)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "node": self.node, **{k: float(phys[k]) for k in ("f_re", "f_im", "b_re",
+                                                                                         "b_im")}}
+
+    @classmethod
+    def from_extra(cls, d, rig):
+        return cls(int(d["node"])), np.zeros(0), np.array([d["f_re"], d["f_im"], d["b_re"], d["b_im"]])
+
+
+# ------------------------------------------------------------------------------------------------ measurement
+class ProbeRunout(Effect):
+    """Electrical/mechanical runout on one probe: a constant 1X reading R [m] added at every speed."""
+    name = "probe_runout"
+    n_lin = 2
+    key = "runout"
+
+    def __init__(self, channel: int, probe):
+        super().__init__()
+        self.channel, self.probe = channel, probe
+        self.where = f"probe {probe.name} (node {probe.node}, {_dir_word(probe.direction)})"
+
+    def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
+        if ratio != 1.0:
+            return None
+        c = self._chan(prob, k)
+        if c is None:
+            return None
+        col = np.zeros((y_nom.size, 2), complex)
+        col[c, 0], col[c, 1] = 1.0, 1j
+        return col
+
+    def _chan(self, prob, k):
+        names = [p.name for p in prob.obs.probes(prob.rec_of(k))]
+        return names.index(self.probe.name) if self.probe.name in names else None
+
+    def physical(self, nl, lin):
+        R = _complex_lin(lin)
+        return {"runout": abs(R), "phase_deg": math.degrees(math.atan2(R.imag, R.real)), "re": R.real, "im": R.imag}
+
+    def sentence(self, phys, std):
+        return (f"probe runout on {self.where}: {phys['runout'] * 1e6:.3g} µm{_pm(phys['runout'], std.get('runout'))}"
+                f" at {phys['phase_deg']:.0f}° (the same 1X vector at every speed, slow roll included)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "probe": self.probe.name, "runout": phys["runout"],
+                "phase_deg": phys["phase_deg"]}
+
+
+class ProbeOrientation(Effect):
+    """Probe turned by an angle a (towards +90 deg from its axis) with gain g: reading = (1 + p0) u + p1 u_perp,
+    g = |1 + p0 + j p1|, a = atan2(p1, 1 + p0)."""
+    name = "probe_orientation"
+    n_lin = 2
+    key = "angle_deg"
+
+    def __init__(self, channel: int, probe):
+        super().__init__()
+        self.channel, self.probe = channel, probe
+        self.where = f"probe {probe.name} (node {probe.node}, {_dir_word(probe.direction)})"
+
+    def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
+        names = [p.name for p in prob.obs.probes(prob.rec_of(k))]
+        if self.probe.name not in names:
+            return None
+        c = names.index(self.probe.name)
+        col = np.zeros((y_nom.size, 2), complex)
+        col[c, 0], col[c, 1] = y_nom[c], y_perp[c]
+        return col
+
+    def physical(self, nl, lin):
+        a, b = 1.0 + lin[0], lin[1]
+        return {"angle_deg": math.degrees(math.atan2(b, a)), "gain": math.hypot(a, b)}
+
+    def sentence(self, phys, std):
+        return (f"probe orientation error on {self.where}: turned {phys['angle_deg']:.1f}°"
+                f"{_pm(phys['angle_deg'], std.get('angle_deg'))}, gain {phys['gain']:.3f}")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "probe": self.probe.name, **phys}
+
+
+# ------------------------------------------------------------------------------------------------ oil whirl
+class OilWhirl(Effect):
+    """Sub-synchronous forward whirl driven at a bearing above an onset speed.
+
+    Prediction for window k above the onset: X_sub = F e^{j alpha_k} u_k, u_k = P Z(r_k Omega)^-1 f_fwd(bearing),
+    r_k the measured ratio; F >= 0 and the per-window phases alpha_k (the whirl is not locked to the key mark)
+    are profiled out; the onset is searched between the recorded speeds.
+    """
+    name = "oil_whirl"
+    key = "ratio"
+
+    def __init__(self, bearing_index: int, node: int):
+        super().__init__()
+        self.bearing_index, self.node = bearing_index, node
+        self.where = f"bearing {bearing_index + 1} (node {node})"
+
+    def sub_fit(self, prob, theta, effects, nls, windows):
+        """(pred {k: (nch,)}, info dict, n_params) for the sub-synchronous entries of ``windows``."""
+        ws = [k for k in windows if prob.windows[k].X_sub is not None]
+        if not ws:
+            return {}, {"ratio": float("nan"), "onset_rpm": float("nan"), "force": 0.0}, 3
+        U = {}
+        for k in ws:
+            w = prob.windows[k]
+            Z = prob.system(k, w.sub_ratio, theta, effects, nls)
+            q = np.linalg.solve(Z, np.pad(forward_force(prob.model.ndof, self.node, prob.model.n_nodes),
+                                          (0, Z.shape[0] - prob.model.ndof)))[:prob.model.ndof]
+            U[k] = prob.P[w.rec] @ q
+        speeds = sorted({prob.windows[k].speed for k in ws})
+        cands = [speeds[0] * 0.5] + [0.5 * (a + b) for a, b in zip(speeds[:-1], speeds[1:])]
+        best = None
+        for on in cands:
+            above = [k for k in ws if prob.windows[k].speed > on]
+            num = sum(abs(np.vdot(U[k] / prob.windows[k].std_sub ** 2, prob.windows[k].X_sub)) for k in above)
+            den = sum(np.sum(np.abs(U[k]) ** 2 / prob.windows[k].std_sub ** 2) for k in above)
+            F = num / den if den > 0 else 0.0
+            pred = {}
+            chi = 0.0
+            for k in ws:
+                w = prob.windows[k]
+                if k in above:
+                    alpha = np.angle(np.vdot(U[k] / w.std_sub ** 2, w.X_sub))
+                    pred[k] = F * np.exp(1j * alpha) * U[k]
+                else:
+                    pred[k] = np.zeros_like(w.X_sub)
+                chi += float(np.sum(np.abs((w.X_sub - pred[k]) / w.std_sub) ** 2))
+            if best is None or chi < best[0]:
+                best = (chi, on, F, pred, above)
+        _, on, F, pred, above = best
+        ratio = float(np.median([prob.windows[k].sub_ratio for k in above])) if above else float("nan")
+        return pred, {"ratio": ratio, "onset_rpm": float(rad_s_to_rpm(on)), "force": float(F)}, 3 + len(above)
+
+    def sentence(self, phys, std):
+        return (f"oil whirl at {self.where}: forward sub-synchronous whirl at {phys['ratio']:.3f}X from about "
+                f"{phys['onset_rpm']:.0f} rpm (equivalent driving force {phys['force']:.3g} N)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name, "bearing_node": self.node, **{k: float(v) for k, v in phys.items()}}
+
+
+# ------------------------------------------------------------------------------------------------ library
+def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EFFECT_NAMES) -> list[Effect]:
+    """Every variant of every candidate effect for the problem's rig and probes."""
+    model, rig = prob.model, prob.rig
+    out: list[Effect] = []
+    if "support_flexibility" in names:
+        for i, b in enumerate(rig.bearings):
+            for dirs in ("x", "y"):
+                out.append(SupportFlexibility(i, b.node, dirs))
+    if "residual_unbalance" in names:
+        planes = unbalance_planes or sorted(model.discs) or [model.n_nodes // 2 + 1]
+        out += [ResidualUnbalance(n) for n in planes]
+    if "shaft_bow" in names:
+        out.append(ShaftBow(model))
+    probes = []
+    for r in range(len(prob.obs.recordings)):
+        for p in prob.obs.probes(r):
+            if p.name not in [q.name for q in probes]:
+                probes.append(p)
+    if "probe_runout" in names:
+        out += [ProbeRunout(c, p) for c, p in enumerate(probes)]
+    if "probe_orientation" in names:
+        out += [ProbeOrientation(c, p) for c, p in enumerate(probes)]
+    if "misalignment" in names and 2 in prob.obs.orders:
+        ends = misalignment_nodes or (1, model.n_nodes)
+        out += [Misalignment(n) for n in ends]
+    if "disc_mass_error" in names:
+        out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
+    if "oil_whirl" in names and prob.has_sub:
+        out += [OilWhirl(i, b.node) for i, b in enumerate(rig.bearings)]
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ augmented model
+_FROM_EXTRA = {"support_flexibility": SupportFlexibility, "disc_mass_error": DiscMassError,
+               "residual_unbalance": ResidualUnbalance, "shaft_bow": ShaftBow, "misalignment": Misalignment}
+
+
+def effects_from_extra(rig) -> list[tuple]:
+    """[(effect, nl, lin)] for the model-side augmentations stored in ``rig.extra['effects']`` (measurement-side
+    entries such as probe runout are returned by :func:`measurement_corrections`)."""
+    out = []
+    for d in (rig.extra or {}).get("effects", []) or []:
+        cls = _FROM_EXTRA.get(d.get("effect"))
+        if cls is not None:
+            out.append(cls.from_extra(d, rig))
+    return out
+
+
+def measurement_corrections(rig) -> list[dict]:
+    """The measurement-model entries (probe_runout, probe_orientation) of ``rig.extra['effects']``."""
+    return [d for d in (rig.extra or {}).get("effects", []) or []
+            if d.get("effect") in ("probe_runout", "probe_orientation")]
+
+
+def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: dict) -> np.ndarray:
+    """Z (ndof, ndof) of the rotor on ``coeffs`` bearings with the augmentations in ``rig.extra`` (flexible supports
+    condensed onto the journal DOFs, disc mass corrections) at spin ``speed`` and frequency ``omega`` [rad/s]."""
+    from ..rotor.assembly import dynamic_stiffness
+
+    class _P:  # the minimal context the hooks read
+        pass
+    p = _P()
+    p.model = model
+    Z = dynamic_stiffness(model, speed, omega, {})
+    effs = effects_from_extra(rig)
+    n = model.n_nodes
+    for node, (Kb, Cb) in coeffs.items():
+        Zb = np.asarray(Kb) + 1j * omega * np.asarray(Cb)
+        for e, nl, _ in effs:
+            Zb = e.bearing_impedance(p, node, Zb, speed, omega, nl)
+        i = dof_index(node, "x", n)
+        Z[i:i + 2, i:i + 2] += Zb
+    for e, nl, _ in effs:
+        e.add_dZ(p, Z, speed, omega, nl)
+    return Z
+
+
+def augmented_forces(model, rig, speed: float) -> dict:
+    """Extra force phasors {ratio: (ndof,)} [N] of the augmentations (residual unbalance, bow, misalignment)."""
+    out: dict = {}
+    for e, nl, lin in effects_from_extra(rig):
+        if not e.n_lin:
+            continue
+        for ratio in (1.0, 2.0):
+            cols = _force_cols(e, model, speed, ratio)
+            if cols is not None:
+                out.setdefault(ratio, np.zeros(model.ndof, complex))
+                out[ratio] += cols @ lin
+    return out
+
+
+def _force_cols(e, model, speed, ratio):
+    class _W:
+        pass
+
+    class _P:
+        pass
+    p = _P()
+    p.model = model
+    w = _W()
+    w.speed = speed
+    p.windows = [w]
+    return e.force_columns(p, 0, ratio, np.zeros(0))
+
+
+__all__ = ["EFFECT_NAMES", "Effect", "SupportFlexibility", "DiscMassError", "ResidualUnbalance", "ShaftBow",
+           "Misalignment", "ProbeRunout", "ProbeOrientation", "OilWhirl", "candidates", "bow_shape",
+           "effects_from_extra", "measurement_corrections", "augmented_dynamic_stiffness", "augmented_forces"]

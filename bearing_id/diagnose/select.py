@@ -1,0 +1,344 @@
+"""Fit hypotheses (nominal + candidate effects), compare them, validate on held-out speeds, select greedily.
+
+Fit (:func:`fit`)
+    Residual vector = measured minus predicted harmonic vectors divided by their effective sigma (noise floor and
+    model tolerance, :func:`locate.sigma`), real and imaginary parts stacked, plus the sub-synchronous vectors, plus
+    the Gaussian prior of the bearing nuisance factors.  Linear effect parameters are profiled out by weighted least
+    squares inside the residual (variable projection); nonlinear ones (and the nuisance) go to
+    ``scipy.optimize.least_squares`` (trf, bounds, several starts).  Parameter covariance = (J^T J)^-1 of the full
+    residual (linear parameters explicit) scaled by max(1, chi2 / dof).
+
+Compare
+    BIC = chi2 + k ln n (n real data residuals, k fitted parameters, nuisance included); an effect is worth adding
+    when it lowers the BIC by more than ``dbic_min``.
+
+Held-out validation (:func:`validate`)
+    The recorded speeds are split into two interleaved halves; the hypothesis and its base are fitted on one half
+    and predict the other, both ways.  The effect is *validated* when it lowers the held-out chi2 and the held-out
+    reduction fraction is at least half of the in-sample one: a model that only fits what it was tuned on fails.
+
+Selection (:func:`select`)
+    Greedy forward selection: start from "none" (nuisance only); at each step fit every remaining candidate added to
+    the current set (everything re-fitted jointly), take the best BIC that is also validated, stop when the BIC gain
+    falls below ``dbic_min``, validation fails, or the current residual is no longer significant (chi2 per residual
+    below ``chi2_floor``; with the model tolerance in sigma a clean recording sits near 1 or below).
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .effects import OilWhirl
+from .predict import Problem
+
+NUIS_BOUND = 2.0     # |ln factor| <= 2 (x0.14 .. x7.4) for viscosity and clearance factors
+
+
+@dataclass
+class Fit:
+    """Result of fitting one hypothesis (list of effects) on a set of windows."""
+    effects: list
+    theta: np.ndarray
+    nls: list
+    lin: np.ndarray
+    chi2: float                 # data part (no prior)
+    chi2_total: float           # with the nuisance prior
+    n: int                      # real data residuals
+    k: int                      # fitted parameters
+    windows: list
+    sub_pred: dict = field(default_factory=dict)
+    sub_info: dict = field(default_factory=dict)
+    phys: list = field(default_factory=list)     # per effect: dict of physical parameters
+    std: list = field(default_factory=list)      # per effect: dict of their 1-sigma
+    resid_m: float = float("nan")                # RMS |measured - predicted| over 1X/2X/3X entries [m]
+
+    @property
+    def bic(self) -> float:
+        return self.chi2_total + self.k * np.log(max(self.n, 1))
+
+    @property
+    def rms(self) -> float:
+        """RMS normalised residual (units of sigma)."""
+        return float(np.sqrt(self.chi2 / max(self.n, 1)))
+
+    @property
+    def names(self) -> list:
+        return [e.name for e in self.effects]
+
+
+def _split(prob: Problem, effects, z):
+    th = z[:prob.n_nuis]
+    nls, i = [], prob.n_nuis
+    for e in effects:
+        m = len(e.nl_names)
+        nls.append(np.asarray(z[i:i + m]))
+        i += m
+    return th, nls
+
+
+def _sub_windows(prob, windows):
+    return [k for k in windows if prob.windows[k].X_sub is not None] if prob.has_sub else []
+
+
+def _sub_residual(prob, effects, th, nls, windows):
+    ws = _sub_windows(prob, windows)
+    if not ws:
+        return np.zeros(0), {}, {}, 0
+    whirl = [e for e in effects if isinstance(e, OilWhirl)]
+    pred, info, kk = {}, {}, 0
+    if whirl:
+        pred, info, kk = whirl[0].sub_fit(prob, th, effects, nls, ws)
+    r = []
+    for k in ws:
+        w = prob.windows[k]
+        d = (w.X_sub - pred.get(k, 0.0)) / np.maximum(w.std_sub, 1e-15)
+        r += [d.real, d.imag]
+    return np.concatenate(r), pred, info, kk
+
+
+def _residual(prob, effects, z, windows, lin=None):
+    """(residual vector, lin, extra) for parameters z; ``lin`` None = profiled."""
+    th, nls = _split(prob, effects, z)
+    y0, A, idx = prob.predict(th, effects, nls, windows)
+    s = prob.sig[idx]
+    r0 = (prob.y[idx] - y0) / s
+    b = np.concatenate([r0.real, r0.imag])
+    if A.shape[1]:
+        Aw = A / s[:, None]
+        Mr = np.vstack([Aw.real, Aw.imag])
+        if lin is None:
+            lin = np.linalg.lstsq(Mr, b, rcond=None)[0]
+        b = b - Mr @ lin
+    else:
+        lin = np.zeros(0)
+    rs, pred, info, kk = _sub_residual(prob, effects, th, nls, windows)
+    return np.concatenate([b, rs, prob.prior_residual(th)]), lin, (pred, info, kk, b.size + rs.size, y0, A, idx)
+
+
+def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: int = 60,
+        free_nuisance: bool = True, uncertainty: bool = True) -> Fit:
+    """Fit nuisance + effect parameters of the hypothesis ``effects`` on ``windows`` (default all).
+
+    ``free_nuisance=False`` keeps the bearing nuisance at ``theta0`` (fast screening: linear effects then need no
+    iteration at all).
+    """
+    windows = list(range(len(prob.windows))) if windows is None else list(windows)
+    th0 = np.zeros(prob.n_nuis) if theta0 is None else np.asarray(theta0, float)[:prob.n_nuis]
+    nn = prob.n_nuis if free_nuisance else 0
+    lo = [-NUIS_BOUND] * nn + [v for e in effects for v in e.nl_lo]
+    hi = [NUIS_BOUND] * nn + [v for e in effects for v in e.nl_hi]
+    head = th0[:nn]
+    fixed = th0 if not free_nuisance else np.zeros(0)
+    starts = [np.concatenate([head, *combo]) for combo in itertools.product(*[e.starts for e in effects])] \
+        if effects else [head]
+
+    def full(z):
+        return np.concatenate([fixed, z])
+
+    best = None
+    nz = len(lo)
+    for z0 in starts:
+        if nz:
+            z0 = np.clip(z0, lo, hi)
+            res = least_squares(lambda z: _residual(prob, effects, full(z), windows)[0], z0, bounds=(lo, hi),
+                                x_scale="jac", max_nfev=max_nfev, method="trf")
+            z, cost = res.x, 2 * res.cost
+        else:
+            z = z0
+            cost = float(np.sum(_residual(prob, effects, full(z), windows)[0] ** 2))
+        if best is None or cost < best[1]:
+            best = (z, cost)
+    z = full(best[0])
+    r, lin, (pred, info, kk, ndata, y0, A, idx) = _residual(prob, effects, z, windows)
+    th, nls = _split(prob, effects, z)
+    chi2 = float(np.sum(r[:ndata] ** 2))
+    k = prob.n_nuis + sum(len(e.nl_names) for e in effects) + lin.size + kk
+    d = prob.y[idx] - y0 - (A @ lin if lin.size else 0)
+    d = np.concatenate([np.atleast_1d(d)] + [prob.windows[k].X_sub - pred.get(k, 0.0)
+                                             for k in _sub_windows(prob, windows)])
+    f = Fit(effects=list(effects), theta=th, nls=nls, lin=lin, chi2=chi2, chi2_total=float(np.sum(r ** 2)),
+            n=int(ndata), k=int(k), windows=windows, sub_pred=pred, sub_info=info,
+            resid_m=float(np.sqrt(np.mean(np.abs(d) ** 2))) if d.size else 0.0)
+    if uncertainty:
+        _uncertainty(prob, f, z)
+    return f
+
+
+def _uncertainty(prob: Problem, f: Fit, z):
+    """Physical parameters of each effect and their 1-sigma from the full-residual Jacobian (delta method)."""
+    nz, nl_ = z.size, f.lin.size
+    r0, _, extra = _residual(prob, f.effects, z, f.windows, lin=f.lin)
+    J = np.zeros((r0.size, nz + nl_))
+    for i in range(nz):
+        h = 1e-6 * max(1.0, abs(z[i]))
+        zp = z.copy()
+        zp[i] += h
+        J[:, i] = (_residual(prob, f.effects, zp, f.windows, lin=f.lin)[0] - r0) / h
+    if nl_:
+        _, _, _, ndata, _, A, idx = extra
+        s = prob.sig[idx]
+        Aw = A / s[:, None]
+        Mr = np.vstack([Aw.real, Aw.imag])
+        J[:Mr.shape[0], nz:] = -Mr
+    dof = max(f.n - f.k, 1)
+    scale = max(1.0, f.chi2 / dof)
+    try:
+        cov = np.linalg.pinv(J.T @ J) * scale
+    except np.linalg.LinAlgError:
+        cov = np.full((nz + nl_, nz + nl_), np.nan)
+    i_nl, i_lin = prob.n_nuis, nz
+    for e, nl in zip(f.effects, f.nls):
+        m, q = len(e.nl_names), e.n_lin
+        lin = f.lin[i_lin - nz:i_lin - nz + q]
+        if isinstance(e, OilWhirl):
+            f.phys.append(dict(f.sub_info))
+            f.std.append({})
+            i_nl += m
+            i_lin += q
+            continue
+        phys = e.physical(nl, lin)
+        keys = list(phys)
+        idx = list(range(i_nl, i_nl + m)) + list(range(i_lin, i_lin + q))
+        G = np.zeros((len(keys), len(idx)))
+        for j, ii in enumerate(idx):
+            h = 1e-6 * max(1.0, abs((list(nl) + list(lin))[j]))
+            nl2, lin2 = np.array(nl, float), np.array(lin, float)
+            if j < m:
+                nl2[j] += h
+            else:
+                lin2[j - m] += h
+            p2 = e.physical(nl2, lin2)
+            G[:, j] = [(p2[kk] - phys[kk]) / h for kk in keys]
+        C = cov[np.ix_(idx, idx)] if idx else np.zeros((0, 0))
+        sd = np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)) if idx else np.zeros(len(keys))
+        f.phys.append(phys)
+        f.std.append({kk: float(v) for kk, v in zip(keys, sd)})
+        i_nl += m
+        i_lin += q
+
+
+# ------------------------------------------------------------------------------------------------ validation
+def run_folds(prob: Problem) -> tuple[list, list]:
+    """Windows of even-numbered recordings vs odd-numbered ones (hold out whole runs)."""
+    return ([k for k, w in enumerate(prob.windows) if w.rec % 2 == 0],
+            [k for k, w in enumerate(prob.windows) if w.rec % 2 == 1])
+
+
+def speed_folds(prob: Problem) -> tuple[list, list]:
+    """Two interleaved halves of the windows by recorded speed (sorted distinct speeds alternate)."""
+    speeds = sorted({round(w.speed, 3) for w in prob.windows})
+    a = {s for i, s in enumerate(speeds) if i % 2 == 0}
+    A = [k for k, w in enumerate(prob.windows) if round(w.speed, 3) in a]
+    B = [k for k, w in enumerate(prob.windows) if round(w.speed, 3) not in a]
+    return A, B
+
+
+def heldout_chi2(prob: Problem, f: Fit, windows) -> float:
+    """Data chi2 of fit ``f`` (parameters frozen; oil-whirl force and phases re-profiled) on ``windows``."""
+    z = np.concatenate([f.theta, *f.nls]) if f.nls else np.asarray(f.theta)
+    r, _, extra = _residual(prob, f.effects, z, windows, lin=f.lin if f.lin.size else None)
+    return float(np.sum(r[:extra[3]] ** 2))
+
+
+def validate(prob: Problem, effects: list, base: list, *, cache: dict | None = None, frac_in: float = 0.0,
+             folds=None) -> dict:
+    """Held-out check of ``effects`` against ``base`` (both ways between the two speed halves).
+
+    Validated when the held-out chi2 drops by at least max(20 %, half the in-sample reduction ``frac_in``).
+    """
+    A, B = folds if folds is not None else speed_folds(prob)
+    if len(A) == 0 or len(B) == 0:
+        return {"validated": False, "reason": "one recorded speed: nothing to hold out"}
+    cache = {} if cache is None else cache
+    out_h, out_b = 0.0, 0.0
+    for tr, te in ((A, B), (B, A)):
+        key = (tuple(e.label for e in base), tuple(tr))
+        if key not in cache:
+            cache[key] = fit(prob, base, windows=tr, uncertainty=False)
+        fb = cache[key]
+        fh = fit(prob, effects, windows=tr, theta0=fb.theta, uncertainty=False)
+        out_b += heldout_chi2(prob, fb, te)
+        out_h += heldout_chi2(prob, fh, te)
+    frac_out = 1.0 - out_h / max(out_b, 1e-300)
+    need = max(0.2, 0.5 * frac_in)
+    return {"validated": bool(frac_out >= need), "heldout_chi2_base": out_b, "heldout_chi2": out_h,
+            "heldout_reduction": frac_out, "required_reduction": need}
+
+
+# ------------------------------------------------------------------------------------------------ selection
+@dataclass
+class Selection:
+    base: Fit                     # "none" (nuisance only)
+    final: Fit                    # the selected hypothesis
+    rounds: list                  # per greedy step: list of (Fit, validation dict | None), best first
+    selected: list                # effects accepted
+
+
+def _key(e):
+    return e.label
+
+
+def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float = 10.0, chi2_floor: float = 1.5,
+           n_validate: int = 4, n_refine: int = 4, folds=None) -> Selection:
+    """Greedy forward selection (see module docstring)."""
+    base = fit(prob, [])
+    current, selected, rounds = base, [], []
+    vcache: dict = {}
+    while len(selected) < max_effects:
+        if current.chi2 / max(current.n, 1) < chi2_floor:
+            break
+        used = {_key(e) for e in selected}
+        screen = []
+        for c in cands:
+            if _key(c) in used or (c.name in {e.name for e in selected} and c.name not in
+                                   ("support_flexibility", "probe_runout", "residual_unbalance")):
+                continue
+            screen.append(fit(prob, selected + [c], theta0=current.theta, free_nuisance=False, uncertainty=False))
+        if not screen:
+            break
+        screen.sort(key=lambda f: f.bic)
+        # refine the best variant of each of the leading families with the bearing nuisance free
+        # (the two best variants of each of the n_refine best families: e.g. mirror-image planes on a symmetric
+        # rotor are close in the screening and only separate once the nuisance is free)
+        trials, fams = [], []
+        count: dict = {}
+        for f in screen:
+            nm = f.effects[-1].name
+            if nm not in fams:
+                fams.append(nm)
+            count[nm] = count.get(nm, 0) + 1
+            if fams.index(nm) < n_refine and count[nm] <= 2:
+                trials.append(fit(prob, f.effects, theta0=current.theta))
+            elif count[nm] == 1:
+                _uncertainty(prob, f, np.concatenate([f.theta, *f.nls]) if f.nls else np.asarray(f.theta))
+                trials.append(f)
+        trials.sort(key=lambda f: f.bic)
+        # best variant per family, validated (families in BIC order)
+        fam_best, seen = [], set()
+        for f in trials:
+            nm = f.effects[-1].name
+            if nm not in seen:
+                seen.add(nm)
+                fam_best.append(f)
+        round_rows = []
+        accepted = None
+        for i, f in enumerate(fam_best):
+            v = None
+            if i < n_validate and current.bic - f.bic > dbic_min:
+                v = validate(prob, f.effects, selected, cache=vcache, frac_in=1.0 - f.chi2 / max(current.chi2, 1e-300),
+                             folds=folds)
+                if accepted is None and v["validated"]:
+                    accepted = f
+            round_rows.append((f, v))
+        rounds.append((current, round_rows))
+        if accepted is None:
+            break
+        selected = list(accepted.effects)
+        current = accepted
+    return Selection(base=base, final=current, rounds=rounds, selected=selected)
+
+
+__all__ = ["Fit", "fit", "validate", "speed_folds", "run_folds", "heldout_chi2", "Selection", "select"]
