@@ -1,0 +1,187 @@
+"""Read a DAQ export (CSV or NPZ) into a :class:`bearing_id.rig.Recording` for the sensor_driver's ``file`` source.
+
+NPZ: the self-describing format of :meth:`bearing_id.rig.Recording.save_npz` (``bearing-id simulate`` writes it).
+
+CSV (one row per sample, comma separated, ``#`` lines are metadata)::
+
+    # sample_rate: 10240          Hz, required
+    # units: um                   unit of the displacement columns: m (default), mm or um
+    # channels: p6x@6x, p6y@6y    name@<node><direction> per displacement column (node 1-based, x or y)
+    # run: A                      optional run id
+    t,angle,speed,p6x,p6y         or t,keyphasor,p6x,p6y   or t,speed_rpm,angle,...
+
+The rotor angle comes from an ``angle`` column [rad, keyphasor angle] or is rebuilt from a ``keyphasor`` column (a
+once-per-revolution pulse train; rising edges through half its range mark angle = 0 mod 2 pi) by linear
+interpolation between marks.  Speed: ``speed`` [rad/s], ``speed_rpm`` [rpm], or the derivative of the angle.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .params import Probe, Run
+
+UNIT_SCALE = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
+
+
+class DaqError(ValueError):
+    """The DAQ file cannot be used; the message says what is wrong and where."""
+
+
+def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rotor angle [rad] and speed [rad/s] per sample from a once-per-revolution pulse train.
+
+    Rising edges (crossing the mid level) are the key mark (angle = 2 pi k); the angle is linear in time between
+    marks and extrapolated with the nearest revolution's speed before the first and after the last mark.
+    """
+    p = np.asarray(pulses, dtype=float)
+    mid = 0.5 * (np.nanmin(p) + np.nanmax(p))
+    above = p > mid
+    edges = np.nonzero(~above[:-1] & above[1:])[0] + 1
+    if edges.size < 2:
+        raise DaqError(f"keyphasor: found {edges.size} key marks, need at least 2 (is the column a pulse train?)")
+    # sub-sample edge time by linear interpolation across the crossing
+    e = edges.astype(float) - (p[edges] - mid) / (p[edges] - p[edges - 1])
+    n = p.size
+    idx = np.arange(n, dtype=float)
+    revs = np.arange(e.size, dtype=float)
+    angle = 2 * math.pi * np.interp(idx, e, revs)
+    first_rate = 1.0 / (e[1] - e[0])
+    last_rate = 1.0 / (e[-1] - e[-2])
+    before = idx < e[0]
+    after = idx > e[-1]
+    angle[before] = 2 * math.pi * (idx[before] - e[0]) * first_rate
+    angle[after] = 2 * math.pi * ((e.size - 1) + (idx[after] - e[-1]) * last_rate)
+    per_rev = 2 * math.pi * sample_rate / np.diff(e)             # rad/s of each revolution
+    mids = 0.5 * (e[:-1] + e[1:])
+    speed = np.interp(idx, mids, per_rev) if mids.size > 1 else np.full(n, per_rev[0])
+    return angle, speed
+
+
+def _parse_channels(text: str) -> tuple[Probe, ...]:
+    out = []
+    for tok in filter(None, (s.strip() for s in text.split(","))):
+        if "@" not in tok:
+            raise DaqError(f"channels: '{tok}' must be name@<node><x|y>, e.g. p6x@6x")
+        name, loc = tok.split("@", 1)
+        node, direction = loc[:-1], loc[-1:]
+        if direction not in ("x", "y") or not node.isdigit() or int(node) < 1:
+            raise DaqError(f"channels: '{tok}': location must be a 1-based node followed by x or y")
+        out.append(Probe(name.strip(), int(node), direction))
+    return tuple(out)
+
+
+def read_csv(path: str | Path):
+    """Read a CSV DAQ export (format in the module docstring) -> Recording (samples in metres)."""
+    from .rig import Recording
+    path = Path(path)
+    meta = {}
+    header = None
+    with open(path, encoding="utf-8") as fh:
+        for lineno, line in enumerate(fh, 1):
+            s = line.strip()
+            if not s:
+                continue
+            if s.startswith("#"):
+                if ":" in s:
+                    k, v = s[1:].split(":", 1)
+                    meta[k.strip().lower()] = v.split("  ")[0].strip()
+                continue
+            header = [h.strip() for h in s.split(",")]
+            break
+    if header is None:
+        raise DaqError(f"{path}: no header row")
+    if "sample_rate" not in meta:
+        raise DaqError(f"{path}: missing '# sample_rate: <Hz>' line")
+    try:
+        fs = float(meta["sample_rate"])
+    except ValueError:
+        raise DaqError(f"{path}: sample_rate {meta['sample_rate']!r} is not a number [Hz]") from None
+    if not fs > 0:
+        raise DaqError(f"{path}: sample_rate must be > 0 Hz")
+    units = meta.get("units", "m")
+    if units not in UNIT_SCALE:
+        raise DaqError(f"{path}: units {units!r} must be one of {sorted(UNIT_SCALE)}")
+    if "channels" not in meta:
+        raise DaqError(f"{path}: missing '# channels: name@<node><x|y>, ...' line")
+    probes = _parse_channels(meta["channels"])
+    missing = [p.name for p in probes if p.name not in header]
+    if missing:
+        raise DaqError(f"{path}: channel column(s) {missing} not in the header {header}")
+    try:
+        data = np.loadtxt(path, delimiter=",", comments="#", skiprows=_header_row(path), ndmin=2)
+    except ValueError as exc:
+        raise DaqError(f"{path}: unreadable numbers ({exc})") from None
+    if data.shape[1] != len(header):
+        raise DaqError(f"{path}: {data.shape[1]} columns but {len(header)} header names")
+    col = {h: data[:, i] for i, h in enumerate(header)}
+    n = data.shape[0]
+    if "angle" in col:
+        angle = col["angle"].astype(float)
+    elif "keyphasor" in col:
+        angle, _ = angle_from_keyphasor(col["keyphasor"], fs)
+    else:
+        raise DaqError(f"{path}: need an 'angle' [rad] or a 'keyphasor' column")
+    if "speed" in col:
+        speed = col["speed"].astype(float)
+    elif "speed_rpm" in col:
+        speed = col["speed_rpm"] * (2 * math.pi / 60.0)
+    elif "keyphasor" in col:
+        _, speed = angle_from_keyphasor(col["keyphasor"], fs)
+    else:
+        speed = np.gradient(angle) * fs
+    samples = np.column_stack([col[p.name] for p in probes]) * UNIT_SCALE[units]
+    t = col["t"] if "t" in col else np.arange(n) / fs
+    return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples,
+                     run=Run(meta.get("run", "?"), ()), rig_name=meta.get("rig", "daq"))
+
+
+def _header_row(path: Path) -> int:
+    with open(path, encoding="utf-8") as fh:
+        for i, line in enumerate(fh):
+            s = line.strip()
+            if s and not s.startswith("#"):
+                return i + 1
+    return 0
+
+
+def write_csv(rec, path: str | Path, units: str = "m", keyphasor: bool = False) -> Path:
+    """Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads); ``keyphasor`` writes a pulse
+    train instead of the angle column."""
+    path = Path(path)
+    s = UNIT_SCALE[units]
+    ch = ", ".join(f"{p.name}@{p.node}{p.direction}" for p in rec.probes)
+    lines = [f"# sample_rate: {rec.sample_rate!r}", f"# units: {units}", f"# channels: {ch}",
+             f"# run: {rec.run.id}", f"# rig: {rec.rig_name}"]
+    if keyphasor:
+        ph = np.mod(rec.angle, 2 * math.pi)
+        pulse = (ph < 0.2 * math.pi).astype(float)
+        cols = [rec.t, pulse, rec.speed]
+        names = ["t", "keyphasor", "speed"]
+    else:
+        cols = [rec.t, rec.angle, rec.speed]
+        names = ["t", "angle", "speed"]
+    cols += [rec.samples[:, j] / s for j in range(rec.samples.shape[1])]
+    names += [p.name for p in rec.probes]
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("\n".join(lines) + "\n" + ",".join(names) + "\n")
+        np.savetxt(fh, np.column_stack(cols), delimiter=",", fmt="%.12g")
+    return path
+
+
+def read_daq(path: str | Path):
+    """Read a DAQ export by extension (.csv or .npz) -> Recording; raises DaqError (a ValueError) with the reason."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"DAQ file {path} does not exist")
+    if path.suffix.lower() == ".npz":
+        from .rig import load_npz
+        try:
+            return load_npz(path)
+        except ValueError as exc:
+            raise DaqError(str(exc)) from None
+    if path.suffix.lower() in (".csv", ".txt"):
+        return read_csv(path)
+    raise DaqError(f"{path}: unknown DAQ format (use .csv or .npz)")

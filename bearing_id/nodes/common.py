@@ -1,0 +1,530 @@
+"""What the three nodes share: parameter specs and their validation, QoS choices, input-stream checks,
+diagnostics assembly and the process main loop (clean exit on SIGINT/SIGTERM).
+
+The pure parts (:class:`ParamSpec`, :func:`validate_values`, :class:`StreamMonitor`, :class:`DiagItem`) import no ROS
+and are tested without it; the ROS parts import rclpy lazily.
+
+QoS (the choice, documented also in params/*.yaml and the README):
+    * displacement blocks (``/rotor/displacement``, ``/bearing_id/bearing_displacement``, ``/bearing_id/innovation``):
+      RELIABLE, KEEP_LAST with a deep queue (``QOS_STREAM_DEPTH`` blocks = 40 s of data at 1024 samples/10,240 Hz):
+      identification needs contiguous blocks, so a slow subscriber must get back-pressure, not silent loss; the depth
+      absorbs a model rebuild or a garbage-collection pause.  VOLATILE: a late joiner starts at the present.
+    * ``/rotor/speed``: RELIABLE, KEEP_LAST 50.
+    * ``/rotor/excitation`` and ``/bearing_id/coefficients``: RELIABLE + TRANSIENT_LOCAL (latched), KEEP_LAST 20: a
+      node started late still learns the current run's excitation and the latest results.
+    * ``/diagnostics``: the ROS default (RELIABLE, VOLATILE, depth 10).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..params import ParamError
+
+# ------------------------------------------------------------------------------------------------ topics
+TOPIC_DISPLACEMENT = "/rotor/displacement"
+TOPIC_SPEED = "/rotor/speed"
+TOPIC_EXCITATION = "/rotor/excitation"
+TOPIC_BEARING_DISPLACEMENT = "/bearing_id/bearing_displacement"
+TOPIC_INNOVATION = "/bearing_id/innovation"
+TOPIC_COEFFICIENTS = "/bearing_id/coefficients"
+TOPIC_DIAGNOSTICS = "/diagnostics"
+
+QOS_STREAM_DEPTH = 400
+QOS_LATCHED_DEPTH = 20
+
+# diagnostic levels (diagnostic_msgs/DiagnosticStatus)
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+
+
+# ------------------------------------------------------------------------------------------------ parameters
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter: its default, what it means (with unit) and the allowed values.
+
+    ``lo``/``hi`` bound numbers (and every element of a number list); ``choices`` restricts strings;
+    ``check`` is an extra predicate ``value -> error text or None``.
+    """
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple | None = None
+    check: Callable[[Any], str | None] | None = None
+    type_: str | None = None       # needed when default is None ("unset": the node falls back, e.g. to the rig file)
+
+    @property
+    def kind(self) -> str:
+        if self.type_ is not None:
+            return self.type_
+        d = self.default
+        if isinstance(d, bool):
+            return "bool"
+        if isinstance(d, int):
+            return "int"
+        if isinstance(d, float):
+            return "float"
+        if isinstance(d, str):
+            return "str"
+        if isinstance(d, (list, tuple)):
+            if d and all(isinstance(x, str) for x in d):
+                return "str[]"
+            if d and all(isinstance(x, int) and not isinstance(x, bool) for x in d):
+                return "int[]"
+            return "float[]"
+        raise TypeError(f"parameter {self.name}: unsupported default {d!r}")
+
+    def doc(self) -> str:
+        """One line for --help and the yaml comments: description [unit]; range; default."""
+        parts = [self.description + (f" [{self.unit}]" if self.unit else "")]
+        if self.choices:
+            parts.append("one of " + " | ".join(map(str, self.choices)))
+        elif self.lo is not None or self.hi is not None:
+            parts.append(f"range [{'' if self.lo is None else self.lo}, {'' if self.hi is None else self.hi}]")
+        parts.append("default: unset" if self.default is None else f"default {self.default!r}")
+        return "; ".join(parts)
+
+
+def _check_number(spec: ParamSpec, v, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ParamError(f"parameter '{where}' must be a number [{spec.unit}], got {v!r}")
+    if not math.isfinite(float(v)):
+        raise ParamError(f"parameter '{where}' must be finite [{spec.unit}], got {v!r}")
+    if (spec.lo is not None and v < spec.lo) or (spec.hi is not None and v > spec.hi):
+        raise ParamError(f"parameter '{where}' = {v!r} [{spec.unit}] is outside the allowed range "
+                         f"[{spec.lo}, {spec.hi}]: {spec.description}")
+    return v
+
+
+def validate_value(spec: ParamSpec, v):
+    """Check one value against its spec; returns it (ints kept int) or raises ParamError naming the parameter."""
+    kind = spec.kind
+    if v is None and spec.default is None:
+        return None
+    if kind == "bool":
+        if not isinstance(v, bool):
+            raise ParamError(f"parameter '{spec.name}' must be true or false, got {v!r}")
+    elif kind == "int":
+        if isinstance(v, float) and v == int(v):
+            v = int(v)
+        if not isinstance(v, int) or isinstance(v, bool):
+            raise ParamError(f"parameter '{spec.name}' must be a whole number [{spec.unit}], got {v!r}")
+        _check_number(spec, v, spec.name)
+    elif kind == "float":
+        v = float(_check_number(spec, v, spec.name))
+    elif kind == "str":
+        if not isinstance(v, str):
+            raise ParamError(f"parameter '{spec.name}' must be a string, got {v!r}")
+        if spec.choices and v not in spec.choices:
+            raise ParamError(f"parameter '{spec.name}' must be one of {list(spec.choices)}, got {v!r}")
+    else:
+        if not isinstance(v, (list, tuple)):
+            raise ParamError(f"parameter '{spec.name}' must be a list, got {v!r}")
+        v = list(v)
+        for i, x in enumerate(v):
+            if kind == "str[]":
+                if not isinstance(x, str):
+                    raise ParamError(f"parameter '{spec.name}[{i}]' must be a string, got {x!r}")
+            else:
+                _check_number(spec, x, f"{spec.name}[{i}]")
+    if spec.check is not None:
+        msg = spec.check(v)
+        if msg:
+            raise ParamError(f"parameter '{spec.name}' = {v!r}: {msg}")
+    return v
+
+
+def validate_values(specs: list[ParamSpec], values: dict) -> dict:
+    """Validate ``values`` (name -> value, missing names take the default); unknown names are an error."""
+    names = {s.name for s in specs}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ParamError(f"unknown parameter(s) {unknown}; known: {sorted(names)}")
+    return {s.name: validate_value(s, values.get(s.name, s.default)) for s in specs}
+
+
+def help_epilog(specs: list[ParamSpec]) -> str:
+    lines = ["ROS parameters (set with --ros-args -p name:=value or --params-file FILE):"]
+    for s in specs:
+        lines.append(f"  {s.name}: {s.doc()}")
+    return "\n".join(lines)
+
+
+def yaml_block(node_name: str, specs: list[ParamSpec]) -> str:
+    """The ``params/<node>.yaml`` text for ``specs`` (every default written and commented)."""
+    import yaml
+    out = [f"{node_name}:", "  ros__parameters:"]
+    for s in specs:
+        out.append("")
+        for ln in _wrap(s.doc(), 110):
+            out.append(f"    # {ln}")
+        if s.default is None:
+            out.append(f"    # {s.name}: (unset)")
+            continue
+        val = yaml.safe_dump({s.name: list(s.default) if isinstance(s.default, tuple) else s.default},
+                             default_flow_style=True, width=1000).strip()[1:-1]
+        out.append(f"    {val}")
+    return "\n".join(out) + "\n"
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    import textwrap
+    return textwrap.wrap(text, width) or [""]
+
+
+def declare_parameters(node, specs: list[ParamSpec]) -> dict:
+    """Declare ``specs`` on an rclpy node with descriptors (description + unit, numeric ranges, read-only) and
+    return the validated values.  Raises ParamError naming the parameter on any bad value."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
+                                  ParameterException)
+    values = {}
+    for s in specs:
+        desc = ParameterDescriptor(description=s.doc(), read_only=True)
+        kind = s.kind
+        if kind in ("float", "float[]") and (s.lo is not None or s.hi is not None):
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(-sys.float_info.max if s.lo is None else s.lo),
+                to_value=float(sys.float_info.max if s.hi is None else s.hi), step=0.0)]
+        if kind in ("int", "int[]") and (s.lo is not None or s.hi is not None):
+            desc.integer_range = [IntegerRange(from_value=int(-2**62 if s.lo is None else s.lo),
+                                               to_value=int(2**62 if s.hi is None else s.hi), step=1)]
+        if s.choices:
+            desc.additional_constraints = "one of: " + ", ".join(map(str, s.choices))
+        default = list(s.default) if isinstance(s.default, tuple) else s.default
+        if default is None:
+            from rclpy.parameter import Parameter
+            default = {"bool": Parameter.Type.BOOL, "int": Parameter.Type.INTEGER, "float": Parameter.Type.DOUBLE,
+                       "str": Parameter.Type.STRING, "str[]": Parameter.Type.STRING_ARRAY,
+                       "int[]": Parameter.Type.INTEGER_ARRAY, "float[]": Parameter.Type.DOUBLE_ARRAY}[kind]
+        try:
+            p = node.declare_parameter(s.name, default, desc)
+        except (InvalidParameterValueException, InvalidParameterTypeException, ParameterException, TypeError) as exc:
+            text = str(exc).split("\n")[0]
+            raise ParamError(f"parameter '{s.name}': {text} (expected {s.doc()})") from None
+        values[s.name] = p.value
+    return validate_values(specs, values)
+
+
+# ------------------------------------------------------------------------------------------------ QoS
+def qos_stream(depth: int = QOS_STREAM_DEPTH):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def qos_latched(depth: int = QOS_LATCHED_DEPTH):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+# ------------------------------------------------------------------------------------------------ diagnostics
+@dataclass
+class DiagItem:
+    """One DiagnosticStatus: ``name`` (e.g. 'kf_estimator: input /rotor/displacement'), level, message, values."""
+    name: str
+    level: int = OK
+    message: str = "ok"
+    values: dict = field(default_factory=dict)
+
+
+def diagnostics_msg(items: list[DiagItem], stamp, hardware_id: str = ""):
+    """DiagnosticArray with one status per item (values formatted with repr-precision for floats)."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    arr = DiagnosticArray()
+    arr.header.stamp = stamp
+    for it in items:
+        st = DiagnosticStatus(level=bytes([int(it.level)]), name=it.name, message=str(it.message)[:1000],
+                              hardware_id=hardware_id)
+        st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in it.values.items()]
+        arr.status.append(st)
+    return arr
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+# ------------------------------------------------------------------------------------------------ input checks
+@dataclass
+class BlockCheck:
+    """Outcome of checking one block: ``usable`` (may enter estimation/identification), ``contiguous`` (follows the
+    previous block without loss), ``problems`` (human-readable, each saying what and where)."""
+    usable: bool
+    contiguous: bool
+    problems: list
+
+
+class StreamMonitor:
+    """Checks a stream of displacement blocks and keeps the counters /diagnostics reports.
+
+    Checks per block: sequence gaps (lost blocks) and repeats, stamp order, non-finite samples, channel names against
+    ``expected_channels`` (None accepts any), and plausibility of the amplitude (|x| > ``max_abs`` [m] means the
+    DAQ sent another unit, e.g. micrometres, or garbage).
+    """
+
+    def __init__(self, topic: str, expected_channels=None, max_abs: float = 1e-3, keep: int = 20):
+        self.topic = topic
+        self.expected_channels = list(expected_channels) if expected_channels else None
+        self.max_abs = float(max_abs)
+        self.n_blocks = 0
+        self.n_rejected = 0
+        self.n_samples = 0
+        self.gaps = 0
+        self.lost_blocks = 0
+        self.out_of_order = 0
+        self.nan_samples = 0
+        self.bad_channels = 0
+        self.bad_units = 0
+        self.last_seq: int | None = None
+        self.last_end: float | None = None      # stamp [s] one sample after the end of the last block
+        self.recent: list[str] = []
+        self.keep = keep
+        self._arrivals: list[float] = []
+        self._last_arrival: float | None = None
+        self._lock = threading.Lock()
+
+    def check(self, seq: int, stamp: float, sample_rate: float, channels, samples: np.ndarray,
+              now: float | None = None) -> BlockCheck:
+        """Check one block. ``stamp`` [s] = time of the first sample; ``samples`` (n, nch) [m]."""
+        now = time.monotonic() if now is None else now
+        problems = []
+        usable = True
+        contiguous = True
+        where = f"{self.topic} block seq {seq} (stamp {stamp:.4f} s)"
+        samples = np.asarray(samples, dtype=float)
+        n = samples.shape[0] if samples.ndim == 2 else 0
+        with self._lock:
+            self.n_blocks += 1
+            self.n_samples += n
+            self._arrivals.append(now)
+            self._arrivals = self._arrivals[-50:]
+            self._last_arrival = now
+            if self.last_seq is not None:
+                if seq <= self.last_seq:
+                    self.out_of_order += 1
+                    usable = contiguous = False
+                    problems.append(f"sequence went back from {self.last_seq} to {seq} at {where}: repeated or "
+                                    f"reordered block rejected")
+                elif seq != self.last_seq + 1:
+                    lost = seq - self.last_seq - 1
+                    self.gaps += 1
+                    self.lost_blocks += lost
+                    contiguous = False
+                    problems.append(f"sequence gap: {lost} block(s) lost between seq {self.last_seq} and {seq} "
+                                    f"at {where}; windows restart here")
+            if usable and self.last_end is not None and sample_rate > 0:
+                dt = stamp - self.last_end
+                if dt < -0.5 / sample_rate:
+                    self.out_of_order += 1
+                    usable = contiguous = False
+                    problems.append(f"stamp out of order: {where} starts {-dt:.4f} s before the end of the "
+                                    f"previous block; block rejected")
+                elif contiguous and dt > 1.5 / sample_rate:
+                    contiguous = False
+                    problems.append(f"time gap of {dt:.4f} s before {where}; windows restart here")
+            if self.expected_channels is not None and list(channels) != self.expected_channels:
+                self.bad_channels += 1
+                usable = False
+                problems.append(f"wrong channels {list(channels)} at {where}: expected {self.expected_channels}; "
+                                f"block rejected")
+            if samples.ndim != 2 or samples.shape[1] != len(channels):
+                usable = False
+                problems.append(f"samples shape {samples.shape} does not match {len(channels)} channels at {where}")
+            else:
+                bad = ~np.isfinite(samples)
+                if bad.any():
+                    nb = int(bad.sum())
+                    self.nan_samples += nb
+                    usable = False
+                    rows, cols = np.nonzero(bad)
+                    problems.append(f"{nb} non-finite sample(s) (NaN/inf) at {where}, first at sample {rows[0]} of "
+                                    f"channel {list(channels)[cols[0]]}; block rejected")
+                elif n and float(np.max(np.abs(samples))) > self.max_abs:
+                    self.bad_units += 1
+                    usable = False
+                    j = int(np.argmax(np.max(np.abs(samples), axis=0)))
+                    problems.append(f"implausible amplitude {np.max(np.abs(samples)):.4g} (limit {self.max_abs:g} m) "
+                                    f"in channel {list(channels)[j]} at {where}: samples must be metres "
+                                    f"(micrometres sent?); block rejected")
+            if usable or seq > (self.last_seq if self.last_seq is not None else -1):
+                self.last_seq = max(seq, self.last_seq) if self.last_seq is not None else seq
+            if usable and sample_rate > 0:
+                self.last_end = stamp + n / sample_rate
+            if not usable:
+                self.n_rejected += 1
+            self.recent = (self.recent + problems)[-self.keep:]
+        return BlockCheck(usable, contiguous, problems)
+
+    def input_rate(self) -> float:
+        """Blocks per second over the recent arrivals (wall clock); 0 if fewer than two."""
+        a = self._arrivals
+        if len(a) < 2 or a[-1] <= a[0]:
+            return 0.0
+        return (len(a) - 1) / (a[-1] - a[0])
+
+    def status(self, name: str, stale_after: float = 5.0, now: float | None = None) -> DiagItem:
+        """A DiagItem for this input: STALE when nothing arrived for ``stale_after`` s, WARN if recent problems."""
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            vals = {"blocks": self.n_blocks, "rejected_blocks": self.n_rejected, "samples": self.n_samples,
+                    "block_rate_hz": self.input_rate(), "sequence_gaps": self.gaps, "lost_blocks": self.lost_blocks,
+                    "out_of_order": self.out_of_order, "nonfinite_samples": self.nan_samples,
+                    "wrong_channels": self.bad_channels, "implausible_amplitude": self.bad_units,
+                    "last_sequence": self.last_seq if self.last_seq is not None else -1}
+            recent = list(self.recent)
+            self.recent = []
+            last = self._last_arrival
+        if last is None:
+            return DiagItem(name, STALE, f"no data received on {self.topic}", vals)
+        if now - last > stale_after:
+            return DiagItem(name, STALE, f"no data on {self.topic} for {now - last:.1f} s", vals)
+        if recent:
+            vals["problems"] = " | ".join(recent[-5:])
+            return DiagItem(name, WARN, recent[-1], vals)
+        return DiagItem(name, OK, f"receiving {self.topic}", vals)
+
+
+# ------------------------------------------------------------------------------------------------ main loop
+class StopInStartup(Exception):
+    """Raised in the main thread by a SIGINT/SIGTERM that arrives while the node is still being built."""
+
+
+class StopFlag:
+    """Set by SIGINT/SIGTERM; the spin loop polls it.  While ``starting`` is True (the node's constructor may
+    simulate or load data for seconds) a signal also raises :class:`StopInStartup`, so start-up is abandoned at once.
+    """
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.signal_name = None
+        self.starting = False
+
+    def install(self):
+        def handler(signum, frame):
+            self.signal_name = signal.Signals(signum).name
+            self.event.set()
+            if self.starting:
+                self.starting = False
+                raise StopInStartup(self.signal_name)
+        signal.signal(signal.SIGINT, handler)
+        signal.signal(signal.SIGTERM, handler)
+        return self
+
+
+def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
+    """Strip ROS arguments, answer --help (listing every parameter), return (ros_argv, ns)."""
+    from rclpy.utilities import remove_ros_args
+    argv = list(sys.argv if argv is None else argv)
+    non_ros = remove_ros_args(argv)[1:]
+    ap = argparse.ArgumentParser(prog=prog, description=description, epilog=help_epilog(specs),
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ns = ap.parse_args(non_ros)
+    return argv, ns
+
+
+def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=None) -> int:
+    """Process entry point shared by the nodes.
+
+    ``factory(context_args) -> node`` builds the node (declaring ``specs``); a ParamError raised there is printed as
+    one line naming the parameter and the process exits 2.  SIGINT/SIGTERM stop the spin loop; the node's ``close()``
+    (flush records, stop workers) runs before the context shuts down.  Returns the exit code.
+    """
+    argv, _ = parse_cli(prog, description, specs, argv)
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    stop = StopFlag().install()
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    code = 0
+    try:
+        try:
+            stop.starting = True
+            try:
+                node = factory()
+            finally:
+                stop.starting = False
+        except StopInStartup as exc:
+            print(f"{prog}: {exc} during start-up: stopped", file=sys.stderr)
+            return 0
+        except ParamError as exc:
+            print(f"{prog}: parameter error: {exc}", file=sys.stderr)
+            return 2
+        except (FileNotFoundError, ValueError) as exc:
+            print(f"{prog}: cannot start: {exc}", file=sys.stderr)
+            return 2
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        while not stop.event.is_set() and rclpy.ok() and not getattr(node, "finished", False):
+            ex.spin_once(timeout_sec=0.05)
+        if stop.signal_name:
+            node.get_logger().info(f"{stop.signal_name}: shutting down")
+    finally:
+        if node is not None:
+            try:
+                if hasattr(node, "close"):
+                    node.close()
+            finally:
+                node.destroy_node()
+        if rclpy.ok():
+            rclpy.try_shutdown()
+    return code
+
+
+def stamp_to_sec(stamp) -> float:
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+def sec_to_stamp(t: float):
+    from builtin_interfaces.msg import Time
+    sec = int(math.floor(t))
+    ns = int(round((t - sec) * 1e9))
+    if ns >= 1_000_000_000:
+        sec, ns = sec + 1, ns - 1_000_000_000
+    return Time(sec=sec, nanosec=ns)
+
+
+# ------------------------------------------------------------------------------------------------ excitation
+class ExcitationTimeline:
+    """Known excitation runs in stream time: a block belongs to the run announced last at or before its stamp."""
+
+    def __init__(self):
+        self._runs: list[tuple[float, Any]] = []     # (stamp [s], params.Run), sorted by stamp
+        self._lock = threading.Lock()
+
+    def add(self, stamp: float, run) -> bool:
+        """Register ``run`` starting at ``stamp`` [s]; returns False for a repeat of a known (stamp, run id)."""
+        with self._lock:
+            if any(abs(s - stamp) < 1e-9 and r.id == run.id for s, r in self._runs):
+                return False
+            self._runs.append((float(stamp), run))
+            self._runs.sort(key=lambda x: x[0])
+            return True
+
+    def at(self, stamp: float, tol: float = 1e-6):
+        """The run in force at ``stamp`` [s] or None when no excitation was announced before it."""
+        with self._lock:
+            cur = None
+            for s, r in self._runs:
+                if s <= stamp + tol:
+                    cur = r
+                else:
+                    break
+            return cur
+
+    def __len__(self):
+        return len(self._runs)
