@@ -72,30 +72,46 @@ def plot_coefficients(results, path, *, truth_fn=None, theory_fn=None, title=Non
     return path
 
 
-def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labels=("estimated", "true")):
-    """Amplitude [um] and phase [deg] of bearing-node 1X vectors vs speed [rpm].
+def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labels=("estimated", "true"),
+                         run_labels=None, title=None):
+    """Amplitude [um] and phase [deg] of bearing-node 1X vectors vs speed [rpm] (the paper's Figures 5-6 style).
 
-    speeds (ns,) rad/s; estimated, true complex (ns, nb, 2) [m] (x, y per bearing); nodes (nb,) for titles.
+    speeds (ns,) rad/s; estimated, true complex (ns, nb, 2) or (nr, ns, nb, 2) [m] (x, y per bearing; one line per
+    excitation run, labelled by ``run_labels``); nodes (nb,) for titles.  Columns: bearing x direction; rows:
+    amplitude, phase.
     """
     plt = _plt()
     est = np.asarray(estimated)
-    ns, nb, _ = est.shape
+    if est.ndim == 3:
+        est = est[None]
+        true = None if true is None else np.asarray(true)[None]
+    nr, ns, nb, _ = est.shape
+    if true is not None and np.asarray(true).shape != est.shape:
+        raise ValueError(f"true has shape {np.asarray(true).shape}, estimated {est.shape}")
+    run_labels = list(run_labels) if run_labels is not None else ([""] if nr == 1 else [f"run {i}" for i in range(nr)])
     nodes = nodes or tuple(range(1, nb + 1))
     rpm = rad_s_to_rpm(np.asarray(speeds, float))
     fig, axes = plt.subplots(2, 2 * nb, figsize=(4 * nb * 2, 6), squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for b in range(nb):
         for d, dn in enumerate(("x", "y")):
             c = 2 * b + d
-            for arr, style, lab in ((est, "o-", labels[0]), (true, "k--", labels[1])):
-                if arr is None:
-                    continue
-                v = np.asarray(arr)[:, b, d]
-                axes[0, c].plot(rpm, np.abs(v) * 1e6, style, ms=3, label=lab)
-                axes[1, c].plot(rpm, np.degrees(np.angle(v)), style, ms=3, label=lab)
+            for r in range(nr):
+                col = colors[r % len(colors)]
+                rl = f" {run_labels[r]}" if run_labels[r] else ""
+                for arr, style, lab in ((est, "o-", labels[0]), (true, "--", labels[1])):
+                    if arr is None:
+                        continue
+                    v = np.asarray(arr)[r, :, b, d]
+                    kw = {"color": col} if style == "o-" else {"color": col, "lw": 1}
+                    axes[0, c].plot(rpm, np.abs(v) * 1e6, style, ms=3, label=f"{lab}{rl}", **kw)
+                    axes[1, c].plot(rpm, np.degrees(np.angle(v)), style, ms=3, label=f"{lab}{rl}", **kw)
             axes[0, c].set_title(f"node {nodes[b]} {dn}: amplitude [um]", fontsize=9)
             axes[1, c].set_title(f"node {nodes[b]} {dn}: phase [deg]", fontsize=9)
             axes[1, c].set_xlabel("speed [rpm]")
-    axes[0, 0].legend(fontsize=7)
+    axes[0, 0].legend(fontsize=6)
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=90)

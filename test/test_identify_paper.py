@@ -159,3 +159,109 @@ def test_to_dict_is_json_and_hides_nothing_silently(setup):
     assert np.array(b["K"]).shape == (2, 2) and b["determined"]["K"] == r.K_determined[0].tolist()
     assert all(v is None for row, ok in zip(b["K_std"], b["determined"]["K"]) for v, o in zip(row, ok) if not o)
     assert d["rank"] == r.rank and d["fully_determined"] is False
+
+
+# ------------------------------------------------------------------------------------------------ theory dominance
+def _force_recordings(rig, model, probes, speeds_rpm, noise, seed=3):
+    return [rigmod.simulate_run(rig, run, speeds_rpm=speeds_rpm, dwell=0.6, ramp=0.0, probes=probes,
+                                bearing_fn=truth_fn, noise=noise, seed=seed + k, model=model)
+            for k, run in enumerate(rigmod.scenario("force"))]
+
+
+@pytest.fixture(scope="module")
+def force_node6(setup):
+    rig, model = setup
+    p6 = tuple(Probe(f"p6{d}", 6, d) for d in ("x", "y"))
+    return harmonics.from_recordings(_force_recordings(rig, model, p6, [1500], 0.01))
+
+
+def test_theory_flag_trips_on_force_plan_at_node6(setup, force_node6):
+    # Directional forces + node 6: the DATA determine all 16 (design check, structural rank 16) but the KF's
+    # bearing-node estimates come from the theory it was given (25 % off the truth): the result must be flagged as
+    # following the theory, not reported as 16 determined coefficients.
+    rig, model = setup
+    r = identify_paper(model, rig, force_node6, force_node6.probes, force_node6.runs, {"bearing_fn": theory_fn})[0]
+    assert r.extra["data_structural_rank"] == 16
+    sens = r.extra["theory_sensitivity"]
+    assert r.extra["theory_fraction"] > 0.5
+    assert np.sum(sens > 0.5) >= 12
+    det = np.concatenate([r.K_determined.reshape(-1), r.C_determined.reshape(-1)])
+    assert not np.any(det & (sens > 0.5))                     # every theory-dominated coefficient is undetermined
+    assert r.rank < 16
+    assert any("follow the KF's theory" in n for n in r.notes)
+    assert any(n.startswith("theory fraction") for n in r.notes)
+    # and the flag is right to trip: the result is not the truth (eq 38 error of tens of %)
+    assert eq38_error(r, truth_fn(r.speed))["K"] > 10
+
+
+def test_theory_flag_does_not_trip_when_data_determine_and_theory_is_truth(setup):
+    # Zero noise, probes AT the bearing nodes (what the KF must estimate is measured) and theory = truth: the KF hands
+    # back the measured bearing displacements, the result is the truth and owes nothing to the theory.
+    rig, model = setup
+    probes = tuple(Probe(f"p{n}{d}", n, d) for n in (2, 10) for d in ("x", "y"))
+    data = harmonics.from_recordings(_force_recordings(rig, model, probes, [1500], 0.0))
+    r = identify_paper(model, rig, data, probes, data.runs, {"bearing_fn": truth_fn, "R": 1e-20})[0]
+    assert r.extra["theory_fraction"] < 0.05
+    assert np.all(r.extra["theory_sensitivity"] < 0.5)
+    assert r.fully_determined
+    assert not any("follow the KF's theory" in n for n in r.notes)
+    tr = truth_fn(r.speed)
+    for b, n in enumerate(r.nodes):
+        np.testing.assert_allclose(r.K[b], tr[n][0], atol=1e-3 * np.abs(tr[n][0]).max())
+        np.testing.assert_allclose(r.C[b], tr[n][1], atol=1e-3 * np.abs(tr[n][1]).max())
+
+
+def test_theory_sensitivity_predicts_a_time_domain_rerun(setup, force_node6):
+    # Independent route: re-run the whole time-domain KF + solve with the theory 3 % stiffer/damper; the change of
+    # the result must match the frequency-domain sensitivity G (d identified / d theory) to 15 % (nonlinearity over
+    # 3 % plus the filter's start transient in the time-domain run).
+    from bearing_id.identify.design import coefficient_scales
+    from bearing_id.identify.paper import coeffs_to_theta
+    rig, model = setup
+    d = force_node6
+    r0 = identify_paper(model, rig, d, d.probes, d.runs, {"bearing_fn": theory_fn})[0]
+    r1 = identify_paper(model, rig, d, d.probes, d.runs, {"bearing_fn": lambda w: theory_fn(w, 1.03)})[0]
+    w, nodes = r0.speed, r0.nodes
+    sc = coefficient_scales(theory_fn(w), w, nodes)
+    dth = (coeffs_to_theta(theory_fn(w, 1.03), w, nodes) - coeffs_to_theta(theory_fn(w), w, nodes)) / sc
+    did = (coeffs_to_theta(r1.coeffs(), w, nodes) - coeffs_to_theta(r0.coeffs(), w, nodes)) / sc
+    pred = r0.extra["theory_jacobian"] @ dth
+    assert np.linalg.norm(did) > 0.01                      # the result does move with the theory
+    assert np.linalg.norm(pred - did) <= 0.15 * np.linalg.norm(did)
+
+
+def test_conventional_flags_interpolation_bias_only_where_the_line_misses(setup):
+    # Probes at nodes 1, 3 / 9, 11: the straight line misses the bent shaft at the bearings (2, 10); with probes at
+    # the bearing nodes it is exact.  Noise-free data, theory = truth, so the identified error is the bias alone:
+    # every coefficient still called determined must be within the 5 % (of its group size) threshold of the truth.
+    from bearing_id.identify.design import coefficient_scales
+    from bearing_id.identify.paper import coeffs_to_theta
+    rig, model = setup
+    runs = rigmod.scenario("force")
+    far = tuple(Probe(f"p{n}{d}", n, d) for n in (1, 3, 9, 11) for d in ("x", "y"))
+    data = harmonics.simulate_data(rig, runs, (1500,), probes=far, bearing_fn=truth_fn, model=model)
+    r = identify_conventional(model, rig, data, far, data.runs, {"bearing_fn": truth_fn})[0]
+    assert not r.fully_determined
+    assert any("interpolation bias" in n for n in r.notes)
+    w = r.speed
+    err = np.abs(coeffs_to_theta(r.coeffs(), w, r.nodes) - coeffs_to_theta(truth_fn(w), w, r.nodes)) \
+        / coefficient_scales(truth_fn(w), w, r.nodes)
+    det = np.concatenate([r.K_determined.reshape(-1), r.C_determined.reshape(-1)])
+    assert np.all(err[det] <= 0.05) and np.any(err[~det] > 0.05)
+    near = tuple(Probe(f"p{n}{d}", n, d) for n in (2, 3, 9, 10) for d in ("x", "y"))
+    data = harmonics.simulate_data(rig, runs, (1500,), probes=near, bearing_fn=truth_fn, model=model)
+    r = identify_conventional(model, rig, data, near, data.runs, {"bearing_fn": truth_fn})[0]
+    assert r.fully_determined and not any("carry an interpolation bias" in n for n in r.notes)
+
+
+def test_theory_check_also_runs_on_kf_vectors_given_from_outside(setup, force_node6):
+    # the ROS route hands over the kf_estimator's bearing vectors (z_B); with their KF settings the same theory check
+    # must trip as on the offline KF route
+    from bearing_id.identify.paper import kf_bearing_vectors
+    rig, model = setup
+    d = force_node6
+    zB, zBs, _, km = kf_bearing_vectors(model, theory_fn(float(d.speeds[0])), d.probes, d, 0)
+    r = identify_paper(model, rig, d, d.probes, d.runs,
+                       {"bearing_fn": theory_fn, "z_B": zB[:, None], "z_B_std": zBs[:, None],
+                        "z_B_kf": {"Q": 1e-16, "R": km.R, "sample_rate": d.recordings[0].sample_rate}})[0]
+    assert r.extra["theory_fraction"] > 0.5 and not r.fully_determined

@@ -11,6 +11,8 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..params import ParamError, load_rig
 
 UNITS = {"K": "N/m", "C": "N s/m"}
@@ -25,7 +27,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
     p.add_argument("--method", default="paper", choices=("paper", "conventional", "direct", "physical"))
     p.add_argument("--json", help="write the results to this JSON file")
-    p.add_argument("--plot", help="write coefficients-vs-speed plot (PNG)")
+    p.add_argument("--plot", help="write the coefficients-vs-speed plot (PNG); with --method paper also "
+                                  "<name>_bearing_vectors.png: KF bearing-node amplitude/phase vs speed (and the "
+                                  "truth when the recordings carry it)")
     p.add_argument("--allow-undetermined", action="store_true",
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
     p.add_argument("--Q", type=float, default=None, help="paper method: KF process noise (default 1e-16)")
@@ -82,6 +86,43 @@ def format_results(results, allow_undetermined: bool) -> str:
     return "\n".join(lines)
 
 
+def _add_honesty(d: dict, r) -> None:
+    """Per-bearing theory sensitivity / interpolation bias (2x2 per K and C) and the theory fraction, into ``d``."""
+    nb = len(r.nodes)
+    for key, name in (("theory_sensitivity", "theory_sensitivity"), ("interpolation_bias", "interpolation_bias")):
+        v = r.extra.get(key)
+        if v is None:
+            continue
+        v = np.asarray(v, dtype=float)
+        for i, b in enumerate(d["bearings"]):
+            b[name] = {"K": v[4 * i:4 * i + 4].reshape(2, 2).tolist(),
+                       "C": v[4 * nb + 4 * i:4 * nb + 4 * i + 4].reshape(2, 2).tolist()}
+    if "theory_fraction" in r.extra:
+        d["theory_fraction"] = float(r.extra["theory_fraction"])
+
+
+def bearing_vectors_plot(model, data, results, plot_path):
+    """The paper's Figs 5-6: KF bearing-node 1X vectors per run vs speed, with the truth's when known -> PNG path."""
+    from ..plots import plot_bearing_vectors
+    from ..rotor.assembly import harmonic_response
+    from ..identify.paper import bearing_dofs, forces_at
+    if not results or any("z_B" not in r.extra for r in results):
+        return None
+    est = np.stack([np.asarray(r.extra["z_B"]) for r in results], axis=1)          # (nr, ns, nb, 2)
+    true = None
+    if all(data.truth_at(r.speed) is not None for r in results):
+        true = np.zeros_like(est)
+        b = bearing_dofs(model)
+        for s, r in enumerate(results):
+            for k, F in enumerate(forces_at(model, data.runs, r.speed)):
+                true[k, s] = harmonic_response(model, r.speed, r.speed, F, data.truth_at(r.speed))[b].reshape(-1, 2)
+    p = Path(plot_path)
+    out = p.with_name(p.stem + "_bearing_vectors" + (p.suffix or ".png"))
+    return plot_bearing_vectors([r.speed for r in results], est, out, true=true, nodes=tuple(results[0].nodes),
+                                labels=("KF estimate", "true"), run_labels=[str(run.id) for run in data.runs],
+                                title="bearing-node 1X displacement: Kalman filter (theory model) vs true")
+
+
 def run(args) -> int:
     from ..identify import identify
     from ..rotor.assembly import RotorModel
@@ -112,6 +153,7 @@ def run(args) -> int:
                     for sym in ("K", "C"):
                         b[sym] = [[v if ok else None for v, ok in zip(row, okr)]
                                   for row, okr in zip(b[sym], b["determined"][sym])]
+            _add_honesty(d, r)
             out.append(d)
         Path(args.json).write_text(json.dumps({"method": args.method, "results": out}, indent=1))
     if args.plot:
@@ -120,6 +162,10 @@ def run(args) -> int:
         if data.truth:
             truth_fn = lambda w: data.truth[min(data.truth, key=lambda s: abs(s - w))]  # noqa: E731
         plot_coefficients(results, args.plot, truth_fn=truth_fn, title=f"method {args.method}")
+        if args.method == "paper":
+            p = bearing_vectors_plot(model, data, results, args.plot)
+            if p is not None:
+                print(f"bearing-node vectors plot: {p}")
     if undet:
         print("\nUNDETERMINED by the data (prior/theory-dominated"
               + (", printed flagged '(prior)'" if args.allow_undetermined else ", not printed") + "):",

@@ -7,13 +7,26 @@ then the same eqs 30-37 solve as the paper method (:func:`bearing_id.identify.pa
 Probe choice (default): the nearest probe node on each side of the bearing when there is one, otherwise the two
 nearest probe nodes on the same side; ``options['pairs'] = {bearing_node: (node_a, node_b)}`` overrides it.
 The straight line ignores the shaft's curvature: that bias is the method's, not the data's, and is not in the std.
+
+Interpolation-bias check (stated rules)
+    * Model route: the method is run on the theory model's own noise-free probe response (:func:`interpolation_bias`);
+      its error against that theory, per coefficient and relative to the bearing group's size, is the bias the
+      straight line alone causes near this operating point.  Above ``max_rel_std`` (default 0.05, the design
+      threshold) the coefficient is flagged: determined=False, named in the notes ("interpolation bias").
+    * Data route (only with more equations than unknowns, i.e. more than two runs): the residual-based std over the
+      noise-propagated std (``LSSolution.consistency``); above CONSISTENCY_FLAG = 3 the straight line does not fit
+      the data within their noise, and every coefficient is flagged.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .paper import DEFAULT_RTOL, build_result, forces_at, noise_rel_of, solve_coefficients
+from .paper import (DEFAULT_RTOL, bearing_dofs, build_result, coeffs_to_theta, forces_at, noise_rel_of,
+                    solve_coefficients)
+from .design import DEFAULT_MAX_REL_STD, coefficient_labels
 from .result import IdentResult
+
+CONSISTENCY_FLAG = 3.0
 
 
 def probe_pairs(model, probes, pairs=None) -> dict:
@@ -67,6 +80,25 @@ def interpolate(model, probes, X, X_std=None, pairs=None):
     return z, (zs if X_std is not None else None)
 
 
+def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=None, *, rtol=DEFAULT_RTOL):
+    """(bias (8 nb,), z_B error): the method's own error on the theory model's noise-free response at ``speed``.
+
+    bias = |theta_conventional - theta_theory| / group size (:func:`bearing_id.identify.design.coefficient_scales`),
+    theta = [K; Omega C] as in :func:`bearing_id.identify.paper.coeffs_to_theta`; z_B error = ||z_interp - z_B|| /
+    ||z_B|| of the interpolated bearing displacements.  forces complex (nr, ndof) [N].
+    """
+    from ..rotor.assembly import harmonic_response, probe_matrix
+    from .design import coefficient_scales
+    nodes = tuple(model.bearing_nodes)
+    S = probe_matrix(model, probes)
+    q = np.array([harmonic_response(model, speed, speed, F, theory) for F in np.asarray(forces, dtype=complex)])
+    z_true = q[:, bearing_dofs(model)].reshape(len(q), len(nodes), 2)
+    z_int, _ = interpolate(model, probes, q @ S.T, None, pairs)
+    sol = solve_coefficients(model, speed, z_int, forces, rtol=rtol)
+    bias = np.abs(sol.theta - coeffs_to_theta(theory, speed, nodes)) / coefficient_scales(theory, speed, nodes)
+    return bias, float(np.linalg.norm(z_int - z_true) / max(np.linalg.norm(z_true), 1e-300))
+
+
 def identify_conventional(model, rig, data, probes, runs, options=None) -> list[IdentResult]:
     """Two probes per bearing and direction, interpolated to the bearing node, then the paper's solve.
 
@@ -91,10 +123,31 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
         sol = solve_coefficients(model, w, zB_all[:, s], F, z_B_std=zs_all[:, s],
                                  rtol=opts.get("rtol", DEFAULT_RTOL))
         notes = [f"bearing displacements interpolated from probe nodes {used} (straight line along the shaft)"]
+        theory = bfn(w)
+        thr = opts.get("max_rel_std") or DEFAULT_MAX_REL_STD
+        bias, zerr = interpolation_bias(model, probes, w, theory, F, opts.get("pairs"),
+                                        rtol=opts.get("rtol", DEFAULT_RTOL))
+        flag = bias > thr
+        labels = coefficient_labels(model.bearing_nodes)
+        notes.append(f"interpolation bias (the method on the theory model's noise-free response): bearing "
+                     f"displacements off by {100 * zerr:.1f} %, coefficients by {100 * np.min(bias):.1f} ... "
+                     f"{100 * np.max(bias):.0f} % of their group size")
+        if flag.any():
+            notes.append(f"{int(flag.sum())} of {flag.size} coefficients carry an interpolation bias above "
+                         f"{100 * thr:g} % -- not determined: " + ", ".join(l for l, f in zip(labels, flag) if f))
+        if np.isfinite(sol.consistency):
+            notes.append(f"consistency: residual-based std / noise-propagated std = {sol.consistency:.2f}")
+            if sol.consistency > CONSISTENCY_FLAG:
+                flag = np.ones_like(flag)
+                notes.append(f"the residual is {sol.consistency:.1f} x what the noise explains (> "
+                             f"{CONSISTENCY_FLAG:g}): the straight-line interpolation does not fit the data -- "
+                             f"no coefficient is determined")
         out.append(build_result("conventional", model, rig, w, sol, probes=probes, forces=list(F),
-                                X_std_rel=noise_rel_of(data, s), theory=bfn(w), truth=data.truth_at(w),
-                                max_rel_std=opts.get("max_rel_std"), notes=notes, extra={"z_B": zB_all[:, s]}))
+                                X_std_rel=noise_rel_of(data, s), theory=theory, truth=data.truth_at(w),
+                                max_rel_std=opts.get("max_rel_std"), notes=notes,
+                                extra={"z_B": zB_all[:, s], "interpolation_bias": bias, "z_B_interp_error": zerr,
+                                       "consistency": sol.consistency}, not_determined=flag))
     return out
 
 
-__all__ = ["probe_pairs", "interpolate", "identify_conventional"]
+__all__ = ["probe_pairs", "interpolate", "interpolation_bias", "identify_conventional", "CONSISTENCY_FLAG"]
