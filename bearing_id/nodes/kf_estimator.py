@@ -226,6 +226,7 @@ class EstimatorCore:
                 kf = StreamingKF(km.with_forces(forces, speed), band_tol_rel=self.band)
                 self._active = act = (key, run.id, kf)
                 self.resets += 1
+                self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
             kf = act[2]
             n = block.samples.shape[0]
             angle = block.angle + speed * np.arange(n) / block.sample_rate
