@@ -28,6 +28,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="validation split: alternate speeds (default) or alternate recordings")
     p.add_argument("--rel-tol", type=float, default=0.02,
                    help="model tolerance as a fraction of the measured amplitude (default 0.02)")
+    p.add_argument("--identify", metavar="METHOD", choices=("physical", "direct"),
+                   help="re-run identification with METHOD (physical or direct) on the nominal and on the augmented "
+                        "model (measurement effects removed from the data, force effects added to the excitation, "
+                        "flexible supports / disc corrections in the dynamic stiffness) and print both, with their "
+                        "error vs truth when the recordings carry it")
     p.add_argument("--fixed-bearings", action="store_true",
                    help="trust the nominal bearing theory (do not refit viscosity/clearance factors as nuisance)")
     return p
@@ -82,6 +87,20 @@ def run(args) -> int:
     if args.json:
         write_json(d, args.json)
         print(f"wrote {args.json}")
+    if args.identify:
+        from ..diagnose.reidentify import format_table, reidentify
+        from ..diagnose.report import augmented_rig
+        try:
+            ri = reidentify(recs, rig, augmented_rig(d, rig), args.identify)
+        except ValueError as exc:
+            raise ParamError(f"cannot re-run identification: {exc}") from None
+        for line in format_table(ri):
+            print(line)
+        if args.json:
+            import json
+            j = json.loads(Path(args.json).read_text())
+            j["identification"] = ri.as_json()
+            Path(args.json).write_text(json.dumps(j, indent=2, default=float))
     if args.report:
         files = write_report(d, args.report)
         print(f"wrote {len(files)} report files to {args.report}")

@@ -126,7 +126,7 @@ def diagnose(recordings, rig, *, held_out: str = "speeds", rel_tol: float = 0.02
     else:
         raise ValueError(f"held_out must be 'speeds' or 'runs', got {held_out!r}")
     cands = candidates(prob, unbalance_planes=unbalance_planes, names=effects)
-    s = select(prob, cands, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor,
+    s = select(prob, cands, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor, peak_sigma=threshold,
                folds=folds)
     base, final = s.base, s.final
     pred_base = prob.prediction_by_window(base.theta, [], [], np.zeros(0))
@@ -137,8 +137,15 @@ def diagnose(recordings, rig, *, held_out: str = "speeds", rel_tol: float = 0.02
             hyps.append(_hyp_row(before, f, v, step))
     chosen = []
     for i, e in enumerate(final.effects):
+        sent = e.sentence(final.phys[i], final.std[i])
+        alts = s.ambiguous.get(e.label, [])
+        if alts:
+            sent += ("; the location is not resolved: " + ", ".join(f"{w} fits about as well (screening BIC difference {d:+.1f})"
+                                                                  for w, d in alts)
+                     + " -- measure at another station to tell them apart")
         chosen.append({"effect": e.name, "where": e.where, "parameters": final.phys[i], "std": final.std[i],
-                       "key_parameter": e.key, "sentence": e.sentence(final.phys[i], final.std[i])})
+                       "key_parameter": e.key, "sentence": sent,
+                       "alternatives": [{"where": w, "delta_bic": d} for w, d in alts]})
     names = [e.name for e in final.effects]
     verdict = "none" if not names else (names[0] if len(names) == 1 else names)
     vf, cf = prob.nuisance_factors(final.theta)

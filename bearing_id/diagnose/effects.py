@@ -21,7 +21,7 @@ from ..params import ExcitationEntry
 from .predict import forward_force
 
 EFFECT_NAMES = ("support_flexibility", "residual_unbalance", "shaft_bow", "probe_runout", "misalignment",
-                "oil_whirl", "probe_orientation", "disc_mass_error")
+                "oil_whirl", "probe_orientation", "disc_mass_error", "bearing_model_form")
 
 
 def _dir_word(d: str) -> str:
@@ -49,6 +49,10 @@ class Effect:
     def bearing_impedance(self, prob, node, Zb, speed, omega, nl):
         return Zb
 
+    def bearing_factors(self, nl):
+        """(viscosity factors, clearance factors) per bearing applied to the bearing theory, or None."""
+        return None
+
     def add_dZ(self, prob, Z, speed, omega, nl):
         return None
 
@@ -73,6 +77,14 @@ class Effect:
         return f"{self.name} [{self.where}]" if self.where else self.name
 
 
+def _mass_words(m: float, std: float) -> str:
+    """Pedestal mass [kg] in words: a value only where the data determine it (1-sigma below half the value)."""
+    if np.isfinite(std) and std < 0.5 * abs(m):
+        return f"pedestal mass ≈ {m:.2g} kg ± {std:.2g} kg"
+    bound = f" (1σ {std:.2g} kg)" if np.isfinite(std) else ""
+    return f"pedestal mass not determined by these data{bound}"
+
+
 def _pm(value, std) -> str:
     if std is None or not np.isfinite(std) or value == 0:
         return ""
@@ -85,12 +97,12 @@ def _complex_lin(lin) -> complex:
 
 # ------------------------------------------------------------------------------------------------ system
 class SupportFlexibility(Effect):
-    """Flexible pedestal (spring-damper) in series with the oil film at one bearing, in x or y.
+    """Flexible pedestal (mass-spring-damper) in series with the oil film at one bearing, in x or y.
 
-    Series impedance per flexible direction d: zs = k_d + j w c_d; the journal sees
-    Zeff = (Zb^-1 + diag(1/zs))^-1 (a rigid direction contributes 0 to the compliance).  The pedestal mass is not
-    fitted (it is indistinguishable from a softer k over a narrow speed range); a ``mass`` in the params file is used.
-    Nonlinear parameters per flexible direction: ln k [ln N/m], c [N s/m].
+    Pedestal impedance per flexible direction d: zs = k_d - w^2 m_d + j w c_d; the journal sees
+    Zeff = (Zb^-1 + diag(1/zs))^-1 (a rigid direction contributes 0 to the compliance).  Nonlinear parameters per
+    flexible direction: ln k [ln N/m], c [N s/m], m [kg] (>= 0; over a narrow speed range m and k trade off and m's
+    std says so).  A ``mass`` given in the params file (``from_extra``) is the fixed pedestal mass when m is absent.
     """
     name = "support_flexibility"
 
@@ -98,22 +110,22 @@ class SupportFlexibility(Effect):
         super().__init__()
         self.bearing_index, self.node, self.directions, self.mass = bearing_index, node, directions, float(mass)
         self.where = f"bearing {bearing_index + 1} (node {node}), " + " and ".join(_dir_word(d) for d in directions)
-        self.nl_names = tuple(f"{p}_{d}" for d in directions for p in ("lnk", "c"))
-        self.nl_lo = tuple(v for _ in directions for v in (math.log(1e3), 0.0))
-        self.nl_hi = tuple(v for _ in directions for v in (math.log(1e10), 1e5))
+        self.nl_names = tuple(f"{p}_{d}" for d in directions for p in ("lnk", "c", "m"))
+        self.nl_lo = tuple(v for _ in directions for v in (math.log(1e3), 0.0, 0.0))
+        self.nl_hi = tuple(v for _ in directions for v in (math.log(1e10), 1e5, 50.0))
         self.key = f"k_{directions[0]}"
 
     @property
     def starts(self):
-        return [np.array([v for _ in self.directions for v in (math.log(k), 10.0)]) for k in (2e5, 2e6)]
+        return [np.array([v for _ in self.directions for v in (math.log(k), 10.0, 0.01)]) for k in (2e5, 2e6)]
 
     def bearing_impedance(self, prob, node, Zb, speed, omega, nl):
         if node != self.node:
             return Zb
         comp = np.zeros((2, 2), complex)
         for a, d in enumerate(self.directions):
-            lnk, c = nl[2 * a:2 * a + 2]
-            zs = math.exp(lnk) - omega * omega * self.mass + 1j * omega * c
+            lnk, c, m = nl[3 * a:3 * a + 3]
+            zs = math.exp(lnk) - omega * omega * m + 1j * omega * c
             i = 0 if d == "x" else 1
             comp[i, i] = 1.0 / zs
         return np.linalg.inv(np.linalg.inv(Zb) + comp)
@@ -121,25 +133,72 @@ class SupportFlexibility(Effect):
     def physical(self, nl, lin):
         out = {}
         for a, d in enumerate(self.directions):
-            out[f"k_{d}"] = math.exp(nl[2 * a])
-            out[f"c_{d}"] = float(nl[2 * a + 1])
+            out[f"k_{d}"] = math.exp(nl[3 * a])
+            out[f"c_{d}"] = float(nl[3 * a + 1])
+            out[f"m_{d}"] = float(nl[3 * a + 2])
         return out
 
     def sentence(self, phys, std):
         parts = [f"k ≈ {phys[f'k_{d}']:.3g} N/m{_pm(phys[f'k_{d}'], std.get(f'k_{d}'))}, "
-                 f"c ≈ {phys[f'c_{d}']:.3g} N·s/m" for d in self.directions]
+                 f"c ≈ {phys[f'c_{d}']:.3g} N·s/m, " + _mass_words(phys[f"m_{d}"], std.get(f"m_{d}", np.nan))
+                 for d in self.directions]
         return f"support flexibility at {self.where}: " + "; ".join(parts) + " in series with the oil film"
 
     def to_extra(self, phys):
-        return {"effect": self.name, "bearing_node": self.node, "directions": self.directions, "mass": self.mass,
+        return {"effect": self.name, "bearing_node": self.node, "directions": self.directions,
                 **{k: float(v) for k, v in phys.items()}}
 
     @classmethod
     def from_extra(cls, d, rig):
         idx = [b.node for b in rig.bearings].index(int(d["bearing_node"]))
         e = cls(idx, int(d["bearing_node"]), str(d["directions"]), float(d.get("mass", 0.0)))
-        nl = np.array([v for dd in e.directions for v in (math.log(d[f"k_{dd}"]), d.get(f"c_{dd}", 0.0))])
+        nl = np.array([v for dd in e.directions for v in (math.log(d[f"k_{dd}"]), d.get(f"c_{dd}", 0.0),
+                                                          d.get(f"m_{dd}", e.mass))])
         return e, nl, np.zeros(0)
+
+
+class BearingModelForm(Effect):
+    """The oil-film theory itself is off: an effective viscosity and clearance factor per bearing, over all speeds.
+
+    A candidate only when the bearings are *not* refitted as nuisance (``diagnose(..., nuisance=False)``): then a
+    bearing theory that is off (wrong oil temperature, worn clearance, or a short-bearing model on a finite bearing)
+    must be able to explain the mismatch itself rather than be mistaken for another effect.  Nonlinear parameters:
+    ln viscosity factor and ln clearance factor per bearing.
+    """
+    name = "bearing_model_form"
+    key = "clearance_factor_1"
+
+    def __init__(self, nb: int):
+        super().__init__()
+        self.nb = nb
+        self.where = "oil film of " + ("both bearings" if nb == 2 else f"{nb} bearings")
+        self.nl_names = tuple(f"ln{p}_{i + 1}" for p in ("v", "c") for i in range(nb))
+        self.nl_lo = (-2.0,) * (2 * nb)
+        self.nl_hi = (2.0,) * (2 * nb)
+
+    @property
+    def starts(self):
+        return [np.zeros(2 * self.nb)]
+
+    def bearing_factors(self, nl):
+        e = np.exp(np.asarray(nl, float))
+        return tuple(e[:self.nb]), tuple(e[self.nb:])
+
+    def physical(self, nl, lin):
+        e = np.exp(np.asarray(nl, float))
+        return {**{f"viscosity_factor_{i + 1}": float(e[i]) for i in range(self.nb)},
+                **{f"clearance_factor_{i + 1}": float(e[self.nb + i]) for i in range(self.nb)}}
+
+    def sentence(self, phys, std):
+        parts = [f"bearing {i + 1}: viscosity x{phys[f'viscosity_factor_{i + 1}']:.2f}, clearance "
+                 f"x{phys[f'clearance_factor_{i + 1}']:.2f}" for i in range(self.nb)]
+        return ("bearing model form: the oil-film coefficients differ from the nominal bearing theory (" +
+                "; ".join(parts) + ") -- the bearings, not a missing effect; identify them (bearing-id identify)")
+
+    def to_extra(self, phys):
+        return {"effect": self.name,
+                "viscosity_factor": [float(phys[f"viscosity_factor_{i + 1}"]) for i in range(self.nb)],
+                "clearance_factor": [float(phys[f"clearance_factor_{i + 1}"]) for i in range(self.nb)]}
 
 
 class DiscMassError(Effect):
@@ -210,8 +269,7 @@ class ResidualUnbalance(Effect):
     def sentence(self, phys, std):
         return (f"residual unbalance at node {self.node}: m·r ≈ {phys['me'] * 1e6:.3g} g·mm"
                 f"{_pm(phys['me'], std.get('me'))} at {phys['phase_deg']:.0f}° from the key mark (1X response growing "
-                f"with speed², absent at slow roll; on a symmetric rotor seen from midspan the mirror plane fits "
-                f"about as well)")
+                f"with speed², absent at slow roll)")
 
     def to_extra(self, phys):
         return {"effect": self.name, "node": self.node, "me": phys["me"], "phase_deg": phys["phase_deg"]}
@@ -345,7 +403,7 @@ class ProbeRunout(Effect):
 
     def sentence(self, phys, std):
         return (f"probe runout on {self.where}: {phys['runout'] * 1e6:.3g} µm{_pm(phys['runout'], std.get('runout'))}"
-                f" at {phys['phase_deg']:.0f}° (the same 1X vector at every speed, slow roll included)")
+                f" at {phys['phase_deg']:.0f}° (one constant 1X vector at every speed -- a measurement, not a motion; a slow-roll run would show it too)")
 
     def to_extra(self, phys):
         return {"effect": self.name, "probe": self.probe.name, "runout": phys["runout"],
@@ -473,6 +531,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
         out += [Misalignment(n) for n in ends]
     if "disc_mass_error" in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
+    if "bearing_model_form" in names and not prob.nuisance:
+        out.append(BearingModelForm(len(rig.bearings)))
     if "oil_whirl" in names and prob.has_sub:
         out += [OilWhirl(i, b.node) for i, b in enumerate(rig.bearings)]
     return out
@@ -500,9 +560,10 @@ def measurement_corrections(rig) -> list[dict]:
             if d.get("effect") in ("probe_runout", "probe_orientation")]
 
 
-def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: dict) -> np.ndarray:
+def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: dict, effects=None) -> np.ndarray:
     """Z (ndof, ndof) of the rotor on ``coeffs`` bearings with the augmentations in ``rig.extra`` (flexible supports
-    condensed onto the journal DOFs, disc mass corrections) at spin ``speed`` and frequency ``omega`` [rad/s]."""
+    condensed onto the journal DOFs, disc mass corrections) at spin ``speed`` and frequency ``omega`` [rad/s].
+    ``effects`` : the :func:`effects_from_extra` list, when already built."""
     from ..rotor.assembly import dynamic_stiffness
 
     class _P:  # the minimal context the hooks read
@@ -510,7 +571,7 @@ def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: 
     p = _P()
     p.model = model
     Z = dynamic_stiffness(model, speed, omega, {})
-    effs = effects_from_extra(rig)
+    effs = effects_from_extra(rig) if effects is None else effects
     n = model.n_nodes
     for node, (Kb, Cb) in coeffs.items():
         Zb = np.asarray(Kb) + 1j * omega * np.asarray(Cb)
@@ -523,10 +584,10 @@ def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: 
     return Z
 
 
-def augmented_forces(model, rig, speed: float) -> dict:
+def augmented_forces(model, rig, speed: float, effects=None) -> dict:
     """Extra force phasors {ratio: (ndof,)} [N] of the augmentations (residual unbalance, bow, misalignment)."""
     out: dict = {}
-    for e, nl, lin in effects_from_extra(rig):
+    for e, nl, lin in (effects_from_extra(rig) if effects is None else effects):
         if not e.n_lin:
             continue
         for ratio in (1.0, 2.0):
@@ -552,5 +613,5 @@ def _force_cols(e, model, speed, ratio):
 
 
 __all__ = ["EFFECT_NAMES", "Effect", "SupportFlexibility", "DiscMassError", "ResidualUnbalance", "ShaftBow",
-           "Misalignment", "ProbeRunout", "ProbeOrientation", "OilWhirl", "candidates", "bow_shape",
+           "Misalignment", "ProbeRunout", "BearingModelForm", "ProbeOrientation", "OilWhirl", "candidates", "bow_shape",
            "effects_from_extra", "measurement_corrections", "augmented_dynamic_stiffness", "augmented_forces"]

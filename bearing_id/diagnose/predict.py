@@ -112,12 +112,18 @@ class Problem:
         th = np.asarray(theta, dtype=float)
         return tuple(np.exp(th[:self.nb])), tuple(np.exp(th[self.nb:2 * self.nb]))
 
-    def coeffs(self, theta, speed: float) -> dict:
-        """Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached)."""
-        key = (tuple(np.round(np.asarray(theta, float), 13)) if self.n_nuis else (), float(speed))
+    def coeffs(self, theta, speed: float, factors=None) -> dict:
+        """Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached).
+
+        ``factors`` : optional (viscosity factors, clearance factors) per bearing multiplying the nuisance ones
+        (an effect that re-fits the bearing theory, :class:`effects.BearingModelForm`)."""
+        vf, cf = self.nuisance_factors(theta)
+        if factors is not None:
+            vf = tuple(a * b for a, b in zip(vf, factors[0]))
+            cf = tuple(a * b for a, b in zip(cf, factors[1]))
+        key = (tuple(np.round(np.log(np.concatenate([vf, cf])), 13)), float(speed))
         c = self._coeff_cache.get(key)
         if c is None:
-            vf, cf = self.nuisance_factors(theta)
             if self._loads is None:
                 self._loads = bearings_mod.static_loads(self.rig)
             fn = bearings_mod.bearing_fn(self.rig, viscosity_factor=vf, clearance_factor=cf, loads=self._loads)
@@ -134,7 +140,13 @@ class Problem:
         w = ratio * W
         Z = self.Z0(k, ratio).copy()
         n = self.model.n_nodes
-        for node, (Kb, Cb) in self.coeffs(theta, W).items():
+        factors = None
+        for e, nl in zip(effects, nls):
+            f = e.bearing_factors(nl)
+            if f is not None:
+                factors = f if factors is None else (tuple(a * b for a, b in zip(factors[0], f[0])),
+                                                     tuple(a * b for a, b in zip(factors[1], f[1])))
+        for node, (Kb, Cb) in self.coeffs(theta, W, factors).items():
             Zb = np.asarray(Kb) + 1j * w * np.asarray(Cb)
             for e, nl in zip(effects, nls):
                 Zb = e.bearing_impedance(self, node, Zb, W, w, nl)

@@ -20,8 +20,11 @@ Held-out validation (:func:`validate`)
 Selection (:func:`select`)
     Greedy forward selection: start from "none" (nuisance only); at each step fit every remaining candidate added to
     the current set (everything re-fitted jointly), take the best BIC that is also validated, stop when the BIC gain
-    falls below ``dbic_min``, validation fails, or the current residual is no longer significant (chi2 per residual
-    below ``chi2_floor``; with the model tolerance in sigma a clean recording sits near 1 or below).
+    falls below ``dbic_min``, validation fails, or the current residual is no longer significant: chi2 per residual
+    below ``chi2_floor`` (with the model tolerance in sigma a clean recording sits near 1 or below) *and* no single
+    entry off by ``peak_sigma`` or more (the :func:`locate` threshold).  The second condition keeps a mismatch that is
+    highly significant but confined to a few entries (a weak whirl at the top speeds, a runout seen on one probe of
+    many) from being averaged away by the many entries the model already fits.
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ from scipy.optimize import least_squares
 from .effects import OilWhirl
 from .predict import Problem
 
+AMBIGUOUS_DBIC = 6.0  # screening BIC difference below which two variants of one effect are not told apart
 NUIS_BOUND = 2.0     # |ln factor| <= 2 (x0.14 .. x7.4) for viscosity and clearance factors
 
 
@@ -275,20 +279,42 @@ class Selection:
     final: Fit                    # the selected hypothesis
     rounds: list                  # per greedy step: list of (Fit, validation dict | None), best first
     selected: list                # effects accepted
+    # per accepted effect label: [(where, delta BIC)] of other variants of the same family (another bearing, plane
+    # or probe) that fit about as well in the screening (delta BIC < AMBIGUOUS_DBIC): the data do not tell them apart
+    ambiguous: dict = field(default_factory=dict)
 
 
 def _key(e):
     return e.label
 
 
+def peak_significance(prob: Problem, f: Fit) -> float:
+    """Largest |measured - predicted| / sigma over the complex entries (nX and sub-synchronous) of fit ``f``."""
+    th_nl = np.concatenate([f.theta, *f.nls]) if f.nls else np.asarray(f.theta)
+    r, _, extra = _residual(prob, f.effects, th_nl, f.windows, lin=f.lin if f.lin.size else None)
+    n_nx = extra[6].size                       # nX entries: re parts then im parts
+    b = r[:2 * n_nx]
+    peak = float(np.max(np.hypot(b[:n_nx], b[n_nx:]))) if n_nx else 0.0
+    rs = r[2 * n_nx:extra[3]]
+    if rs.size:                                # per window: nch re parts then nch im parts
+        out, i = [], 0
+        for k in _sub_windows(prob, f.windows):
+            m = prob.windows[k].X_sub.size
+            out.append(np.hypot(rs[i:i + m], rs[i + m:i + 2 * m]))
+            i += 2 * m
+        peak = max(peak, float(np.max(np.concatenate(out))))
+    return peak
+
+
 def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float = 10.0, chi2_floor: float = 1.5,
-           n_validate: int = 4, n_refine: int = 4, folds=None) -> Selection:
+           peak_sigma: float = 5.0, n_validate: int = 4, n_refine: int = 4, folds=None) -> Selection:
     """Greedy forward selection (see module docstring)."""
     base = fit(prob, [])
     current, selected, rounds = base, [], []
     vcache: dict = {}
+    ambiguous: dict = {}
     while len(selected) < max_effects:
-        if current.chi2 / max(current.n, 1) < chi2_floor:
+        if current.chi2 / max(current.n, 1) < chi2_floor and peak_significance(prob, current) < peak_sigma:
             break
         used = {_key(e) for e in selected}
         screen = []
@@ -336,9 +362,17 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
         rounds.append((current, round_rows))
         if accepted is None:
             break
+        e_acc = accepted.effects[-1]
+        same = [f for f in screen if f.effects[-1].name == e_acc.name]
+        ref = min((f.bic for f in same if f.effects[-1].label == e_acc.label), default=None)
+        if ref is not None:
+            alt = sorted((f.bic - ref, f.effects[-1].where) for f in same if f.effects[-1].label != e_acc.label)
+            alt = [(w, float(d)) for d, w in alt if d < AMBIGUOUS_DBIC]
+            if alt:
+                ambiguous[e_acc.label] = alt
         selected = list(accepted.effects)
         current = accepted
-    return Selection(base=base, final=current, rounds=rounds, selected=selected)
+    return Selection(base=base, final=current, rounds=rounds, selected=selected, ambiguous=ambiguous)
 
 
-__all__ = ["Fit", "fit", "validate", "speed_folds", "run_folds", "heldout_chi2", "Selection", "select"]
+__all__ = ["Fit", "fit", "peak_significance", "validate", "speed_folds", "run_folds", "heldout_chi2", "Selection", "select"]

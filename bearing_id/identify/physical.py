@@ -18,6 +18,12 @@ space of J (relative leakage into the null space < 1e-4), so it stays determined
 are not (e.g. with ``load=True``: in a Reynolds bearing model of fixed geometry K = (W/c) k(eps), C = W/(c Omega)
 c(eps) and eps depends on mu Omega / (W c^2) only, so (mu, c, W) enter through two combinations: rank 2 per bearing).
 
+Augmented model (``augment``): an object with ``dynamic_stiffness(speed, omega, coeffs) -> Z (ndof, ndof)`` and
+``extra_forces(speed) -> {ratio: F (ndof,)}`` (e.g. :class:`bearing_id.diagnose.augmented.AugmentedModel`, built
+from the augmented params file that ``bearing-id diagnose`` writes).  The prediction is then P Z_aug(beta(p))^-1
+(F_r + F_extra): flexible supports in series with the film, a corrected disc, a residual unbalance or bow added to
+the known excitation.  d y / d p is then taken by central differences in p (step ``FD_STEP``), the rest unchanged.
+
 Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is biased
 (the benchmark reports by how much).
 """
@@ -29,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..rotor.assembly import dynamic_stiffness, static_bearing_loads
+from ..rotor.assembly import dynamic_stiffness, probe_matrix, static_bearing_loads
 from .direct import cases_from_data, information_analysis, response_and_jacobian, weighted_stack
 from .result import IdentResult, empty_result
 
@@ -144,7 +150,7 @@ class _Parametrisation:
 
 
 def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=False, bearing_model="short",
-                 probes=None, runs=None, max_nfev: int = 100):
+                 probes=None, runs=None, max_nfev: int = 100, augment=None):
     """Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
 
     Parameters
@@ -154,6 +160,7 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     params : which of ('viscosity', 'clearance') to fit per bearing.   load : also fit the static load per bearing.
     bearing_model : 'short' (Ocvirk) or 'finite' (Reynolds) -- the estimator's model of the bearing.
     probes, runs : override data.probes / data.runs.
+    augment : augmented-model hook (module docstring) or None (nominal model).
 
     Returns
     -------
@@ -163,7 +170,7 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     runs = tuple(runs if runs is not None else data.runs)
     par = _Parametrisation(model, rig, params, load, bearing_model)
     speeds = [float(w) for w in np.asarray(data.speeds, float)]
-    cases = [cases_from_data(model, data, probes, runs, i) for i in range(len(speeds))]
+    cases = [cases_from_data(model, data, probes, runs, i, augment=augment) for i in range(len(speeds))]
     keep = [i for i, c in enumerate(cases) if c]
     if not keep:
         raise ValueError("physical: no finite synchronous measurements at any speed")
@@ -171,7 +178,27 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     nb = len(par.nodes)
     ones = np.ones(8 * nb)
 
+    def predict_aug(p, i):
+        Z = augment.dynamic_stiffness(speeds[i], speeds[i], par.coeffs(p, speeds[i]))
+        Q = np.linalg.solve(Z, np.stack([np.asarray(c.F, complex) for c in cases[i]], axis=1))
+        return [probe_matrix(model, c.probes) @ Q[:, r] for r, c in enumerate(cases[i])]
+
+    def residual_jac_aug(p, want_jac=True):
+        r = np.concatenate([weighted_stack(cases[i], predict_aug(p, i),
+                                           [np.zeros((len(c.X), 0)) for c in cases[i]], np.ones(0))[0]
+                            for i in keep])
+        if not want_jac:
+            return r, None
+        J = np.zeros((r.size, p.size))
+        for j in range(p.size):
+            dp = np.zeros_like(p)
+            dp[j] = FD_STEP
+            J[:, j] = (residual_jac_aug(p + dp, False)[0] - residual_jac_aug(p - dp, False)[0]) / (2 * FD_STEP)
+        return r, J
+
     def residual_jac(p, want_jac=True):
+        if augment is not None:
+            return residual_jac_aug(p, want_jac)
         rs, Js = [], []
         for i in keep:
             if want_jac:
@@ -210,7 +237,9 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     rel_std = np.where(pdet, np.sqrt(np.clip(np.diag(cov), 0, None)), np.nan)
     chi2 = float(r @ r)
     dof = max(r.size - info["rank"], 1)
-    notes = [f"physical fit ({bearing_model} bearing model) of {', '.join(par.fitted)} per bearing over "
+    notes = ([f"augmented model: {', '.join(getattr(augment, 'names', []) or ['hook'])}"] if augment is not None
+             else [])
+    notes += [f"physical fit ({bearing_model} bearing model) of {', '.join(par.fitted)} per bearing over "
              f"{len(keep)} speed(s): rank {info['rank']} of {p.size}, chi2/dof = {chi2 / dof:.3g}"]
     if np.any(p <= lb + 1e-9) or np.any(p >= ub - 1e-9):
         notes.append(f"a parameter reached its bound (x{BOUND_FACTOR:g} / {BOUND_FACTOR:g} of nominal): "
@@ -227,7 +256,10 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     for i in keep:
         W = speeds[i]
         beta, G = par.beta_and_grad(p, W)
-        ys, _ = response_and_jacobian(model, W, cases[i], beta, par.nodes, Z0=Z0[i])
+        if augment is not None:
+            ys = predict_aug(p, i)
+        else:
+            ys, _ = response_and_jacobian(model, W, cases[i], beta, par.nodes, Z0=Z0[i])
         num = sum(float(np.sum(np.abs(y - c.X) ** 2)) for c, y in zip(cases[i], ys))
         den = sum(float(np.sum(np.abs(c.X) ** 2)) for c in cases[i])
         num_all += num
@@ -258,7 +290,8 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     return fit, results
 
 
-OPTIONS = {"params": ("viscosity", "clearance"), "load": False, "bearing_model": "short", "max_nfev": 100}
+OPTIONS = {"params": ("viscosity", "clearance"), "load": False, "bearing_model": "short", "max_nfev": 100,
+           "augment": None}
 
 
 def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
@@ -275,7 +308,7 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
         opts[k] = v
     _, results = fit_physical(model, rig, data, params=tuple(opts["params"]), load=bool(opts["load"]),
                               bearing_model=str(opts["bearing_model"]), probes=probes, runs=runs,
-                              max_nfev=int(opts["max_nfev"]))
+                              max_nfev=int(opts["max_nfev"]), augment=opts["augment"])
     return results
 
 

@@ -1,0 +1,91 @@
+"""The augmented model of a diagnosis, in the form identification consumes (``bearing-id diagnose --identify``).
+
+An augmented params file (``extra: {effects: [...]}``, written by :func:`report.write_params`) holds three kinds of
+physics the nominal model left out, and each enters identification at a different place:
+
+* measurement effects (``probe_runout``, ``probe_orientation``) -> :meth:`AugmentedModel.correct_data` removes them
+  from the measured 1X phasors (runout vector subtracted; a turned/gained probe re-projected with its perpendicular
+  partner at the same node);
+* force effects (``residual_unbalance``, ``shaft_bow``; ``misalignment`` is 2X and does not enter a 1X fit) ->
+  :meth:`AugmentedModel.extra_forces` adds them to the known excitation of every run;
+* model effects (``support_flexibility``, ``disc_mass_error``) -> :meth:`AugmentedModel.dynamic_stiffness`, the
+  hook the ``physical`` and ``direct`` methods call instead of the rotor's dynamic stiffness with the bearings
+  inserted directly (``options={'augment': AugmentedModel}``).
+
+Units SI; phasors as in :mod:`bearing_id.conventions`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from . import effects as fx
+
+
+class AugmentedModel:
+    """Hook object for identification on the augmented model.
+
+    Parameters
+    ----------
+    model : rotor.assembly.RotorModel (no bearings) of the *nominal* rig.
+    rig : RigParams whose ``extra['effects']`` holds the augmentations (an augmented params file).
+
+    Protocol used by :mod:`bearing_id.identify.physical` / :mod:`bearing_id.identify.direct`:
+    ``dynamic_stiffness(speed, omega, coeffs) -> Z (ndof, ndof)`` and ``extra_forces(speed) -> {ratio: F (ndof,)}``.
+    """
+
+    def __init__(self, model, rig):
+        self.model, self.rig = model, rig
+        self._effects = fx.effects_from_extra(rig)
+        self._corrections = fx.measurement_corrections(rig)
+
+    @property
+    def names(self) -> list:
+        return [e.name for e, _, _ in self._effects] + [d["effect"] for d in self._corrections]
+
+    @property
+    def changes_system(self) -> bool:
+        """True when an effect changes the dynamic stiffness (the identification Jacobian is then numerical)."""
+        return any(type(e).bearing_impedance is not fx.Effect.bearing_impedance or type(e).add_dZ is not fx.Effect.add_dZ
+                   for e, _, _ in self._effects)
+
+    def dynamic_stiffness(self, speed: float, omega: float, coeffs: dict) -> np.ndarray:
+        """Z (ndof, ndof) of the rotor on ``coeffs`` ({node: (K, C)}) with the model effects, spin ``speed``,
+        frequency ``omega`` [rad/s]."""
+        return fx.augmented_dynamic_stiffness(self.model, self.rig, speed, omega, coeffs, effects=self._effects)
+
+    def extra_forces(self, speed: float) -> dict:
+        """{ratio: F (ndof,) complex [N]} of the force effects at ``speed`` [rad/s]."""
+        return fx.augmented_forces(self.model, self.rig, speed, effects=self._effects)
+
+    def correct_phasors(self, X: np.ndarray, probes) -> np.ndarray:
+        """Measured 1X phasors X (..., nch) [m] with the measurement effects removed (a corrected copy)."""
+        X = np.array(X, dtype=complex, copy=True)
+        names = [p.name for p in probes]
+        # runout first: a turned probe is re-projected with its partner's *displacement*, free of runout
+        order = sorted(self._corrections, key=lambda d: d["effect"] != "probe_runout")
+        for d in order:
+            if d["probe"] not in names:
+                continue
+            i = names.index(d["probe"])
+            if d["effect"] == "probe_runout":
+                X[..., i] -= d["runout"] * np.exp(1j * math.radians(d.get("phase_deg", 0.0)))
+            elif d["effect"] == "probe_orientation":
+                p = probes[i]
+                other = "y" if p.direction == "x" else "x"
+                j = next((k for k, q in enumerate(probes) if q.node == p.node and q.direction == other), None)
+                if j is None:
+                    continue            # no partner to re-project with: left as measured
+                a, g = math.radians(d["angle_deg"]), float(d.get("gain", 1.0))
+                perp = X[..., j] if p.direction == "x" else -X[..., j]
+                X[..., i] = (X[..., i] / g - math.sin(a) * perp) / math.cos(a)
+        return X
+
+    def correct_data(self, data):
+        """A copy of harmonic data (``identify.harmonics.HarmonicData``) with the measurement effects removed."""
+        return dataclasses.replace(data, X=self.correct_phasors(data.X, data.probes))
+
+
+__all__ = ["AugmentedModel"]
