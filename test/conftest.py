@@ -35,3 +35,17 @@ def _fastdds_shm_cleanup():
 
     if rosutil._domain_lock is not None:  # only when this session started ROS processes
         rosutil.shm_clean()
+
+
+@pytest.fixture(scope="session")
+def rig():
+    """The packaged paper rig (params/rig.yaml)."""
+    from bearing_id.params import load_rig
+    return load_rig()
+
+
+@pytest.fixture(scope="session")
+def model(rig):
+    """The FE rotor model of the packaged rig."""
+    from bearing_id.rotor.assembly import RotorModel
+    return RotorModel.from_params(rig)

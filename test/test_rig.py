@@ -12,21 +12,10 @@ from scipy.integrate import solve_ivp
 
 from bearing_id import rig as rigmod
 from bearing_id.conventions import dof_index, rpm_to_rad_s
-from bearing_id.params import load_rig
 
 pytest.importorskip("bearing_id.rotor.assembly")
 pytest.importorskip("bearing_id.bearings")
-from bearing_id.rotor.assembly import RotorModel, harmonic_response  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return load_rig()
-
-
-@pytest.fixture(scope="module")
-def model(rig):
-    return RotorModel.from_params(rig)
+from bearing_id.rotor.assembly import harmonic_response  # noqa: E402
 
 
 def lsq_phasor(y, phi):

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from bearing_id.conventions import dof_index, rpm_to_rad_s, unbalance_phasors
-from bearing_id.params import load_rig
 from bearing_id.rotor.assembly import (RotorModel, dynamic_stiffness, harmonic_response, probe_matrix,
                                        state_space, static_bearing_loads)
 from bearing_id.rotor.elements import DiscElement, ShaftElement, shear_coefficient
@@ -147,16 +146,6 @@ def test_free_free_euler_bernoulli_limit():
     assert np.allclose(w, ref, rtol=2e-5), w / ref - 1   # 40 cubic elements
     w80 = free_free_frequencies(beam(80, L, d, shear=False, rotary_inertia=False), 4)
     assert np.all(np.abs(w80 / ref - 1) < np.abs(w / ref - 1) / 10)
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return load_rig()
-
-
-@pytest.fixture(scope="module")
-def model(rig):
-    return RotorModel.from_params(rig)
 
 
 def test_rig_model_shape_and_mass(rig, model):
