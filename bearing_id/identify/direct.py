@@ -23,7 +23,12 @@ posterior variance is below 0.25 x the prior variance (the data, not the prior, 
 must also be below ``max_rel_std`` (default 10 %) of its block scale (an estimable coefficient swamped by noise is
 not "determined").  Std: without prior, the
 pseudo-inverse of I (correct for estimable coefficients), NaN for the others; with a prior, the posterior
-(I + I_prior)^-1.
+(I + I_prior)^-1.  Both come from the measured 1X std (``X_std``) alone -- never rescaled by the residual -- so the
+'determined' flags are only as honest as that std (the transient-aware 1X fit of :mod:`.harmonics` makes it so).
+
+Redundancy: when the real equations are no more than the estimable unknowns (e.g. the 4-run force plan at one x/y
+probe: 16 equations, 16 unknowns) the fit reproduces the data exactly, chi2 is 0 and the residual cannot reveal a
+bias in the 1X vectors; the notes say so (``extra['redundancy']`` = equations - rank).
 """
 from __future__ import annotations
 
@@ -141,6 +146,31 @@ def response_and_jacobian(model, speed: float, cases, beta: np.ndarray, nodes, *
     return ys, dys
 
 
+AUG_FD_STEP = 1e-6        # central-difference step of the augmented-model Jacobian, in units of the block scale
+
+
+def response_and_jacobian_augmented(model, speed: float, cases, beta: np.ndarray, nodes, augment, scale):
+    """As :func:`response_and_jacobian` but through an augmented-model hook ``augment.dynamic_stiffness(speed,
+    omega, coeffs)``; d y / d beta by central differences (step ``AUG_FD_STEP`` x ``scale`` per unknown)."""
+    P = [probe_matrix(model, c.probes) for c in cases]
+    F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
+
+    def ys_of(b):
+        Q = np.linalg.solve(augment.dynamic_stiffness(speed, speed, beta_to_coeffs(b, nodes)), F)
+        return [P[r] @ Q[:, r] for r in range(len(cases))]
+
+    ys = ys_of(beta)
+    dys = [np.zeros((p.shape[0], beta.size), dtype=complex) for p in P]
+    for k in range(beta.size):
+        h = AUG_FD_STEP * float(scale[k])
+        db = np.zeros_like(beta)
+        db[k] = h
+        yp, ym = ys_of(beta + db), ys_of(beta - db)
+        for r in range(len(cases)):
+            dys[r][:, k] = (yp[r] - ym[r]) / (2 * h)
+    return ys, dys
+
+
 # ------------------------------------------------------------------------------------------------ information analysis
 def information_analysis(J: np.ndarray):
     """SVD analysis of a weighted Jacobian J (m, n): rank, condition, pseudo-inverse information, leakage per unknown.
@@ -186,7 +216,7 @@ def weighted_stack(cases, ys, dys, scale):
 # ------------------------------------------------------------------------------------------------ one speed
 def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, start: dict | None = None,
               prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = "direct",
-              max_nfev: int = 200, max_rel_std: float = MAX_REL_STD) -> IdentResult:
+              max_nfev: int = 200, max_rel_std: float = MAX_REL_STD, augment=None) -> IdentResult:
     """Output-error fit of the 8 nb bearing coefficients at one speed.
 
     Parameters
@@ -196,6 +226,9 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     start : {node: (K, C)} start of the iteration (default: theory).
     prior_weight : w >= 0; prior 1-sigma = scale / sqrt(w) per coefficient (0 = no prior).
     scale : (8 nb,) scale of the unknowns (default :func:`default_scale`).
+    augment : augmented-model hook (``dynamic_stiffness(speed, omega, coeffs) -> Z``; e.g. a flexible support in
+        series with the film) or None.  With it the prediction is P Z_aug(beta)^-1 F and the Jacobian is taken by
+        central differences in the scaled unknowns (relative step 1e-6).
 
     Returns
     -------
@@ -223,7 +256,10 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     Z0 = dynamic_stiffness(model, speed, speed, {})
 
     def fun_jac(theta):
-        ys, dys = response_and_jacobian(model, speed, cases, theta * scale, nodes, Z0=Z0)
+        if augment is not None:
+            ys, dys = response_and_jacobian_augmented(model, speed, cases, theta * scale, nodes, augment, scale)
+        else:
+            ys, dys = response_and_jacobian(model, speed, cases, theta * scale, nodes, Z0=Z0)
         r, J = weighted_stack(cases, ys, dys, scale)
         if sw > 0:
             r = np.concatenate([r, sw * (theta - theta_p)])
@@ -247,7 +283,8 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
                         gtol=1e-12, max_nfev=max_nfev)
     theta = sol.x
     beta = theta * scale
-    ys, dys = response_and_jacobian(model, speed, cases, beta, nodes, Z0=Z0)
+    ys, dys = (response_and_jacobian_augmented(model, speed, cases, beta, nodes, augment, scale)
+               if augment is not None else response_and_jacobian(model, speed, cases, beta, nodes, Z0=Z0))
     r_data, J_data = weighted_stack(cases, ys, dys, scale)
     info = information_analysis(J_data)
     dof = max(r_data.size - info["rank"], 1)
@@ -277,8 +314,15 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     res.rank, res.unknowns, res.condition = info["rank"], n, info["condition"]
     res.residual = num / den if den > 0 else math.nan
     nund = int(np.count_nonzero(~determined))
+    redundancy = int(r_data.size - info["rank"])
     res.notes.append(f"direct output-error fit: {len(cases)} run(s), {r_data.size} real equations, rank "
-                     f"{info['rank']} of {n}; chi2/dof = {chi2 / dof:.3g}")
+                     f"{info['rank']} of {n}; " + (f"chi2/dof = {chi2 / dof:.3g}" if redundancy > 0 else
+                                                   f"chi2 = {chi2:.3g}"))
+    if redundancy <= 0:
+        res.notes.append(f"no redundancy: {r_data.size} real equations for {info['rank']} estimable unknowns, so "
+                         f"the fit reproduces the data exactly and its residual cannot reveal a bias in the 1X "
+                         f"vectors or a model error; the std rests entirely on the stated 1X std (add a probe or a "
+                         f"run to make the residual a check)")
     if nund:
         res.notes.append(f"{nund} of {n} coefficients not determined by the data (outside the data's row space, "
                          f"or 1-sigma > {max_rel_std:.0%} of scale"
@@ -287,27 +331,34 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
         res.notes.append(f"least_squares did not converge: {sol.message}")
     res.extra.update(theta=theta, scale=scale, cov_theta=cov_theta, singular=info["singular"],
                      condition_range=info["condition_range"], leakage=info["leakage"], chi2=chi2, dof=dof,
-                     prior_weight=prior_weight, theory=theory, nfev=sol.nfev)
+                     prior_weight=prior_weight, theory=theory, nfev=sol.nfev, redundancy=redundancy)
     return res
 
 
 # ------------------------------------------------------------------------------------------------ all speeds
-def cases_from_data(model, data, probes, runs, i_speed: int) -> list[Case]:
-    """The :class:`Case` list of speed index ``i_speed`` from harmonic data (X (nr, ns, nch), X_std alike)."""
+def cases_from_data(model, data, probes, runs, i_speed: int, augment=None) -> list[Case]:
+    """The :class:`Case` list of speed index ``i_speed`` from harmonic data (X (nr, ns, nch), X_std alike).
+
+    ``augment`` : augmented-model hook; its ``extra_forces(speed)[1.0]`` (a residual unbalance, a bow: the same
+    machine in every run) is added to every run's known synchronous force."""
     W = float(data.speeds[i_speed])
+    extra = augment.extra_forces(W).get(1.0) if augment is not None else None
     out = []
     for r, run in enumerate(runs):
         X = np.asarray(data.X[r, i_speed], dtype=complex)
         if not np.all(np.isfinite(X)):
             continue
         F = harmonic_forces(run.excitation, W, model.n_nodes).get(1.0)
+        if extra is not None:
+            F = extra.copy() if F is None else F + extra
         if F is None:
             continue  # no synchronous excitation in this run: nothing for a 1X fit
         out.append(Case(F=F, probes=tuple(probes), X=X, X_std=np.asarray(data.X_std[r, i_speed], dtype=float)))
     return out
 
 
-OPTIONS = {"prior_weight": 0.0, "theory": None, "bearing_model": None, "max_nfev": 200, "max_rel_std": MAX_REL_STD}
+OPTIONS = {"prior_weight": 0.0, "theory": None, "bearing_model": None, "max_nfev": 200, "max_rel_std": MAX_REL_STD,
+           "augment": None}
 
 
 def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
@@ -321,7 +372,8 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
     probes, runs : override data.probes / data.runs.
     options / keywords : ``prior_weight`` (>= 0, default 0 = no prior), ``theory`` (bearing_fn speed -> coeffs;
         default the nominal theory of ``rig`` with ``bearing_model``), ``bearing_model`` ('short'/'finite'/None =
-        the rig's), ``max_nfev``, ``max_rel_std`` (0.10).
+        the rig's), ``max_nfev``, ``max_rel_std`` (0.10), ``augment`` (augmented-model hook, see :func:`fit_speed`
+        and :func:`cases_from_data`; None = nominal model).
 
     Returns
     -------
@@ -342,13 +394,14 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
     names = tuple(b.name for b in rig.bearings)
     out = []
     for i, W in enumerate(np.asarray(data.speeds, float)):
-        cases = cases_from_data(model, data, probes, runs, i)
+        cases = cases_from_data(model, data, probes, runs, i, augment=opts["augment"])
         th = theory_fn(float(W))
         out.append(fit_speed(model, float(W), cases, nodes, theory=th, prior_weight=float(opts["prior_weight"]),
                              bearings=names, max_nfev=int(opts["max_nfev"]),
-                             max_rel_std=float(opts["max_rel_std"])))
+                             max_rel_std=float(opts["max_rel_std"]), augment=opts["augment"]))
     return out
 
 
 __all__ = ["Case", "coeffs_to_beta", "beta_to_coeffs", "default_scale", "response_and_jacobian",
+           "response_and_jacobian_augmented",
            "information_analysis", "weighted_stack", "fit_speed", "cases_from_data", "identify_direct"]

@@ -2,8 +2,12 @@
 
 Rule for each run
     The speed record is split into steady windows (:func:`bearing_id.signals.steady_windows`, speed constant within
-    ``tol_rel``); the first ``settle`` fraction of each window is discarded (the transient after a speed step) and
-    the 1X vectors of the rest are fitted over whole revolutions (:func:`bearing_id.signals.harmonic_vectors`).
+    ``tol_rel``); the first ``settle`` fraction of each window is discarded and the 1X vectors of the rest are
+    fitted over whole revolutions (:func:`bearing_id.signals.harmonic_vectors`) jointly with up to ``transients``
+    exponentially decaying sinusoids (default 3: the rotor's lightly damped modes ring for seconds after every speed
+    change, and a mode near running speed biases a plain 1X fit by percent).  The 1X std is the joint fit's.  A
+    window-halves check on the signal minus the fitted transients adds a bias bound for anything left unmodelled
+    (:func:`stationarity_excess`).
     Speeds from different runs are matched when they agree within ``tol_rel``; only speeds present in every run are
     kept (identification stacks the runs at one speed).
 
@@ -19,8 +23,9 @@ import numpy as np
 
 from ..signals import harmonic_vectors, steady_windows
 
-DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (transient after a speed step)
+DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
+DEFAULT_TRANSIENTS = 3     # decaying sinusoids (rotor modes ringing after a speed change) fitted with the 1X
 
 
 @dataclass
@@ -75,26 +80,46 @@ def run_windows(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_dura
 STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this many sigma count as a transient
 
 
-def stationarity_excess(rec, i0: int, i1: int) -> np.ndarray:
+def window_fit(rec, i0: int, i1: int, *, transients: int = DEFAULT_TRANSIENTS):
+    """1X fit of samples i0..i1-1 of a recording: the transient-aware fit (:func:`bearing_id.signals.harmonic_vectors`
+    with up to ``transients`` decaying components, 0 = plain least squares).
+
+    The time base of the decaying components is the sample index / ``rec.sample_rate`` from i0 (the samples of a
+    steady window are evenly spaced), not ``rec.t``: a live node and the offline route then fit the same numbers
+    whatever their clocks' origin.
+    """
+    return harmonic_vectors(rec.samples[i0:i1], rec.angle[i0:i1], orders=(1,), transients=transients,
+                            sample_rate=rec.sample_rate)
+
+
+def stationarity_excess(rec, i0: int, i1: int, fit=None) -> np.ndarray:
     """Extra variance [m^2] per channel (per real/imaginary part) when a window is not stationary.
 
-    The 1X vector is fitted on each half of the window.  When the halves differ by more than
-    ``STATIONARITY_SIGMA`` times their combined noise std (a transient still ringing, e.g. a lightly damped mode near
-    running speed after a speed change), half the difference is taken as a bias bound and added in quadrature to the
-    1-sigma of X, so that every downstream std, rank and 'determined' flag accounts for it.  Stationary windows get 0.
+    The 1X vector is fitted on each half of the window, after subtracting the decaying components that ``fit``
+    (the window's transient-aware fit, if given) found.  When the halves differ by more than ``STATIONARITY_SIGMA``
+    times their combined noise std (a transient still ringing that the fit did not model), half the difference is
+    taken as a bias bound and added in quadrature to the 1-sigma of X, so that every downstream std, rank and
+    'determined' flag accounts for it.  Stationary windows get 0.
     """
     mid = (i0 + i1) // 2
     if mid - i0 < 16 or i1 - mid < 16:
         return np.zeros(rec.samples.shape[1])
-    a = harmonic_vectors(rec.samples[i0:mid], rec.angle[i0:mid], orders=(1,))
-    b = harmonic_vectors(rec.samples[mid:i1], rec.angle[mid:i1], orders=(1,))
+    x = rec.samples[i0:i1]
+    if fit is not None and fit.transient_rates.size:
+        x = x - fit.transient_part(np.arange(i1 - i0) / rec.sample_rate)
+    a = harmonic_vectors(x[:mid - i0], rec.angle[i0:mid], orders=(1,))
+    b = harmonic_vectors(x[mid - i0:], rec.angle[mid:i1], orders=(1,))
     d = np.abs(a.X[0] - b.X[0])
     sig = np.sqrt(a.std[0] ** 2 + b.std[0] ** 2)
     return np.where(d > STATIONARITY_SIGMA * sig, (d / 2) ** 2 / 2, 0.0)
 
 
-def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2) -> HarmonicData:
-    """1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs."""
+def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
+                    transients: int = DEFAULT_TRANSIENTS) -> HarmonicData:
+    """1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
+
+    ``transients``: decaying components allowed in each window's fit (module docstring); 0 = the plain fit.
+    """
     recordings = list(recordings)
     if not recordings:
         raise ValueError("no recordings given")
@@ -127,9 +152,9 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
         for r, k in enumerate(row):
             _, i0, i1 = per_run[r][k]
             rec = recordings[r]
-            fit = harmonic_vectors(rec.samples[i0:i1], rec.angle[i0:i1], orders=(1,))
+            fit = window_fit(rec, i0, i1, transients=transients)
             X[r, s] = fit.X[0]
-            Xs[r, s] = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(rec, i0, i1))
+            Xs[r, s] = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(rec, i0, i1, fit))
             windows[r][s] = (i0, i1)
     truth = {}
     for rec in recordings:
@@ -229,4 +254,4 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
 
 
 __all__ = ["HarmonicData", "from_recordings", "from_npz", "from_bag", "recordings_from_bag", "run_windows", "simulate_data",
-           "DEFAULT_SETTLE", "DEFAULT_TOL_REL"]
+           "window_fit", "stationarity_excess", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS"]
