@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -86,6 +87,7 @@ class Record:
         self.fsync = fsync
         self.torn_lines = 0
         existing = self.entries()
+        self._lock = threading.Lock()
         self._n = (existing[-1]["n"] + 1) if existing else 0
         self._repair_tail()
         self._fh = open(self.path, "a", encoding="utf-8")
@@ -102,15 +104,16 @@ class Record:
 
     def append(self, type_: str, **payload) -> int:
         """Append one entry of ``type_`` with ``payload`` (JSON-encodable after :func:`encode`); returns its n."""
-        n = self._n
-        line = json.dumps({"n": n, "type": type_, "wall_time": time.time(), **encode(payload)},
-                          separators=(",", ":"), allow_nan=False)
-        self._fh.write(line + "\n")
-        self._fh.flush()
-        if self.fsync:
-            os.fsync(self._fh.fileno())
-        self._n += 1
-        return n
+        with self._lock:      # callbacks and the identifier's worker thread both append
+            n = self._n
+            line = json.dumps({"n": n, "type": type_, "wall_time": time.time(), **encode(payload)},
+                              separators=(",", ":"), allow_nan=False)
+            self._fh.write(line + "\n")
+            self._fh.flush()
+            if self.fsync:
+                os.fsync(self._fh.fileno())
+            self._n += 1
+            return n
 
     def entries(self, type_: str | None = None) -> list[dict]:
         """Every complete entry (decoded), oldest first; lines that do not parse are counted in ``torn_lines``."""

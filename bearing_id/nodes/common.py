@@ -459,7 +459,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
             finally:
                 stop.starting = False
         except StopInStartup as exc:
-            print(f"{prog}: {exc} during start-up: stopped", file=sys.stderr)
+            print(f"{prog}: {exc}: shutting down (during start-up)", file=sys.stderr)
             return 0
         except ParamError as exc:
             print(f"{prog}: parameter error: {exc}", file=sys.stderr)

@@ -464,14 +464,10 @@ def _make_node():
             self._close(self.seg[source].add(b, run, b.speed, chk.contiguous, now), source, now)
 
         def _close(self, segments, source, now):
-            new = None
+            # the harmonic fit of a closed segment (tens of ms when modes ring) runs in the worker thread, in
+            # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for s in segments:
-                if self.core.add_segment(s, source) and source == "measured":
-                    new = s.last_arrival if new is None else min(new, s.last_arrival)
-            while self.core.notes:
-                self._problem(self.core.notes.popleft())
-            if new is not None:
-                self._jobs.put(new)     # latency counts from the arrival of the window's last block
+                self._jobs.put(("segment", s, source))
 
         def tick(self):
             now = time.monotonic()
@@ -479,19 +475,32 @@ def _make_node():
                 self._close(sg.flush(now, self.values["segment_timeout"]), source, now)
 
         def _work(self):
+            t_req = None              # arrival of the oldest measured window not yet solved (latency reference)
             while True:
-                t_req = self._jobs.get()
-                if t_req is None:
+                job = self._jobs.get()
+                if job is None:
                     return
-                while not self._jobs.empty():          # coalesce queued requests
-                    nxt = self._jobs.get()
-                    if nxt is None:
-                        return
+                if isinstance(job, tuple):             # ("segment", segment, source): fit and accumulate it
+                    _, seg, source = job
+                    try:
+                        added = self.core.add_segment(seg, source)
+                    except Exception as exc:          # reported; the segment is lost, nothing else is
+                        self._problem(f"harmonic fit failed on a {source} segment: {type(exc).__name__}: {exc}")
+                        added = False
+                    while self.core.notes:
+                        self._problem(self.core.notes.popleft())
+                    if added and source == "measured":
+                        t_req = seg.last_arrival if t_req is None else min(t_req, seg.last_arrival)
+                else:                                  # a solve request (e.g. resumed from the record)
+                    t_req = job if t_req is None else min(t_req, job)
+                if t_req is None or not self._jobs.empty():   # coalesce: solve once the queue is drained
+                    continue
                 t0 = time.perf_counter()
                 try:
                     results, _ = self.core.solve()
                 except Exception as exc:              # reported, never published
                     self._problem(f"identification failed: {type(exc).__name__}: {exc}")
+                    t_req = None
                     continue
                 self.solve_time = time.perf_counter() - t0
                 self.last_results = results
@@ -504,6 +513,7 @@ def _make_node():
                 self.published += sent
                 if sent:
                     self.latency.append(time.monotonic() - t_req)
+                t_req = None
 
         def diagnostics(self):
             items = [self.monitor.status(f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"]),
