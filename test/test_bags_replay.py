@@ -118,3 +118,32 @@ def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
     e_live = eq38_error(live_coeffs, truths)
     assert e_live["K"] <= 2.0 and e_live["C"] <= 3.0, e_live
     assert all(math.isfinite(d["condition"]) and d["rank"] == d["unknowns"] for d in live.values())
+
+
+def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_path):
+    """The directional-force plan (4 runs) with the direct fit: node == CLI to 1e-6, and the truth within the stated
+    1-sigma (a statistical check of the std the product prints: normalised error RMS below 2, no error beyond 4.5
+    sigma over the 64 determined coefficients)."""
+    bag = BAGS / "force_plan"
+    speeds = [1200.0, 2400.0]
+    live, rec_out = replay_through_nodes(bag, "direct", speeds, ["F4x", "F4y", "F8x", "F8y"], tmp_path)
+    ref = offline(bag, "direct", tmp_path)
+    assert sorted(round(r["speed_rad_s"], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
+    from bearing_id.params import load_rig
+    from bearing_id.rig import truth_bearing_fn
+    truth = truth_bearing_fn(load_rig())
+    z = []
+    for r in ref:
+        w = round(r["speed_rad_s"], 6)
+        d = live[w]
+        t = truth(r["speed_rad_s"])
+        for i, b in enumerate(r["bearings"]):
+            for j, sym in enumerate(("K", "C")):
+                np.testing.assert_allclose(d[sym][i], np.array(b[sym], dtype=float), rtol=1e-6, atol=0)
+                std = np.asarray(d[f"{sym}_std"][i], dtype=float)
+                assert np.all(np.isfinite(std)), "a published force-plan coefficient lacks its 1-sigma"
+                true = t[d["nodes"][i]][j]
+                z += list(((np.asarray(d[sym][i]) - true) / std).ravel())
+    z = np.array(z)
+    assert len(z) == 2 * 2 * 2 * 4
+    assert np.sqrt(np.mean(z**2)) < 2.0 and np.max(np.abs(z)) < 4.5, z
