@@ -7,8 +7,9 @@ threshold), 1 % measurement noise (std = 1 % of each channel's RMS), the rig's D
 0.5 s linear ramps between dwells) at 10,240 Hz.
 
 Every row goes through the time domain: rig.simulate_run (exact response to the sinusoidal excitation, noise added
-to the samples) -> identify.harmonics.from_recordings (steady windows, first 25 % dropped, 1X least squares over
-whole revolutions, window non-stationarity folded into X_std) -> the method.  All 14 probe channels (nodes 1, 3, 5,
+to the samples) -> identify.harmonics.from_recordings (steady windows, first 25 % dropped, 1X fitted over whole
+revolutions jointly with up to 3 decaying modes -- the ringing after each speed change -- so that their bias and
+uncertainty land in X_std) -> the method.  All 14 probe channels (nodes 1, 3, 5,
 6, 7, 9, 11; x and y) are simulated once per run with independent noise per channel; each probe set is a subset.
 "node 5" / "node 6" / "node 7" are the three single locations of the paper's experiment, each identified alone.
 
