@@ -23,9 +23,9 @@ from bearing_id.excitation import harmonic_forces
 from bearing_id.identify import eq38_error
 from bearing_id.identify.direct import Case, coeffs_to_beta, fit_speed, identify_direct, response_and_jacobian
 from bearing_id.identify.harmonics import simulate_data
-from bearing_id.params import Probe, load_rig
+from bearing_id.params import Probe
 from bearing_id.rig import scenario
-from bearing_id.rotor.assembly import RotorModel, harmonic_response, probe_matrix
+from bearing_id.rotor.assembly import harmonic_response, probe_matrix
 
 NOISE = 0.01
 N_USED = int(0.75 * 2.0 * 10240)          # samples per 1X fit in the default plan (2 s dwell, 25 % settle dropped)
@@ -35,16 +35,6 @@ P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
 K_ARB = {2: np.array([[3.1e5, 1.2e5], [-2.4e5, 5.2e5]]), 10: np.array([[2.6e5, 0.9e5], [-1.9e5, 4.4e5]])}
 C_ARB = {2: np.array([[420.0, 90.0], [110.0, 640.0]]), 10: np.array([[380.0, 70.0], [95.0, 590.0]])}
 TRUTH_ARB = {n: (K_ARB[n], C_ARB[n]) for n in (2, 10)}
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return load_rig()
-
-
-@pytest.fixture(scope="module")
-def model(rig):
-    return RotorModel.from_params(rig)
 
 
 def exact_cases(model, runs, probes, speed, coeffs):

@@ -21,23 +21,12 @@ import pytest
 from bearing_id.identify import eq38_error
 from bearing_id.identify.harmonics import simulate_data
 from bearing_id.identify.physical import fit_physical, identify_physical
-from bearing_id.params import Probe, load_rig
-from bearing_id.rotor.assembly import RotorModel
+from bearing_id.params import Probe
 
 NOISE = 0.01
 N_USED = int(0.75 * 2.0 * 10240)
 P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
 SPEEDS = (600, 1200, 1800, 2400, 3000)
-
-
-@pytest.fixture(scope="module")
-def rig():
-    return load_rig()
-
-
-@pytest.fixture(scope="module")
-def model(rig):
-    return RotorModel.from_params(rig)
 
 
 @pytest.fixture(scope="module")
