@@ -96,3 +96,20 @@ def test_dispatcher_signature_and_options(rig, model, clean):
     assert len(res) == len(SPEEDS) and "fit" in res[0].extra
     with pytest.raises(ValueError, match="unknown option"):
         identify_physical(model, rig, clean, options={"viscosity_only": True})
+
+
+@pytest.mark.parametrize("truth_model,misfit", [("finite", True), ("short", False)])
+def test_model_form_misfit_is_declared_only_when_the_bearing_model_is_wrong(rig, model, truth_model, misfit):
+    """Truth = finite-length Reynolds bearing, estimator = short bearing: chi2/dof >> 1 must be declared (the bias is
+    then ~7 %, far beyond the noise-based 1-sigma); with a short-bearing truth it must not be."""
+    from bearing_id import rig as rigmod
+    from bearing_id.identify import harmonics
+    from bearing_id.identify.physical import MISFIT_CHI2, fit_physical
+    truth = rigmod.with_truth(rig, bearing_model=truth_model)
+    recs = [rigmod.simulate_run(truth, r, speeds_rpm=(900.0, 1800.0, 2700.0), dwell=1.0, ramp=0.0, model=model)
+            for r in rig.simulation.runs]
+    data = harmonics.from_recordings(recs)
+    fit, res = fit_physical(model, rig, data)
+    assert (fit.chi2 / fit.dof > MISFIT_CHI2) == misfit, fit.chi2 / fit.dof
+    assert any("MODEL MISFIT" in n for n in res[0].notes) == misfit
+    assert res[0].extra["misfit"] == misfit

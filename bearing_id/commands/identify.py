@@ -33,6 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--allow-undetermined", action="store_true",
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
     p.add_argument("--Q", type=float, default=None, help="paper method: KF process noise (default 1e-16)")
+    p.add_argument("--bearing-model", choices=("short", "finite"), default=None,
+                   help="physical method: the estimator's bearing model, short (Ocvirk, default) or finite "
+                        "(finite-length Reynolds; slower)")
     return p
 
 
@@ -137,6 +140,10 @@ def run(args) -> int:
         if args.method != "paper":
             raise ParamError("--Q applies to --method paper only")
         opts["Q"] = args.Q
+    if args.bearing_model is not None:
+        if args.method != "physical":
+            raise ParamError("--bearing-model applies to --method physical only")
+        opts["bearing_model"] = args.bearing_model
     try:
         results = identify(args.method, model, rig, data, options=opts or None)
     except ValueError as exc:   # the data cannot feed this method (e.g. conventional without two probes per bearing)
