@@ -12,7 +12,7 @@ import sys
 
 from .params import ParamError
 
-COMMANDS = ("model", "simulate", "identify", "diagnose", "record", "play")
+COMMANDS = ("model", "simulate", "design", "identify", "diagnose", "record", "play")
 
 
 def build_parser() -> argparse.ArgumentParser:
