@@ -63,13 +63,7 @@ def plot_coefficients(results, path, *, truth_fn=None, theory_fn=None, title=Non
                 ax.set_ylabel("N/m" if sym == "K" else "N s/m", fontsize=8)
                 ax.tick_params(labelsize=7)
     axes[0, 0].legend(fontsize=7)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return _finish(plt, fig, path, title)
 
 
 def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labels=("estimated", "true"),
@@ -110,6 +104,11 @@ def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labe
             axes[1, c].set_title(f"node {nodes[b]} {dn}: phase [deg]", fontsize=9)
             axes[1, c].set_xlabel("speed [rpm]")
     axes[0, 0].legend(fontsize=6)
+    return _finish(plt, fig, path, title)
+
+
+def _finish(plt, fig, path, title=None) -> Path:
+    """Title, layout, save as PNG (90 dpi) and close ``fig``; returns the path."""
     if title:
         fig.suptitle(title)
     fig.tight_layout()
