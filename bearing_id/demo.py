@@ -119,11 +119,24 @@ class Listener:
                                       else int(st.level), st.message)
                 self.diag_values[st.name] = {kv.key: kv.value for kv in st.values}
 
-    def close(self):
+    def close(self, timeout: float = 10.0):
+        """Stop spinning and shut rclpy down; Fast DDS can hang in teardown (eProsima/Fast-DDS#6513), so a watchdog
+        ends the whole process (exit 3, after flushing output) if the shutdown has not returned within ``timeout`` s."""
+        done = threading.Event()
+
+        def watchdog():
+            if not done.wait(timeout):
+                print(f"demo: ROS shutdown hung for {timeout:g} s (Fast DDS teardown); exiting", file=sys.stderr,
+                      flush=True)
+                sys.stdout.flush()
+                os._exit(3)
+
+        threading.Thread(target=watchdog, daemon=True).start()
         self._stop.set()
         self.thread.join(timeout=2)
         self.node.destroy_node()
         self.rclpy.try_shutdown(context=self.context)
+        done.set()
 
 
 def format_table(results: dict, truth_fn, theory_fn) -> str:
