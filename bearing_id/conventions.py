@@ -33,6 +33,11 @@ Phasors and phase reference
     x(t) = Re{X exp(j phi(t))} where phi(t) is the rotor angle measured from the keyphasor mark
     (phi = 0 when the key mark passes the keyphasor probe; phi = Omega t at constant speed).
     Phase angles reported to people are arg(X) in degrees; all other angles are radians.
+    Keyphasor pulse: phi = 0 when the pulse's rising edge crosses 50 % of its low-to-high swing; a square (TTL)
+    keyphasor is high while phi mod 2 pi is in [0, width), so a sample exactly on the mark is high
+    (bearing_id.keyphasor rebuilds phi from a sampled pulse; KEY_MARK_CONVENTION there).
+    Streams carry phi of every sample (DisplacementBlock.sample_angles); the speed of a sample is the forward
+    difference of phi (bearing_id.signals.speed_from_angle).
 
 Unbalance
     A mass-radius product ``me`` [kg m] at angle ``phase`` [rad] from the key mark (in the spin direction)

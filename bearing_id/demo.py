@@ -147,6 +147,7 @@ def format_table(results: dict, truth_fn, theory_fn) -> str:
     lines.append(hdr)
     lines.append("-" * len(hdr))
     errs = {"K": [], "C": []}
+    z = []          # error / stated 1-sigma of every determined coefficient
     for sp in sorted(results):
         d = results[sp]
         tr = truth_fn(d["speed"])
@@ -165,6 +166,7 @@ def format_table(results: dict, truth_fn, theory_fn) -> str:
                     shown = f"{val[k]:12.4e}" if det[k] else f"{'undetermined':>12}"
                     if det[k]:
                         errs[sym].append(e)
+                        z.append((val[k] - t[k]) / std[k])
                     lines.append(f"{rpm:7.0f}  {name:<9} {sym}{lab:<3} {shown} {std[k]:10.2e} {t[k]:12.4e} "
                                  f"{(f'{e:7.2f}%' if det[k] else '      -'):>8} {h[k]:12.4e} {eh:9.2f}%")
         lines.append("")
@@ -172,6 +174,10 @@ def format_table(results: dict, truth_fn, theory_fn) -> str:
         if errs[sym]:
             lines.append(f"{sym} [{unit}]: mean |error| vs truth {np.mean(errs[sym]):.2f} %, max "
                          f"{np.max(errs[sym]):.2f} % over {len(errs[sym])} determined coefficients")
+    if z:
+        z = np.asarray(z)
+        lines.append(f"error / stated 1-sigma: RMS {np.sqrt(np.mean(z ** 2)):.2f}, max |{np.max(np.abs(z)):.2f}| over "
+                     f"{z.size} coefficients (an honest 1-sigma gives an RMS near 1)")
     return "\n".join(lines)
 
 

@@ -7,10 +7,12 @@ Reports (printed as a table):
   /proc/<pid>/stat; > 1 keeps up, and the machine has 2 cores shared by all three);
 * latency from the arrival of the last block of a steady window at the identifier to the coefficients published
   (the identifier measures it; the window closes when the next block shows the speed change or after
-  ``segment_timeout``), target <= 0.5 s;
+  ``segment_timeout``), and how long after the driver's last block every speed is published;
 * resident memory (VmRSS and peak VmHWM) of each node, target <= 300 MB.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_streaming.py [--speeds 1200,2400] [--dwell 5]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_streaming.py [--rates 1,20] [--speeds ...] [--dwell 3]
+
+Targets (issue 9): latency <= 0.5 s at 1x and <= 2 s at 20x, 0 blocks lost, bounded RSS.
 """
 from __future__ import annotations
 
@@ -43,16 +45,8 @@ def memory_mb(pid: int) -> tuple[float, float]:
     return rss, hwm
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--speeds", default="1200,2400", help="speeds [rpm] (default 1200,2400)")
-    ap.add_argument("--dwell", type=float, default=5.0, help="seconds at each speed (default 5)")
-    ap.add_argument("--rate", type=float, default=1.0, help="rate factor (default 1 = real time)")
-    ap.add_argument("--method", default="physical")
-    ap.add_argument("--out", default="out/bench_streaming")
-    args = ap.parse_args(argv)
-    speeds = [float(s) for s in args.speeds.split(",")]
-    out = Path(args.out)
+def run_once(rate: float, speeds, dwell: float, method: str, out: Path) -> dict:
+    """One streaming run at ``rate`` x real time; returns the measured figures."""
     out.mkdir(parents=True, exist_ok=True)
     rec_dir = out / "record"
     if rec_dir.exists():
@@ -63,71 +57,97 @@ def main(argv=None) -> int:
     from bearing_id.params import load_rig
     rig = load_rig()
     n_runs = len(rig.simulation.runs)
-    data_s = n_runs * len(speeds) * args.dwell
+    data_s = n_runs * len(speeds) * dwell
     procs = {
-        "identifier": start_node("identifier", {"method": args.method, "record_dir": str(rec_dir),
+        "identifier": start_node("identifier", {"method": method, "record_dir": str(rec_dir),
                                                 "runs": [r.id for r in rig.simulation.runs],
                                                 "diagnostics_period": 0.5}, env, out),
         "kf_estimator": start_node("kf_estimator", {"prebuild_speeds_rpm": speeds, "diagnostics_period": 0.5},
                                    env, out),
-        "sensor_driver": start_node("sensor_driver", {"speeds_rpm": speeds, "dwell": args.dwell,
-                                                      "rate_factor": args.rate, "wait_for_subscribers": 2,
+        "sensor_driver": start_node("sensor_driver", {"speeds_rpm": speeds, "dwell": dwell,
+                                                      "rate_factor": rate, "wait_for_subscribers": 2,
                                                       "diagnostics_period": 0.5}, env, out),
     }
     listener = Listener()
-    cpu0 = {}
+    cpu0, mem0 = {}, {}
     t_pub = None
+    res = {"rate": rate, "data_s": data_s}
     try:
-        t_end = time.monotonic() + 120 + data_s / args.rate
+        t_end = time.monotonic() + 120 + data_s / rate
         while time.monotonic() < t_end:           # wait until the driver publishes, then snapshot CPU
             time.sleep(0.05)
             st = listener.diag.get("sensor_driver: source")
             if st and st[1].startswith("publishing"):
                 cpu0 = {n: cpu_seconds(p.pid) for n, p in procs.items()}
+                mem0 = {n: memory_mb(p.pid)[0] for n, p in procs.items()}
                 t_pub = time.monotonic()
                 break
         if t_pub is None:
-            print("driver never started publishing; see logs in", out)
-            return 1
+            raise RuntimeError(f"driver never started publishing; see logs in {out}")
         sent = 0
+        mem = {n: (0.0, 0.0) for n in procs}
         while time.monotonic() < t_end:
             time.sleep(0.25)
+            mem = {n: tuple(max(a, b) for a, b in zip(mem[n], memory_mb(p.pid))) for n, p in procs.items()}
             v = listener.diag_values.get("sensor_driver: source", {})
             sent, total = int(v.get("blocks_sent", 0)), int(v.get("blocks_total", 1))
             if sent >= total:
                 break
-        mem = {n: memory_mb(p.pid) for n, p in procs.items()}
-        time.sleep(1.5)                            # tail: last window closes, final solve, diagnostics
+        t_sent = time.monotonic()
+        while time.monotonic() < t_sent + 60 and len(listener.results) < len(speeds):
+            time.sleep(0.1)                        # the identifier catches up: every speed published
+        res["results_after_last_block_s"] = time.monotonic() - t_sent
+        time.sleep(1.2)                            # fresh diagnostics after the last solve
         cpu1 = {n: cpu_seconds(p.pid) for n, p in procs.items()}
         mem = {n: tuple(max(a, b) for a, b in zip(mem[n], memory_mb(p.pid))) for n, p in procs.items()}
-        wall = time.monotonic() - t_pub
+        res["wall_s"] = time.monotonic() - t_pub
         dv = dict(listener.diag_values)
-        data_s = sent * 1024 / rig.simulation.sample_rate       # includes the speed ramps between steps
+        res["data_s"] = sent * 1024 / rig.simulation.sample_rate       # includes the speed ramps between steps
+        res["sent"] = sent
+        res["speeds_published"] = len(listener.results)
     finally:
-        codes = stop_processes(procs)
+        res["exits"] = stop_processes(procs)
         listener.close()
-    kf_in = dv.get("kf_estimator: input /rotor/displacement", {})
-    id_in = dv.get("identifier: input /rotor/displacement", {})
-    id_est = dv.get("identifier: input /bearing_id/bearing_displacement", {})
-    acc = dv.get("identifier: accumulation", {})
-    print(f"streaming benchmark: {n_runs} runs x {len(speeds)} speeds x {args.dwell:g} s (+ ramps) = {data_s:g} s of "
-          f"data, "
-          f"10,240 Hz x 2 channels, 1024-sample blocks, rate x{args.rate:g}, method {args.method}; "
-          f"wall {wall:.1f} s (2-core machine)")
-    print(f"blocks: driver sent {sent}; kf_estimator received {kf_in.get('blocks')} (gaps "
-          f"{kf_in.get('sequence_gaps')}, lost {kf_in.get('lost_blocks')}); identifier received "
-          f"{id_in.get('blocks')} measured (lost {id_in.get('lost_blocks')}) and {id_est.get('blocks')} estimated "
-          f"(lost {id_est.get('lost_blocks')})")
-    print(f"{'node':<14} {'CPU s':>7} {'real-time factor':>17} {'RSS MB':>8} {'peak RSS MB':>12}")
-    for n in procs:
-        c = cpu1[n] - cpu0[n]
-        rtf = data_s / c if c > 0 else float("inf")
-        print(f"{n:<14} {c:7.2f} {rtf:17.1f} {mem[n][0]:8.1f} {mem[n][1]:12.1f}")
-    print(f"identifier: last solve {acc.get('last_solve_s', '?')} s; latency last block of a window -> coefficients "
-          f"published: median {acc.get('median_latency_s', '?')} s, max {acc.get('max_latency_s', '?')} s over the "
-          f"windows (target <= 0.5 s); published results "
-          f"{acc.get('published_results')}")
-    print(f"node exits: {codes}")
+    res["kf_in"] = dv.get("kf_estimator: input /rotor/displacement", {})
+    res["id_in"] = dv.get("identifier: input /rotor/displacement", {})
+    res["acc"] = dv.get("identifier: accumulation", {})
+    res["nodes"] = {n: {"cpu_s": cpu1[n] - cpu0[n], "rss0": mem0[n], "rss": mem[n][0], "peak": mem[n][1]}
+                    for n in procs}
+    return res
+
+
+def report(r: dict, n_speeds: int, method: str) -> None:
+    print(f"\n== rate x{r['rate']:g}: {r['data_s']:.1f} s of data (2 runs x {n_speeds} speeds + ramps), 10,240 Hz x 2 "
+          f"channels, 1024-sample blocks, method {method}; wall {r['wall_s']:.1f} s (2-core machine)")
+    ki, ii = r["kf_in"], r["id_in"]
+    print(f"blocks: driver sent {r['sent']}; kf_estimator received {ki.get('blocks')} (lost {ki.get('lost_blocks')});"
+          f" identifier received {ii.get('blocks')} (lost {ii.get('lost_blocks')})")
+    print(f"{'node':<14} {'CPU s':>7} {'real-time factor':>17} {'RSS start MB':>13} {'RSS end MB':>11} "
+          f"{'peak RSS MB':>12}")
+    for n, v in r["nodes"].items():
+        rtf = r["data_s"] / v["cpu_s"] if v["cpu_s"] > 0 else float("inf")
+        print(f"{n:<14} {v['cpu_s']:7.2f} {rtf:17.1f} {v['rss0']:13.1f} {v['rss']:11.1f} {v['peak']:12.1f}")
+    a = r["acc"]
+    print(f"identifier: {r['speeds_published']}/{n_speeds} speeds published, all of them "
+          f"{r['results_after_last_block_s']:.2f} s after the driver's last block; latency last block of a window -> "
+          f"its coefficients published: median {a.get('median_latency_s', '?')} s, max {a.get('max_latency_s', '?')} "
+          f"s; last solve {a.get('last_solve_s', '?')} s")
+    print(f"node exits: {r['exits']}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--speeds", default="600,1200,1800,2400,3000", help="speeds [rpm] (default 600..3000 by 600)")
+    ap.add_argument("--dwell", type=float, default=3.0, help="seconds at each speed (default 3)")
+    ap.add_argument("--rates", default="1,20", help="rate factors, one run each (default 1,20)")
+    ap.add_argument("--method", default="physical")
+    ap.add_argument("--out", default="out/bench_streaming")
+    args = ap.parse_args(argv)
+    speeds = [float(s) for s in args.speeds.split(",")]
+    runs = [run_once(float(x), speeds, args.dwell, args.method, Path(args.out) / f"rate{x}")
+            for x in args.rates.split(",")]
+    for r in runs:
+        report(r, len(speeds), args.method)
     return 0
 
 

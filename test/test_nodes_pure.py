@@ -161,31 +161,30 @@ def test_params_yaml_documents_every_parameter_with_its_default(node):
 
 
 def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path):
-    """The identifier's streaming segmentation + vectors == harmonics.from_bag (what `bearing-id identify` uses),
-    on the bag with speed ramps between the dwells (steps inside blocks)."""
+    """The identifier's block-by-block windows + vectors == harmonics.from_bag (what `bearing-id identify` uses), to
+    the bit, on the bag with speed ramps between the dwells (ramp steps inside blocks)."""
     from bearing_id.identify import harmonics
     from bearing_id.io import bags, messages
-    from bearing_id.nodes.identifier import IdentifierCore, Segmenter
+    from bearing_id.nodes.identifier import IdentifierCore
     from bearing_id.params import PACKAGE_PARAMS, load_rig
     bag = PACKAGE_PARAMS.parent / "bags" / "unbalance_ab_sweep"
     ref = harmonics.from_bag(bag)
     core = IdentifierCore(load_rig(), "physical", tmp_path)
-    seg = Segmenter(harmonics.DEFAULT_TOL_REL, 600.0)
-    run = None
+    wins = []
     for topic, _, _, msg in bags.read_bag(bag, ["/rotor/excitation", "/rotor/displacement"]):
         if topic == "/rotor/excitation":
-            run = messages.excitation_from_msg(msg)
-            core.add_excitation(run)
+            core.add_excitation(messages.excitation_from_msg(msg))
             continue
         b = messages.block_from_msg(msg)
-        for s in seg.add(b, run, b.speed, True, 0.0):
-            core.add_segment(s)
-    for s in seg.flush(1e9, 0.0):
-        core.add_segment(s)
+        assert b.has_sample_angles and b.run_id in core.runs
+        wins += core.feed(b, core.runs[b.run_id], "measured", True, 0.0)
+    wins += core.flush("measured", 1e9, 0.0)
+    for w in wins:
+        core.add_window(w)
     data = core.assemble()
-    np.testing.assert_allclose(data.speeds, ref.speeds, rtol=1e-12)
-    np.testing.assert_allclose(data.X, ref.X, rtol=1e-9, atol=1e-9 * np.abs(ref.X).max())
-    np.testing.assert_allclose(data.X_std, ref.X_std, rtol=1e-6)
+    np.testing.assert_array_equal(data.speeds, ref.speeds)
+    np.testing.assert_array_equal(data.X, ref.X)
+    np.testing.assert_array_equal(data.X_std, ref.X_std)
     core.close()
 
 
@@ -205,8 +204,8 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     core = EstimatorCore(rig, 1e-16, 1e-7, 0.01)
     fs, n = rec.sample_rate, 1024
     w = float(rec.speed[0])
-    blocks = [SimpleNamespace(seq=k, stamp=i0 / fs, samples=rec.samples[i0:i0 + n], angle=float(rec.angle[i0]),
-                              sample_rate=fs, probes=rec.probes, frame_id="rig")
+    blocks = [SimpleNamespace(seq=k, stamp=i0 / fs, samples=rec.samples[i0:i0 + n], angles=lambda i0=i0: (
+                              rec.angle[i0:i0 + n]), sample_rate=fs, probes=rec.probes, frame_id="rig")
               for k, i0 in enumerate(range(0, 4 * n, n))]
     t0 = _time.perf_counter()
     for b in blocks:
@@ -248,7 +247,7 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
         rec = R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=0.3, noise=0.0)
         w = float(rec.speed[0])
         core.last_orbit.clear()
-        b = SimpleNamespace(seq=0, stamp=0.0, samples=rec.samples[:2048], angle=float(rec.angle[0]),
+        b = SimpleNamespace(seq=0, stamp=0.0, samples=rec.samples[:2048], angles=lambda rec=rec: rec.angle[:2048],
                             sample_rate=rec.sample_rate, probes=rec.probes, frame_id="rig")
         core.submit(b, run, w, False)
         t_end = _time.monotonic() + 30

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..signals import harmonic_vectors, steady_windows
+from ..params import Run
+from ..signals import SteadyWindowTracker, harmonic_vectors, speed_from_angle
 
 DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
@@ -63,37 +64,183 @@ class HarmonicData:
                             self.truth)
 
 
-def run_windows(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2) -> list[tuple]:
-    """[(speed [rad/s], i0, i1)] steady windows of a recording with the settling part removed."""
-    out = []
-    for i0, i1 in steady_windows(rec.t, rec.speed, tol_rel=tol_rel, min_duration=min_duration):
-        j0 = i0 + int(math.ceil(settle * (i1 - i0)))
-        if i1 - j0 < 16:
-            continue
-        w = float(np.median(rec.speed[j0:i1]))
-        if w <= 0:
-            continue
-        out.append((w, j0, i1))
-    return out
+# ------------------------------------------------------------------------------------------ the one route to 1X
+@dataclass
+class ClosedWindow:
+    """The raw data of one steady window cut from a run's sample stream (SI).
+
+    i0, i1 : its sample range, counted over everything fed to the run's :class:`RunStream` (for a whole recording:
+    indices into it); samples (n, nch) [m]; angle (n,) [rad]; speed (n,) [rad/s] (from the angle);
+    after_gap : the window starts right after lost data (the remainder of a dwell split by a lost block);
+    stamp : time of its first sample [s] when the stream was stamped, else None; seqs : (first, last) block
+    sequence numbers when fed block by block, else None.
+    """
+    run: Run
+    probes: tuple
+    sample_rate: float
+    i0: int
+    i1: int
+    samples: np.ndarray
+    angle: np.ndarray
+    speed: np.ndarray
+    after_gap: bool = False
+    stamp: float | None = None
+    seqs: tuple | None = None
+
+    @property
+    def duration(self) -> float:
+        return (self.i1 - self.i0) / self.sample_rate
+
+
+@dataclass
+class WindowVector:
+    """The 1X vector of one steady window: speed [rad/s] (median over the fitted part), X complex (nch,) [m], X_std
+    (nch,) [m] (1-sigma of the real and of the imaginary part), the fitted sample range [i0, i1) and the window."""
+    speed: float
+    X: np.ndarray
+    X_std: np.ndarray
+    i0: int
+    i1: int
+    window: ClosedWindow = field(repr=False)
+
+
+class RunStream:
+    """One excitation run's sample stream, cut into steady windows as it arrives -- the route every 1X vector takes.
+
+    ``feed(samples (n, nch), angle (n,), contiguous=True)`` appends a chunk (a whole recording, or one
+    DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window.
+    The per-sample speed is :func:`bearing_id.signals.speed_from_angle` of the concatenated angle (each chunk's last
+    sample waits for the next chunk's first); windows follow :class:`bearing_id.signals.SteadyWindowTracker`, so any
+    chunking gives the windows of the whole record.  ``contiguous=False`` (data were lost before this chunk) ends the
+    open window at the gap.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory).  Only
+    the open window's samples are buffered.
+    """
+
+    def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
+                 max_duration: float = math.inf):
+        if not (math.isfinite(sample_rate) and sample_rate > 0):
+            raise ValueError(f"sample_rate must be a positive number of Hz, got {sample_rate}")
+        self.run, self.probes, self.fs = run, tuple(probes), float(sample_rate)
+        self.tracker = SteadyWindowTracker(tol_rel)
+        self.max_len = max(2, int(max_duration * self.fs)) if math.isfinite(max_duration) else None
+        self._chunks: list = []        # (absolute start, samples, angle, speed, stamp, seq) of buffered samples
+        self._held = None              # (x (1, nch), angle (1,), stamp, seq): last sample, waiting for its speed
+        self._last_speed = math.nan
+        self._after_gap = False        # the next window starts after a gap
+        self.n_fed = 0
+
+    def feed(self, samples, angle, *, contiguous: bool = True, stamp: float | None = None,
+             seq: int | None = None) -> list[ClosedWindow]:
+        x = np.asarray(samples, dtype=float)
+        x = x[:, None] if x.ndim == 1 else x
+        a = np.asarray(angle, dtype=float).reshape(-1)
+        if x.shape[0] != a.size:
+            raise ValueError(f"{x.shape[0]} sample rows but {a.size} angles")
+        if x.ndim != 2 or x.shape[1] != len(self.probes):
+            raise ValueError(f"samples shape {x.shape} does not match {len(self.probes)} probes")
+        out = [] if contiguous else self._gap()
+        if not a.size:
+            return out
+        if self._held is not None:
+            hx, ha, hst, hseq = self._held
+            ang = np.concatenate((ha, a))
+            sp = np.diff(ang) * self.fs
+            out += self._push(hx, ha, sp[:1], hst, hseq)
+            sp = sp[1:]
+        else:
+            sp = np.diff(a) * self.fs
+        if sp.size:
+            self._last_speed = float(sp[-1])
+            out += self._push(x[:-1], a[:-1], sp, stamp, seq)
+        st_last = None if stamp is None else stamp + (a.size - 1) / self.fs
+        self._held = (x[-1:], a[-1:], st_last, seq)
+        return out
+
+    def close(self) -> list[ClosedWindow]:
+        """End of the stream (or of this run's data): the held last sample and the open window are closed."""
+        out = self._flush_held()
+        out += self._cut(self.tracker.close())
+        self._chunks = []
+        return out
+
+    def _gap(self) -> list[ClosedWindow]:
+        out = self.close()
+        self._after_gap = True
+        return out
+
+    def _flush_held(self) -> list[ClosedWindow]:
+        if self._held is None:
+            return []
+        hx, ha, hst, hseq = self._held
+        self._held = None
+        return self._push(hx, ha, np.array([self._last_speed]), hst, hseq)
+
+    def _push(self, x, a, sp, stamp, seq) -> list[ClosedWindow]:
+        start = self.n_fed
+        self._chunks.append((start, x, a, sp, stamp, seq))
+        self.n_fed += a.size
+        out = []
+        if self.max_len is None:
+            out += self._cut(self.tracker.feed(sp))
+        else:                     # feed so that no window grows past max_len samples
+            k = 0
+            while k < sp.size:
+                room = self.max_len - self.tracker.open_length
+                part = sp[k:k + room]
+                closed = self.tracker.feed(part)
+                k += part.size
+                if self.tracker.open_length >= self.max_len:
+                    closed += self.tracker.close()
+                out += self._cut(closed)
+        keep_from = self.tracker.i0 if self.tracker.i0 is not None else self.n_fed
+        self._chunks = [c for c in self._chunks if c[0] + c[2].size > keep_from]
+        return out
+
+    def _cut(self, ranges) -> list[ClosedWindow]:
+        out = []
+        for i0, i1 in ranges:
+            sl = [(c, slice(max(i0 - c[0], 0), min(i1 - c[0], c[2].size))) for c in self._chunks
+                  if c[0] < i1 and c[0] + c[2].size > i0]
+            xs, an, sp = (np.concatenate([c[k][s] for c, s in sl]) for k in (1, 2, 3))
+            c0, s0 = sl[0]
+            st = None if c0[4] is None else c0[4] + s0.start / self.fs
+            seqs = None if c0[5] is None else (c0[5], sl[-1][0][5])
+            out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap, st, seqs))
+            self._after_gap = False
+        return out
 
 
 STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this many sigma count as a transient
 
 
-def window_fit(rec, i0: int, i1: int, *, transients: int = DEFAULT_TRANSIENTS):
-    """1X fit of samples i0..i1-1 of a recording: the transient-aware fit (:func:`bearing_id.signals.harmonic_vectors`
-    with up to ``transients`` decaying components, 0 = plain least squares).
+def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_duration: float = 0.2,
+                  transients: int = DEFAULT_TRANSIENTS) -> WindowVector | None:
+    """The 1X vector of a steady window, or None when the window is too short to use.
 
-    The time base of the decaying components is the sample index / ``rec.sample_rate`` from i0 (the samples of a
-    steady window are evenly spaced), not ``rec.t``: a live node and the offline route then fit the same numbers
-    whatever their clocks' origin.
+    The rule: windows shorter than ``min_duration`` [s] are not used; the first ``settle`` fraction is discarded
+    (the transient after the speed change); the rest (at least 16 samples) is fitted over whole revolutions jointly
+    with up to ``transients`` decaying components (:func:`bearing_id.signals.harmonic_vectors`; the decaying
+    components' time base is the sample index / sample rate, so every route fits the same numbers); the 1-sigma is
+    the joint fit's, plus the :func:`stationarity_excess` bias bound.
     """
-    return harmonic_vectors(rec.samples[i0:i1], rec.angle[i0:i1], orders=(1,), transients=transients,
-                            sample_rate=rec.sample_rate)
+    n = win.i1 - win.i0
+    if n < 2 or win.duration < min_duration:
+        return None
+    j0 = int(math.ceil(settle * n))
+    if n - j0 < 16:
+        return None
+    w = float(np.median(win.speed[j0:]))
+    if not w > 0:
+        return None
+    x, a = win.samples[j0:], win.angle[j0:]
+    fit = harmonic_vectors(x, a, orders=(1,), transients=transients, sample_rate=win.sample_rate)
+    std = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(x, a, win.sample_rate, fit))
+    return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win)
 
 
-def stationarity_excess(rec, i0: int, i1: int, fit=None) -> np.ndarray:
-    """Extra variance [m^2] per channel (per real/imaginary part) when a window is not stationary.
+def stationarity_excess(x, angle, sample_rate: float, fit=None) -> np.ndarray:
+    """Extra variance [m^2] per channel (per real/imaginary part) when a window (x (n, nch), angle (n,)) is not
+    stationary.
 
     The 1X vector is fitted on each half of the window, after subtracting the decaying components that ``fit``
     (the window's transient-aware fit, if given) found.  When the halves differ by more than ``STATIONARITY_SIGMA``
@@ -101,17 +248,69 @@ def stationarity_excess(rec, i0: int, i1: int, fit=None) -> np.ndarray:
     taken as a bias bound and added in quadrature to the 1-sigma of X, so that every downstream std, rank and
     'determined' flag accounts for it.  Stationary windows get 0.
     """
-    mid = (i0 + i1) // 2
-    if mid - i0 < 16 or i1 - mid < 16:
-        return np.zeros(rec.samples.shape[1])
-    x = rec.samples[i0:i1]
+    n = x.shape[0]
+    mid = n // 2
+    if mid < 16 or n - mid < 16:
+        return np.zeros(x.shape[1])
     if fit is not None and fit.transient_rates.size:
-        x = x - fit.transient_part(np.arange(i1 - i0) / rec.sample_rate)
-    a = harmonic_vectors(x[:mid - i0], rec.angle[i0:mid], orders=(1,))
-    b = harmonic_vectors(x[mid - i0:], rec.angle[mid:i1], orders=(1,))
+        x = x - fit.transient_part(np.arange(n) / sample_rate)
+    a = harmonic_vectors(x[:mid], angle[:mid], orders=(1,))
+    b = harmonic_vectors(x[mid:], angle[mid:], orders=(1,))
     d = np.abs(a.X[0] - b.X[0])
     sig = np.sqrt(a.std[0] ** 2 + b.std[0] ** 2)
     return np.where(d > STATIONARITY_SIGMA * sig, (d / 2) ** 2 / 2, 0.0)
+
+
+def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
+    """Inverse-variance mean of two vectors of one dwell (a window split by lost data): X and its 1-sigma."""
+    wa, wb = 1.0 / np.maximum(a.X_std, 1e-300) ** 2, 1.0 / np.maximum(b.X_std, 1e-300) ** 2
+    X = (wa * a.X + wb * b.X) / (wa + wb)
+    return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window)
+
+
+def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
+                      transients: int = DEFAULT_TRANSIENTS) -> list[WindowVector]:
+    """The 1X vectors of every steady window of one recording (fed whole to a :class:`RunStream`, split at its
+    ``gaps``); the two pieces of a dwell split by a gap are combined (:func:`combine_vectors`)."""
+    stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel)
+    cuts = [0] + sorted(int(g) for g in getattr(rec, "gaps", ()) if 0 < g < rec.samples.shape[0]) + \
+        [rec.samples.shape[0]]
+    wins = []
+    for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
+        wins += stream.feed(rec.samples[a:b], rec.angle[a:b], contiguous=k == 0)
+    wins += stream.close()
+    out: list[WindowVector] = []
+    for win in wins:
+        v = window_vector(win, settle=settle, min_duration=min_duration, transients=transients)
+        if v is None:
+            continue
+        if win.after_gap and out and abs(out[-1].speed - v.speed) <= tol_rel * v.speed:
+            out[-1] = combine_vectors(out[-1], v)
+        else:
+            out.append(v)
+    return out
+
+
+def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list]:
+    """Speeds present in every run: per_run[r] = list of objects with ``.speed`` (or tuples whose first item is the
+    speed) in the run's order.  Returns (speeds of the first run, picks) with picks[s][r] the index into per_run[r]
+    of the first entry within ``tol_rel`` of speed s.  A speed repeated in the first run counts once."""
+    def sp(v):
+        return float(v.speed) if hasattr(v, "speed") else float(v[0])
+    speeds, picks = [], []
+    for v0 in per_run[0] if per_run else []:
+        w = sp(v0)
+        row = []
+        for lst in per_run:
+            m = [k for k, v in enumerate(lst) if abs(sp(v) - w) <= tol_rel * w]
+            if not m:
+                break
+            row.append(m[0])
+        else:
+            if not any(abs(w - s) <= tol_rel * w for s in speeds):
+                speeds.append(w)
+                picks.append(row)
+    return speeds, picks
 
 
 def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
@@ -128,20 +327,9 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
         if tuple((p.node, p.direction) for p in r.probes) != tuple((p.node, p.direction) for p in probes):
             raise ValueError(f"run {r.run.id} has channels {r.channels}, run {recordings[0].run.id} has "
                              f"{recordings[0].channels}: all runs must use the same probes")
-    per_run = [run_windows(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration) for r in recordings]
-    # speeds common to every run (match within tol_rel); the first run's list is the reference
-    speeds, picks = [], []
-    for w, *_ in per_run[0]:
-        row = []
-        for wins in per_run:
-            m = [k for k, (v, *_) in enumerate(wins) if abs(v - w) <= tol_rel * w]
-            if not m:
-                break
-            row.append(m[0])
-        else:
-            if not any(abs(w - s) <= tol_rel * w for s in speeds):
-                speeds.append(w)
-                picks.append(row)
+    per_run = [recording_vectors(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration,
+                                 transients=transients) for r in recordings]
+    speeds, picks = common_speeds(per_run, tol_rel)
     if not speeds:
         raise ValueError("no steady speed is common to all runs")
     nr, ns, nch = len(recordings), len(speeds), len(probes)
@@ -150,12 +338,8 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
     windows = [[None] * ns for _ in range(nr)]
     for s, row in enumerate(picks):
         for r, k in enumerate(row):
-            _, i0, i1 = per_run[r][k]
-            rec = recordings[r]
-            fit = window_fit(rec, i0, i1, transients=transients)
-            X[r, s] = fit.X[0]
-            Xs[r, s] = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(rec, i0, i1, fit))
-            windows[r][s] = (i0, i1)
+            v = per_run[r][k]
+            X[r, s], Xs[r, s], windows[r][s] = v.X, v.X_std, (v.i0, v.i1)
     truth = {}
     for rec in recordings:
         truth.update(rec.truth.get("coefficients", {}) if rec.truth else {})
@@ -172,48 +356,49 @@ def from_npz(paths, **kw) -> HarmonicData:
 def recordings_from_bag(path) -> list:
     """One rig.Recording per excitation run from a bag (topics /rotor/displacement and /rotor/excitation).
 
-    Each /rotor/excitation message (run_id and entries) starts a run; the DisplacementBlock messages that follow it
-    belong to it.  Within a block the angle is the block's first-sample angle + speed * k / sample_rate (speed
-    constant over one block).  A block whose channels differ from the run's first block is refused (ValueError).
+    A block belongs to the run its ``run_id`` names, or (no run_id) to the run of the last /rotor/excitation before
+    it; re-sent copies of an excitation are ignored.  The angle of every sample is the block's ``sample_angles``
+    (a block without them: first-sample angle + speed * k / sample_rate, which assumes constant speed over the
+    block).  A break in the blocks' sequence numbers is recorded in ``Recording.gaps``.  A block whose channels
+    differ from the run's first block is refused (ValueError).
     """
     from ..io.bags import read_bag
-    from ..params import ExcitationEntry, Probe, Run
+    from ..io.messages import block_from_msg, excitation_from_msg
     from ..rig import Recording
-    runs, cur = [], None
+    runs: dict = {}
+    order: list = []
+    cur = None
     for topic, _, _, msg in read_bag(path, topics=["/rotor/displacement", "/rotor/excitation"]):
         if topic == "/rotor/excitation":
-            ex = tuple(ExcitationEntry(str(k), int(n), float(m), float(p), str(d), float(f)) for k, n, m, p, d, f in
-                       zip(msg.kind, msg.node, msg.magnitude, msg.phase, msg.direction, msg.frequency_ratio))
-            if cur is not None and cur["run"].id == msg.run_id and cur["run"].excitation == ex:
-                continue        # re-sent (transient-local) copy of the same run
-            cur = {"run": Run(str(msg.run_id), ex), "blocks": []}
-            runs.append(cur)
+            run = excitation_from_msg(msg)
+            if run.id not in runs:
+                runs[run.id] = {"run": run, "blocks": []}
+                order.append(run.id)
+            cur = run.id
             continue
-        if cur is None:
-            continue            # displacement before any excitation is known: not usable for identification
-        cur["blocks"].append(msg)
+        b = block_from_msg(msg)
+        rid = b.run_id or cur
+        if rid is None or rid not in runs:
+            continue            # no excitation known for it: not usable for identification
+        runs[rid]["blocks"].append(b)
     recs = []
-    for r in runs:
-        bl = r["blocks"]
+    for rid in order:
+        bl = runs[rid]["blocks"]
         if not bl:
             continue
-        chans = tuple(zip(bl[0].channels, bl[0].nodes, bl[0].directions))
-        samples, angle, speed = [], [], []
-        fs = float(bl[0].sample_rate)
-        for m in bl:
-            if tuple(zip(m.channels, m.nodes, m.directions)) != chans:
-                raise ValueError(f"{path}: run {r['run'].id}: channels change from {chans} to "
-                                 f"{tuple(zip(m.channels, m.nodes, m.directions))}")
-            x = np.asarray(m.samples, dtype=float).reshape(-1, len(chans))
-            k = np.arange(x.shape[0])
-            samples.append(x)
-            angle.append(float(m.angle) + float(m.speed) * k / fs)
-            speed.append(np.full(x.shape[0], float(m.speed)))
-        x = np.vstack(samples)
-        recs.append(Recording(sample_rate=fs, t=np.arange(x.shape[0]) / fs, speed=np.concatenate(speed),
-                              angle=np.unwrap(np.concatenate(angle)),
-                              probes=tuple(Probe(str(c), int(n), str(d)) for c, n, d in chans), samples=x,
-                              run=r["run"]))
+        chans = bl[0].probes
+        fs = bl[0].sample_rate
+        gaps, n = [], 0
+        for i, b in enumerate(bl):
+            if b.probes != chans:
+                raise ValueError(f"{path}: run {rid}: channels change from {chans} to {b.probes}")
+            if i and (b.sequence - bl[i - 1].sequence) % 2**32 != 1:
+                gaps.append(n)
+            n += b.n_samples
+        x = np.vstack([b.samples for b in bl])
+        angle = np.concatenate([b.angles() for b in bl])
+        recs.append(Recording(sample_rate=fs, t=np.arange(x.shape[0]) / fs, speed=speed_from_angle(angle, fs),
+                              angle=angle, probes=chans, samples=x, run=runs[rid]["run"], gaps=tuple(gaps)))
     if not recs:
         raise ValueError(f"{path}: no displacement blocks after an excitation message")
     return recs
@@ -253,5 +438,6 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
     return HarmonicData(speeds, probes, tuple(runs), X, Xs, [], [], truth)
 
 
-__all__ = ["HarmonicData", "from_recordings", "from_npz", "from_bag", "recordings_from_bag", "run_windows", "simulate_data",
-           "window_fit", "stationarity_excess", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS"]
+__all__ = ["HarmonicData", "ClosedWindow", "WindowVector", "RunStream", "window_vector", "stationarity_excess",
+           "combine_vectors", "recording_vectors", "common_speeds", "from_recordings", "from_npz", "from_bag",
+           "recordings_from_bag", "simulate_data", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS"]

@@ -160,7 +160,8 @@ class Block:
 
     stamp_ns : time of the first sample [ns]; sequence : block counter; sample_rate [Hz]; speed [rad/s] (NaN if
     unknown); angle : keyphasor angle at the first sample [rad]; channels / nodes (1-based) / directions ('x'|'y')
-    per channel; samples : (n, nch) displacement [m]; frame_id : rig name.
+    per channel; samples : (n, nch) displacement [m]; frame_id : rig name; sample_angles : (n,) keyphasor angle of
+    every sample [rad] or None when the sender gave none; run_id : the excitation run ('' = by stamp).
     """
     stamp_ns: int
     sequence: int
@@ -172,6 +173,20 @@ class Block:
     directions: tuple
     samples: np.ndarray
     frame_id: str = ""
+    sample_angles: np.ndarray | None = None
+    run_id: str = ""
+
+    @property
+    def has_sample_angles(self) -> bool:
+        """True when the sender gave the angle of every sample (not only the first sample's)."""
+        return self.sample_angles is not None
+
+    def angles(self) -> np.ndarray:
+        """Keyphasor angle of every sample [rad], shape (n,): the sender's per-sample angles, or -- when it gave only
+        the first sample's -- ``angle + speed * k / sample_rate`` (constant speed over the block assumed)."""
+        if self.sample_angles is not None:
+            return self.sample_angles
+        return self.angle + self.speed * np.arange(self.n_samples) / self.sample_rate
 
     @property
     def stamp(self) -> float:
@@ -197,11 +212,13 @@ class Block:
 
 
 def block_to_msg(samples, sequence: int, sample_rate: float, speed: float, angle: float, probes=None, *,
-                 channels=None, nodes=None, directions=None, stamp=0, frame_id: str = "", types=None):
+                 channels=None, nodes=None, directions=None, stamp=0, frame_id: str = "", types=None,
+                 sample_angles=None, run_id: str = ""):
     """A DisplacementBlock message.
 
     samples : (n, nch) displacement [m]; probes : sequence of Probe-like (``name``, ``node``, ``direction``) or give
     ``channels``, ``nodes``, ``directions`` explicitly; stamp : time of the first sample (Time-like, int ns or float s);
+    sample_angles : (n,) keyphasor angle of every sample [rad] (None: not sent); run_id : excitation run;
     types : None for rclpy, or a rosbags typestore.
     """
     x = np.asarray(samples, dtype=float)
@@ -220,10 +237,14 @@ def block_to_msg(samples, sequence: int, sample_rate: float, speed: float, angle
     for what, v in (("channels", channels), ("nodes", nodes), ("directions", directions)):
         if len(v) != nch:
             raise ValueError(f"{what} has {len(v)} entries but samples has {nch} channels")
+    ang = np.zeros(0) if sample_angles is None else np.asarray(sample_angles, dtype=float).ravel()
+    if ang.size and ang.size != x.shape[0]:
+        raise ValueError(f"sample_angles has {ang.size} values but samples has {x.shape[0]} rows")
     t = _types(types)
     return t.make(f"{PACKAGE}/msg/DisplacementBlock",
                   header=_header(t, stamp, frame_id), sequence=int(sequence) & 0xFFFFFFFF,
                   sample_rate=float(sample_rate), speed=float(speed), angle=float(angle),
+                  sample_angles=t.f64(ang), run_id=str(run_id or ""),
                   channels=channels, nodes=t.u32(nodes), directions=directions, samples=t.f64(x))
 
 
@@ -248,10 +269,42 @@ def block_from_msg(msg) -> Block:
     if flat.size % nch:
         raise ValueError(f"DisplacementBlock seq {msg.sequence}: {flat.size} samples is not a multiple of "
                          f"{nch} channels")
+    n = flat.size // nch
+    ang = _f64(getattr(msg, "sample_angles", ()))
+    if ang.size not in (0, n):
+        raise ValueError(f"DisplacementBlock seq {msg.sequence}: {ang.size} sample_angles for {n} samples")
     return Block(stamp_ns=stamp_to_ns(msg.header.stamp), sequence=int(msg.sequence),
                  sample_rate=float(msg.sample_rate), speed=float(msg.speed), angle=float(msg.angle),
                  channels=channels, nodes=nodes, directions=directions, samples=flat.reshape(-1, nch),
-                 frame_id=str(msg.header.frame_id))
+                 frame_id=str(msg.header.frame_id), sample_angles=ang if ang.size else None,
+                 run_id=str(getattr(msg, "run_id", "") or ""))
+
+
+#: a per-sample angle step this many times the block's median step is a keyphasor jump (a missed or extra key mark)
+ANGLE_JUMP_FACTOR = 3.0
+
+
+def check_sample_angles(angles, sample_rate: float) -> list[str]:
+    """Problems with a block's per-sample keyphasor angles [rad] (empty list = fine): non-finite values, the rotor
+    turning backwards, or a jump (one step more than ``ANGLE_JUMP_FACTOR`` x the median step, or a step of more than
+    a quarter revolution).  Every text starts with 'sample_angles'."""
+    a = np.asarray(angles, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(a)):
+        return [f"sample_angles: {int(np.count_nonzero(~np.isfinite(a)))} non-finite value(s) (no keyphasor)"]
+    if a.size < 2:
+        return []
+    d = np.diff(a)
+    if np.any(d < 0):
+        k = int(np.argmax(d < 0))
+        return [f"sample_angles decrease at sample {k + 1} ({a[k]:.6g} -> {a[k + 1]:.6g} rad): not an unwrapped "
+                f"angle of a forward-turning rotor"]
+    med = float(np.median(d))
+    big = np.nonzero((d > ANGLE_JUMP_FACTOR * max(med, 0.0) + 1e-12) | (d > math.pi / 2))[0]
+    if big.size:
+        k = int(big[0])
+        return [f"sample_angles jump by {d[k]:.4g} rad at sample {k + 1} (median step {med:.3g} rad, i.e. "
+                f"{med * sample_rate:.4g} rad/s): keyphasor discontinuity (missed or extra key mark?)"]
+    return []
 
 
 def validate_block(block, max_abs: float = MAX_PLAUSIBLE_DISPLACEMENT) -> list[str]:
@@ -284,7 +337,9 @@ def validate_block(block, max_abs: float = MAX_PLAUSIBLE_DISPLACEMENT) -> list[s
         problems.append(f"sample_rate must be a positive finite number of Hz, got {b.sample_rate}")
     if not math.isfinite(b.speed):
         problems.append(f"speed is {b.speed} (unknown rotor speed)")
-    if not math.isfinite(b.angle):
+    if b.sample_angles is not None:
+        problems += check_sample_angles(b.sample_angles, b.sample_rate)
+    elif not math.isfinite(b.angle):
         problems.append(f"angle is {b.angle} (no keyphasor reference)")
     n_nan = int(np.count_nonzero(np.isnan(x)))
     n_inf = int(np.count_nonzero(np.isinf(x)))
@@ -422,6 +477,6 @@ def coefficients_from_msg(msg) -> dict[str, Any]:
 
 
 __all__ = ["PACKAGE", "MESSAGE_NAMES", "MAX_PLAUSIBLE_DISPLACEMENT", "msg_class", "stamp_to_ns", "Block",
-           "block_to_msg", "block_from_msg", "validate_block", "speed_to_msg", "speed_from_msg",
+           "block_to_msg", "block_from_msg", "validate_block", "check_sample_angles", "speed_to_msg", "speed_from_msg",
            "excitation_to_msg", "excitation_entries_from_msg", "excitation_from_msg", "coefficients_to_msg",
            "coefficients_from_msg"]

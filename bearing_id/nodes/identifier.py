@@ -5,19 +5,25 @@ estimates) and ``/rotor/excitation``; publishes ``/bearing_id/coefficients`` (Be
 /diagnostics.
 
 Data path (the offline route, call for call)
-    Contiguous usable blocks of one run at one steady speed form a *segment*; a segment closes when the speed or run
-    changes, a block is lost or rejected, or the stream pauses (``segment_timeout``).  Each closed segment becomes a
-    :class:`bearing_id.rig.Recording` and goes through :func:`bearing_id.identify.harmonics.from_recordings` -- the
-    same steady-window rule (settling part dropped, whole revolutions) as ``bearing-id identify`` -- giving one 1X
-    vector per (run, speed).  Once every required run has a vector at a speed, the runs are stacked into a
-    ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured method in a worker thread
-    (the data path never waits for a solve).  Results the data do not determine are not published as numbers
+    Each block's samples and per-sample keyphasor angles (``sample_angles``) are appended to the stream of its run
+    (the run its ``run_id`` names, else the one announced last before its stamp; a block whose run is not announced
+    yet waits for it) -- a :class:`bearing_id.identify.harmonics.RunStream`, which is what ``bearing-id identify``
+    feeds a whole recording or bag through: the speed of every sample from the angle, steady windows by the same
+    rule, the same cut whatever the block boundaries.  A lost or rejected block ends the open window (the rest of
+    the dwell becomes a second window, and the two vectors are combined); a pause (``segment_timeout``) or a change
+    of run or probe set closes the stream.  Each closed window is fitted in a worker thread
+    (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions, transient-aware
+    fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
+    runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured
+    method (the data path never waits for a fit or a solve; a burst of windows is fitted first, but a result is
+    never held back more than ``SOLVE_AFTER``).  Results the data do not determine are not published as numbers
     (unless ``publish_undetermined``); /diagnostics reports their rank and condition instead.
 
 Record and resume
     Every excitation, accumulated vector and result is appended to ``<record_dir>/record.jsonl``
     (:class:`bearing_id.record.Record`); on start-up the node replays it, so a restart loses nothing already
-    accumulated and re-publishes the results.
+    accumulated and re-publishes the results; the runs announced before the restart (with their start stamps) are
+    known again at once.  A malformed record line is skipped with a note.
 """
 from __future__ import annotations
 
@@ -27,14 +33,14 @@ import sys
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..conventions import rad_s_to_rpm
 from ..params import ExcitationEntry, Probe, Run
 from .common import (ERROR, OK, STALE, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
-                     TOPIC_EXCITATION, WARN, DiagItem, ExcitationTimeline, ParamSpec, StreamMonitor, diagnostics_msg,
+                     TOPIC_EXCITATION, WARN, DiagItem, ParamSpec, StreamMonitor, diagnostics_msg,
                      qos_latched, qos_stream, run_node, stamp_to_sec)
 
 NAME = "identifier"
@@ -53,9 +59,11 @@ SPECS = [
     ParamSpec("settle_fraction", 0.25, "fraction of each steady window discarded at its start (transient after a "
               "speed step)", "-", lo=0.0, hi=0.9),
     ParamSpec("min_window", 0.2, "shortest usable steady window", "s", lo=0.01, hi=3600.0),
-    ParamSpec("segment_timeout", 0.3, "a steady segment closes when no block arrived for this long", "s",
+    ParamSpec("segment_timeout", 0.3, "a steady window closes when no block arrived for this long", "s",
               lo=0.01, hi=3600.0),
-    ParamSpec("max_segment", 600.0, "a steady segment closes at this length (bounds memory)", "s", lo=0.1,
+    ParamSpec("max_waiting_blocks", 400, "blocks held while their run's excitation has not arrived yet (the oldest "
+              "is dropped and counted beyond this)", "blocks", lo=1, hi=100000),
+    ParamSpec("max_segment", 600.0, "a steady window closes at this length (bounds memory)", "s", lo=0.1,
               hi=86400.0),
     ParamSpec("max_displacement", 1e-3, "samples above this are implausible (wrong units or garbage)", "m",
               lo=1e-9, hi=1.0),
@@ -72,134 +80,33 @@ SPECS = [
 
 # ------------------------------------------------------------------------------------------------ pure part
 @dataclass
-class Segment:
-    """Contiguous usable blocks of one run at one steady speed (raw samples, SI)."""
+class _Stream:
+    """The open sample stream of one source (measured / estimated): the run and probe set it carries."""
     run: Run
-    speed0: float
-    sample_rate: float
     probes: tuple
-    stamps: list = field(default_factory=list)
-    speeds: list = field(default_factory=list)
-    angles: list = field(default_factory=list)
-    samples: list = field(default_factory=list)
-    seqs: list = field(default_factory=list)
+    stream: object                 # identify.harmonics.RunStream
     last_arrival: float = 0.0
 
-    @property
-    def n(self) -> int:
-        return sum(s.shape[0] for s in self.samples)
 
-    def recording(self):
-        """This segment as a rig.Recording (per-sample angle = block angle + speed x time within the block)."""
-        from ..rig import Recording
-        fs = self.sample_rate
-        t, sp, an = [], [], []
-        for st, w, a0, x in zip(self.stamps, self.speeds, self.angles, self.samples):
-            k = np.arange(x.shape[0]) / fs
-            t.append(st + k)
-            sp.append(np.full(x.shape[0], w))
-            an.append(a0 + w * k)
-        return Recording(sample_rate=fs, t=np.concatenate(t), speed=np.concatenate(sp), angle=np.concatenate(an),
-                         probes=self.probes, samples=np.concatenate(self.samples), run=self.run)
-
-
-class Segmenter:
-    """Cuts one block stream into steady segments (see the module docstring)."""
-
-    def __init__(self, tol_rel: float, max_duration: float):
-        self.tol_rel = float(tol_rel)
-        self.max_duration = float(max_duration)
-        self.open: Segment | None = None
-
-    def steady_count(self, o: Segment, w: float, n: int) -> int:
-        """How many of the next ``n`` samples at speed ``w`` keep ``o`` steady: the rule of
-        :func:`bearing_id.signals.steady_windows` (max - min speed <= tol x |running mean|, tested at every sample),
-        so that node and offline cut the same windows even when a speed step falls inside a block."""
-        hi, lo = max(max(o.speeds), w), min(min(o.speeds), w)
-        N = float(o.n)
-        S = float(sum(x.shape[0] * v for x, v in zip(o.samples, o.speeds)))
-
-        def breaks(k):                              # the window fails at the k-th new sample (1-based)
-            return hi - lo > self.tol_rel * max(abs((S + k * w) / (N + k)), 1e-300)
-
-        if not breaks(1):
-            if not breaks(n):
-                return n
-            lo_k, hi_k = 1, n                       # breaks(lo_k) False, breaks(hi_k) True; the mean is monotone
-            while hi_k - lo_k > 1:
-                mid = (lo_k + hi_k) // 2
-                lo_k, hi_k = (mid, hi_k) if not breaks(mid) else (lo_k, mid)
-            return hi_k - 1
-        return 0
-
-    def add(self, block, run: Run, speed: float, contiguous: bool, now: float) -> list[Segment]:
-        closed = []
-        o = self.open
-        x = np.asarray(block.samples, dtype=float)
-        n = x.shape[0]
-        fs = float(block.sample_rate)
-        keep = n
-        if o is not None:
-            if (not contiguous or o.run.id != run.id or fs != o.sample_rate
-                    or [(p.node, p.direction) for p in block.probes] != [(p.node, p.direction) for p in o.probes]):
-                keep = 0
-            else:
-                keep = self.steady_count(o, float(speed), n)
-            if keep:
-                self._append(o, block.stamp, speed, block.angle, x[:keep], block.seq, now)
-            if keep < n:
-                closed.append(o)
-                o = self.open = None
-        if keep < n or o is None:
-            k0 = keep if self.open is None and keep < n else 0
-            o = self.open = Segment(run, float(speed), fs, tuple(block.probes))
-            self._append(o, block.stamp + k0 / fs, speed, block.angle + speed * k0 / fs, x[k0:], block.seq, now)
-        if o.n / o.sample_rate >= self.max_duration:
-            closed.append(o)
-            self.open = None
-        return closed
-
-    @staticmethod
-    def _append(o: Segment, stamp, speed, angle, x, seq, now):
-        o.stamps.append(float(stamp))
-        o.speeds.append(float(speed))
-        o.angles.append(float(angle))
-        o.samples.append(x)
-        o.seqs.append(int(seq))
-        o.last_arrival = now
-
-    def reassign(self, stamp: float, run: Run) -> list[Segment]:
-        """A run announced late (after blocks stamped at or after its start arrived): the open segment's blocks from
-        ``stamp`` [s] on move to ``run``; the earlier part is returned closed."""
-        o = self.open
-        if o is None or o.run.id == run.id or o.stamps[-1] < stamp - 1e-9:
-            return []
-        k = next(i for i, st in enumerate(o.stamps) if st >= stamp - 1e-9)
-        head = None
-        if k > 0:
-            head = Segment(o.run, o.speed0, o.sample_rate, o.probes, o.stamps[:k], o.speeds[:k], o.angles[:k],
-                           o.samples[:k], o.seqs[:k], o.last_arrival)
-        self.open = Segment(run, o.speeds[k], o.sample_rate, o.probes, o.stamps[k:], o.speeds[k:], o.angles[k:],
-                            o.samples[k:], o.seqs[k:], o.last_arrival)
-        return [head] if head is not None else []
-
-    def flush(self, now: float, timeout: float) -> list[Segment]:
-        o = self.open
-        if o is not None and now - o.last_arrival >= timeout:
-            self.open = None
-            return [o]
-        return []
+def _probe_key(probes) -> tuple:
+    return tuple((p.name, int(p.node), p.direction) for p in probes)
 
 
 class IdentifierCore:
-    """Vectors per (run, speed), the record, and the solve (no ROS).
+    """Windows, vectors per (run, speed), the record, and the solve (no ROS).
 
-    ``add_excitation(run)``, ``add_segment(segment, source)`` (source 'measured' or 'estimated') and ``solve()``
-    (returns the IdentResults of every speed at which all required runs have a measured vector).
+    ``feed(block, run, source, contiguous, now)`` appends a checked block to the source's run stream
+    (:class:`bearing_id.identify.harmonics.RunStream`, the offline route's windowing) and returns the steady windows
+    it closed (cheap: the data path); ``add_window(window, source)`` fits one closed window
+    (:func:`bearing_id.identify.harmonics.window_vector`) and stores its vector (the worker thread);
+    ``solve()`` identifies at every speed at which all required runs have a measured vector.
+    source is 'measured' (the probes) or 'estimated' (the kf_estimator's bearing-node estimates, method paper).
+    Vectors are kept per probe set: a probe set that changes (between runs, or across a restart that resumes the
+    record) is never stacked with another; the latest probe set is the one identified.
     """
 
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = 0.005,
-                 settle: float = 0.25, min_window: float = 0.2, options=None):
+                 settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float = 600.0):
         from ..record import Record
         from ..rotor.assembly import RotorModel
         self.rig = rig
@@ -208,8 +115,14 @@ class IdentifierCore:
         self.options = options
         self.required = list(required_runs) if required_runs else None
         self.tol_rel, self.settle, self.min_window = float(tol_rel), float(settle), float(min_window)
+        self.max_window = float(max_window)
+        self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
+        self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
         self.vectors: dict = {"measured": {}, "estimated": {}}   # source -> run id -> [(speed, X, X_std, probes)]
+        self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
+        self.streams: dict = {"measured": None, "estimated": None}
+        self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
         self.results: dict = {}                # speed -> IdentResult (latest)
         self.lock = threading.Lock()
@@ -220,113 +133,169 @@ class IdentifierCore:
 
     # ---- record
     def _resume(self) -> dict:
-        n_vec = n_res = 0
+        n_vec = n_res = n_bad = 0
         for e in self.record.entries():
-            if e["type"] == "excitation":
-                run = Run(e["run_id"], tuple(ExcitationEntry(**x) for x in e["entries"]))
-                self.runs.setdefault(run.id, run)
-            elif e["type"] == "vector" and e.get("used", True):
-                probes = tuple(Probe(*p) for p in e["probes"])
-                self._store(e["source"], e["run_id"], float(e["speed"]), np.asarray(e["X"]).astype(complex),
-                            np.asarray(e["X_std"], dtype=float), probes)
-                n_vec += 1
-            elif e["type"] == "result":
-                n_res += 1
+            try:
+                if e["type"] == "excitation":
+                    run = Run(str(e["run_id"]), tuple(ExcitationEntry(**x) for x in e["entries"]))
+                    if run.id not in self.runs:
+                        self.runs[run.id] = run
+                        self.run_starts.append((float(e.get("stamp", -math.inf)), run))
+                elif e["type"] == "vector" and e.get("used", True):
+                    probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e["probes"])
+                    X = np.asarray(e["X"]).astype(complex).reshape(-1)
+                    Xs = np.asarray(e["X_std"], dtype=float).reshape(-1)
+                    if X.size != len(probes) or Xs.size != len(probes) or not float(e["speed"]) > 0:
+                        raise ValueError(f"{X.size} values for {len(probes)} probes")
+                    self._store(str(e["source"]), str(e["run_id"]), float(e["speed"]), X, Xs, probes,
+                                bool(e.get("after_gap", False)))
+                    n_vec += 1
+                elif e["type"] == "result":
+                    n_res += 1
+            except (KeyError, ValueError, TypeError, AttributeError) as exc:
+                n_bad += 1
+                self.notes.append(f"record {self.record.path}: entry n={e.get('n')} ({e.get('type')}) is malformed "
+                                  f"({type(exc).__name__}: {exc}); skipped")
         if self.record.torn_lines:
             self.notes.append(f"record {self.record.path}: {self.record.torn_lines} torn line(s) skipped")
         self.record.append("session", resumed_vectors=n_vec, resumed_results=n_res, method=self.method)
-        return {"vectors": n_vec, "results": n_res, "torn_lines": self.record.torn_lines}
+        return {"vectors": n_vec, "results": n_res, "torn_lines": self.record.torn_lines, "malformed": n_bad}
 
-    def add_excitation(self, run: Run) -> bool:
+    def add_excitation(self, run: Run, stamp: float = -math.inf) -> bool:
         with self.lock:
             if run.id in self.runs:
                 if self.runs[run.id] != run:
                     self.notes.append(f"run {run.id} re-announced with a different excitation; the first is kept")
                 return False
             self.runs[run.id] = run
-        self.record.append("excitation", run_id=run.id,
+            self.run_starts.append((float(stamp), run))
+        self.record.append("excitation", run_id=run.id, stamp=float(stamp),
                            entries=[{"kind": e.kind, "node": e.node, "magnitude": e.magnitude, "phase": e.phase,
                                      "direction": e.direction, "frequency_ratio": e.frequency_ratio}
                                     for e in run.excitation])
         return True
 
-    def _store(self, source, run_id, speed, X, X_std, probes) -> bool:
+    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False) -> str:
+        """Store a vector: 'new', 'combined' (the rest of a dwell split by lost data, inverse-variance merged with
+        the vector of the window before the gap) or 'duplicate' (a later window at a speed the run already has with
+        this probe set: recorded, not used -- the offline route keeps the first too)."""
+        from ..identify.harmonics import WindowVector, combine_vectors
+        key = _probe_key(probes)
         lst = self.vectors[source].setdefault(run_id, [])
-        if any(abs(s - speed) <= self.tol_rel * speed for s, *_ in lst):
-            return False                    # first vector at a speed is kept (as the offline route does)
+        last = self._last_stored.get((source, run_id))
+        if after_gap and last is not None and _probe_key(lst[last][3]) == key and \
+                abs(lst[last][0] - speed) <= self.tol_rel * speed:
+            s0, X0, S0, _ = lst[last]
+            m = combine_vectors(WindowVector(s0, X0, S0, 0, 0, None), WindowVector(speed, X, X_std, 0, 0, None))
+            lst[last] = (m.speed, m.X, m.X_std, probes)
+            return "combined"
+        if any(abs(s - speed) <= self.tol_rel * speed and _probe_key(p) == key for s, _, _, p in lst):
+            self._last_stored.pop((source, run_id), None)
+            return "duplicate"
         lst.append((speed, X, X_std, probes))
-        return True
+        self._last_stored[(source, run_id)] = len(lst) - 1
+        if source == "measured":
+            if self.probe_set is not None and self.probe_set != key:
+                self.notes.append(f"probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in key]}: "
+                                  f"vectors of different probe sets are kept apart; the new set is identified")
+            self.probe_set = key
+        return "new"
 
-    # ---- accumulation
-    def add_segment(self, seg: Segment, source: str = "measured") -> list[tuple]:
-        """1X vectors of a closed segment (offline rule); returns [(speed, X)] stored, records each."""
-        from ..identify import harmonics
-        rec = seg.recording()
-        try:
-            data = harmonics.from_recordings([rec], tol_rel=self.tol_rel, settle=self.settle,
-                                             min_duration=self.min_window)
-        except ValueError as exc:
-            self.notes.append(f"{source} segment run {seg.run.id} at {rad_s_to_rpm(seg.speed0):.0f} rpm, blocks "
-                              f"{seg.seqs[0]}..{seg.seqs[-1]} ({rec.samples.shape[0] / rec.sample_rate:.2f} s): "
-                              f"no steady window ({exc}); not used")
-            return []
+    # ---- data path (callback thread)
+    def feed(self, block, run: Run, source: str, contiguous: bool, now: float) -> list:
+        """Append a checked block (``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``,
+        ``stamp``, ``seq``) of ``run`` to the source's stream; returns the steady windows it closed."""
+        from ..identify.harmonics import RunStream
         out = []
-        for j, w in enumerate(data.speeds):
-            with self.lock:
-                new = self._store(source, seg.run.id, float(w), data.X[0, j], data.X_std[0, j], seg.probes)
-            self.record.append("vector", source=source, run_id=seg.run.id, speed=float(w), X=data.X[0, j],
-                               X_std=data.X_std[0, j], probes=[[p.name, p.node, p.direction] for p in seg.probes],
-                               stamp=seg.stamps[0], seqs=[seg.seqs[0], seg.seqs[-1]], used=new)
-            if new:
-                out.append((float(w), data.X[0, j]))
-            else:
-                self.notes.append(f"{source} run {seg.run.id} already has a vector at {rad_s_to_rpm(w):.0f} rpm; "
-                                  f"the window of blocks {seg.seqs[0]}..{seg.seqs[-1]} is recorded, not used "
-                                  f"(the first window at a speed is used, as offline)")
+        cur = self.streams[source]
+        probes = tuple(block.probes)
+        if cur is not None and (cur.run.id != run.id or _probe_key(cur.probes) != _probe_key(probes)
+                                or cur.stream.fs != float(block.sample_rate)):
+            out += cur.stream.close()          # the stream moved on to another run / probe set / rate
+            cur = None
+        if cur is None:
+            cur = self.streams[source] = _Stream(run, probes, RunStream(run, probes, float(block.sample_rate),
+                                                                        tol_rel=self.tol_rel,
+                                                                        max_duration=self.max_window))
+            contiguous = True
+        out += cur.stream.feed(block.samples, block.angles(), contiguous=contiguous, stamp=block.stamp,
+                               seq=block.seq)
+        cur.last_arrival = now
         return out
+
+    def flush(self, source: str, now: float, timeout: float) -> list:
+        """Close the source's stream when no block arrived for ``timeout`` [s] (end of a run, a pause)."""
+        cur = self.streams[source]
+        if cur is None or now - cur.last_arrival < timeout:
+            return []
+        self.streams[source] = None
+        return cur.stream.close()
+
+    # ---- accumulation (worker thread)
+    def add_window(self, win, source: str = "measured") -> list[tuple]:
+        """Fit one closed window (the offline rule) and store its vector; returns [(speed, X)] newly usable."""
+        from ..identify import harmonics
+        what = (f"{source} window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, "
+                f"blocks {win.seqs[0]}..{win.seqs[1]}" if win.seqs else f"{source} window of run {win.run.id}")
+        v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
+        if v is None:
+            if win.duration >= 0.5 * self.min_window:
+                self.notes.append(f"{what} ({win.duration:.2f} s): too short for a 1X vector; not used")
+            return []
+        with self.lock:
+            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap)
+            self.sample_rate = win.sample_rate
+        self.record.append("vector", source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
+                           probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
+                           seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap,
+                           used=how != "duplicate")
+        if how == "duplicate":
+            self.notes.append(f"{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; "
+                              f"recorded, not used (the first window at a speed is used, as offline)")
+            return []
+        if how == "combined":
+            self.notes.append(f"{what}: the rest of a dwell split by lost data, combined with its first part")
+        return [(v.speed, v.X)]
+
+    def vector_counts(self, source: str = "measured") -> dict:
+        with self.lock:
+            return {rid: len(v) for rid, v in self.vectors[source].items()}
 
     def required_runs(self) -> list[str]:
         return list(self.required) if self.required else list(self.runs)
 
     def assemble(self):
-        """HarmonicData of the measured vectors at every speed all required runs have (first run's speeds)."""
-        from ..identify.harmonics import HarmonicData
+        """HarmonicData of the measured vectors (latest probe set) at every speed all required runs have (in the
+        first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline)."""
+        from ..identify.harmonics import HarmonicData, common_speeds
         with self.lock:
             req = self.required_runs()
-            if not req or any(r not in self.runs for r in req):
+            if not req or any(r not in self.runs for r in req) or self.probe_set is None:
                 return None
-            meas = self.vectors["measured"]
-            if any(r not in meas for r in req):
-                return None
-            speeds, rows = [], []
-            for w, *_ in meas[req[0]]:
-                row = []
-                for rid in req:
-                    m = [v for v in meas[rid] if abs(v[0] - w) <= self.tol_rel * w]
-                    if not m:
-                        break
-                    row.append(m[0])
-                else:
-                    speeds.append(w)
-                    rows.append(row)
-            if not speeds:
-                return None
+
+            def of_set(source, rid):
+                return [v for v in self.vectors[source].get(rid, []) if _probe_key(v[3]) == self.probe_set]
+
+            meas = [of_set("measured", rid) for rid in req]
+            speeds, picks = common_speeds(meas, self.tol_rel)
             if self.method == "paper":          # needs the kf_estimator's bearing-node vectors too
-                est = self.vectors["estimated"]
-                keep, zrows = [], []
+                est = [of_set("estimated", rid) for rid in req]
+                keep = []
                 for k, w in enumerate(speeds):
                     zr = []
-                    for rid in req:
-                        m = [v for v in est.get(rid, []) if abs(v[0] - w) <= self.tol_rel * w]
+                    for lst in est:
+                        m = [v for v in lst if abs(v[0] - w) <= self.tol_rel * w]
                         if not m:
                             break
                         zr.append(m[0])
                     else:
-                        keep.append(k)
-                        zrows.append(zr)
-                speeds, rows = [speeds[k] for k in keep], [rows[k] for k in keep]
-                if not speeds:
-                    return None
+                        keep.append((k, zr))
+                speeds = [speeds[k] for k, _ in keep]
+                picks = [picks[k] for k, _ in keep]
+                zrows = [zr for _, zr in keep]
+            if not speeds:
+                return None
+            rows = [[meas[r][k] for r, k in enumerate(row)] for row in picks]
             probes = rows[0][0][3]
             X = np.array([[rows[s][r][1] for s in range(len(speeds))] for r in range(len(req))], dtype=complex)
             Xs = np.array([[rows[s][r][2] for s in range(len(speeds))] for r in range(len(req))], dtype=float)
@@ -340,10 +309,16 @@ class IdentifierCore:
                                          for r in range(len(req))])
         return data
 
-    def solve(self):
-        """Identify at every complete speed; returns (results, data) or ([], None)."""
+    def signature(self, data) -> tuple:
+        """What a solve depends on (run ids, speeds, vectors): equal signatures give equal results."""
+        return None if data is None else (tuple(r.id for r in data.runs), data.speeds.tobytes(), data.X.tobytes(),
+                                           getattr(data, "z_B", np.zeros(0)).tobytes())
+
+    def solve(self, data=None):
+        """Identify at every complete speed (``data``: an :meth:`assemble` result, default a new one); returns
+        (results, data) or ([], None)."""
         from ..identify import identify
-        data = self.assemble()
+        data = self.assemble() if data is None else data
         if data is None:
             return [], None
         opts = dict(self.options or {})
@@ -351,7 +326,7 @@ class IdentifierCore:
             opts.update(z_B=data.z_B, z_B_std=data.z_B_std)
             kf = opts.pop("kf", None)
             if kf:  # so that the theory-dominance check runs on the estimator's vectors as it does offline
-                opts["z_B_kf"] = {"Q": kf["Q"], "R": kf["R"], "sample_rate": data.recordings[0].sample_rate}
+                opts["z_B_kf"] = {"Q": kf["Q"], "R": kf["R"], "sample_rate": self.sample_rate}
         else:
             opts.pop("kf", None)
         results = identify(self.method, self.model, self.rig, data, options=opts or None)
@@ -371,13 +346,17 @@ def _result_payload(r) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ node
+SOLVE_AFTER = 0.25     # s: a new complete speed is solved at the latest this long after its window closed
+
+
 def _make_node():
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
 
     from ..io import messages as M
     from ..params import load_rig
-    from .common import declare_parameters
+    from .common import declare_parameters, qos_input, relative, subscribe_latched
+    from .runs import RunResolver
 
     class Identifier(Node):
         def __init__(self):
@@ -390,29 +369,33 @@ def _make_node():
             self.core = IdentifierCore(rig, v["method"], v["record_dir"], v["runs"], v["speed_tolerance"],
                                        v["settle_fraction"], v["min_window"],
                                        options={"kf": {"Q": v["kf_process_noise"],
-                                                       "R": v["kf_measurement_noise"] ** 2}})
+                                                       "R": v["kf_measurement_noise"] ** 2}},
+                                       max_window=v["max_segment"])
             self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v["max_displacement"])
             self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v["max_displacement"])
-            self.timeline = ExcitationTimeline()
-            self.seg = {"measured": Segmenter(v["speed_tolerance"], v["max_segment"]),
-                        "estimated": Segmenter(v["speed_tolerance"], v["max_segment"])}
+            self.resolver = {"measured": RunResolver(v["max_waiting_blocks"]),
+                             "estimated": RunResolver(v["max_waiting_blocks"])}
+            for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
+                for rs in self.resolver.values():
+                    rs.announce(stamp, run)
             self.problems: deque = deque(maxlen=10)
-            self.skipped = {"no_speed": 0, "no_excitation": 0}
+            self.skipped = {"no_speed": 0, "no_angles": 0}
+            self._gap = {"measured": False, "estimated": False}    # the next block follows rejected data
             self.published = 0
             self.last_results = []
             self.solve_time = None
             self.latency = deque(maxlen=50)         # s, last block of a window -> coefficients published
             self._jobs: queue.Queue = queue.Queue()
             self._worker = threading.Thread(target=self._work, daemon=True, name="identifier_solver")
-            self.pub = self.create_publisher(M.BearingCoefficients, TOPIC_COEFFICIENTS, qos_latched(100))
+            self.pub = self.create_publisher(M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), qos_latched(100))
             self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
             # the excitation subscription first: when a run's announcement and its first block are ready together,
-            # the executor takes the announcement first (a late one is handled by Segmenter.reassign)
-            self.create_subscription(M.Excitation, TOPIC_EXCITATION, self.on_excitation, qos_latched())
-            self.create_subscription(M.DisplacementBlock, TOPIC_DISPLACEMENT,
-                                     lambda m: self.on_block(m, "measured"), qos_stream())
-            self.create_subscription(M.DisplacementBlock, TOPIC_BEARING_DISPLACEMENT,
-                                     lambda m: self.on_block(m, "estimated"), qos_stream())
+            # the executor takes the announcement first (a block of a run not yet announced waits for it)
+            subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
+            self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
+                                     lambda m: self.on_block(m, "measured"), qos_input(self))
+            self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
+                                     lambda m: self.on_block(m, "estimated"), qos_input(self))
             self.create_timer(0.05, self.tick)
             self.create_timer(v["diagnostics_period"], self.diagnostics)
             self._worker.start()
@@ -420,26 +403,33 @@ def _make_node():
             self.get_logger().info(f"method {v['method']}, record {self.core.record.path} (resumed {r['vectors']} "
                                    f"vectors, {r['results']} results)")
             if r["vectors"]:
-                self._jobs.put(time.monotonic())
+                self._jobs.put(("solve", time.monotonic()))
 
         def _problem(self, text):
             self.problems.append(text)
             self.get_logger().warn(text, throttle_duration_sec=2.0)
 
         def on_excitation(self, msg):
-            run = M.excitation_from_msg(msg)
-            stamp = stamp_to_sec(msg.header.stamp)
-            if self.timeline.add(stamp, run):
-                self.core.add_excitation(run)
-                self.get_logger().info(f"excitation: run {run.id}")
+            try:
+                run = M.excitation_from_msg(msg)
+                stamp = stamp_to_sec(msg.header.stamp)
+            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+                self._problem(f"malformed Excitation rejected: {exc}")
+                return
+            new = False
+            for source, rs in self.resolver.items():
+                fresh, released = rs.announce(stamp, run)
+                new = new or fresh
                 now = time.monotonic()
-                for source, sg in self.seg.items():     # blocks of this run that arrived before its announcement
-                    self._close(sg.reassign(stamp, run), source, now)
+                for b, r, contiguous in released:    # blocks of this run that arrived before its announcement
+                    self._feed(b, r, source, contiguous, now)
+            if self.core.add_excitation(run, stamp):
+                self.get_logger().info(f"excitation: run {run.id}")
 
         def on_block(self, msg, source):
             try:
                 b = M.block_from_msg(msg)
-            except (ValueError, TypeError) as exc:
+            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
                 self._problem(f"malformed DisplacementBlock on the {source} stream: {exc}")
                 return
             mon = self.monitor if source == "measured" else self.monitor_est
@@ -448,56 +438,82 @@ def _make_node():
                 self._problem(p)
             now = time.monotonic()
             if not chk.usable:
-                self._close(self.seg[source].flush(now, 0.0), source, now)    # a bad block ends the window
+                self._gap[source] = True       # a rejected block is lost data: the window ends there
                 return
-            if not (math.isfinite(b.speed) and b.speed > 0):
-                self.skipped["no_speed"] += 1
-                self._problem(f"{source} block seq {b.seq} has no speed; not accumulated")
-                self._close(self.seg[source].flush(now, 0.0), source, now)
-                return
-            run = self.timeline.at(b.stamp)
+            if not b.has_sample_angles:
+                self.skipped["no_angles"] += 1
+                if not (math.isfinite(b.speed) and b.speed > 0):
+                    self.skipped["no_speed"] += 1
+                    self._problem(f"{source} block seq {b.seq} has neither sample_angles nor a speed; not "
+                                  f"accumulated")
+                    self._gap[source] = True
+                    return
+            else:
+                bad = M.check_sample_angles(b.sample_angles, b.sample_rate)
+                if bad:
+                    self._problem(f"{source} block seq {b.seq}: {bad[0]}; not accumulated")
+                    self._gap[source] = True
+                    return
+            if source == "estimated" and self.values["method"] != "paper":
+                return                         # monitored only: no other method uses the estimates
+            contiguous = chk.contiguous and not self._gap[source]
+            self._gap[source] = False
+            rs = self.resolver[source]
+            run = rs.resolve(b, contiguous)
             if run is None:
-                self.skipped["no_excitation"] += 1
-                self._problem(f"no excitation known for {source} block seq {b.seq} (stamp {b.stamp:.3f} s); "
-                              f"not accumulated")
                 return
-            self._close(self.seg[source].add(b, run, b.speed, chk.contiguous, now), source, now)
+            self._feed(b, run, source, contiguous, now)
 
-        def _close(self, segments, source, now):
-            # the harmonic fit of a closed segment (tens of ms when modes ring) runs in the worker thread, in
+        def _feed(self, b, run, source, contiguous, now):
+            try:
+                wins = self.core.feed(b, run, source, contiguous, now)
+            except ValueError as exc:
+                self._problem(f"{source} block seq {b.seq} not accumulated: {exc}")
+                return
+            self._close(wins, source, now)
+
+        def _close(self, windows, source, now):
+            # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
-            for s in segments:
-                self._jobs.put(("segment", s, source))
+            for w in windows:
+                self._jobs.put(("window", w, source, now))
 
         def tick(self):
             now = time.monotonic()
-            for source, sg in self.seg.items():
-                self._close(sg.flush(now, self.values["segment_timeout"]), source, now)
+            for source in ("measured", "estimated"):
+                self._close(self.core.flush(source, now, self.values["segment_timeout"]), source, now)
 
         def _work(self):
-            t_req = None              # arrival of the oldest measured window not yet solved (latency reference)
+            t_req = None              # when the oldest window not yet solved closed (latency reference)
+            last_sig = None
             while True:
                 job = self._jobs.get()
                 if job is None:
                     return
-                if isinstance(job, tuple):             # ("segment", segment, source): fit and accumulate it
-                    _, seg, source = job
+                if job[0] == "window":                 # fit and accumulate it
+                    _, win, source, closed_at = job
                     try:
-                        added = self.core.add_segment(seg, source)
-                    except Exception as exc:          # reported; the segment is lost, nothing else is
-                        self._problem(f"harmonic fit failed on a {source} segment: {type(exc).__name__}: {exc}")
-                        added = False
-                    while self.core.notes:
-                        self._problem(self.core.notes.popleft())
-                    if added and source == "measured":
-                        t_req = seg.last_arrival if t_req is None else min(t_req, seg.last_arrival)
+                        added = self.core.add_window(win, source)
+                    except Exception as exc:          # reported; the window is lost, nothing else is
+                        self._problem(f"harmonic fit failed on a {source} window: {type(exc).__name__}: {exc}")
+                        added = []
+                    if added:
+                        t_req = closed_at if t_req is None else min(t_req, closed_at)
                 else:                                  # a solve request (e.g. resumed from the record)
-                    t_req = job if t_req is None else min(t_req, job)
-                if t_req is None or not self._jobs.empty():   # coalesce: solve once the queue is drained
-                    continue
-                t0 = time.perf_counter()
+                    t_req = job[1] if t_req is None else min(t_req, job[1])
+                while self.core.notes:
+                    self._problem(self.core.notes.popleft())
+                if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < SOLVE_AFTER):
+                    continue              # more windows queued: fit them first, but never hold a result back long
                 try:
-                    results, _ = self.core.solve()
+                    data = self.core.assemble()
+                    sig = self.core.signature(data)
+                    if sig is None or sig == last_sig:
+                        t_req = None
+                        continue          # no new complete speed
+                    t0 = time.perf_counter()
+                    results, _ = self.core.solve(data)
+                    last_sig = sig
                 except Exception as exc:              # reported, never published
                     self._problem(f"identification failed: {type(exc).__name__}: {exc}")
                     t_req = None
@@ -521,18 +537,29 @@ def _make_node():
             if self.values["method"] != "paper" and items[1].level == STALE:
                 items[1].level = OK
                 items[1].message += " (not needed by the " + self.values["method"] + " method)"
+            rs = self.resolver["measured"]
             ex = DiagItem(f"{NAME}: input {TOPIC_EXCITATION}", OK, f"runs known: {list(self.core.runs)}",
                           {"runs": len(self.core.runs), "required": ",".join(self.core.required_runs()),
-                           "blocks_without_excitation": self.skipped["no_excitation"]})
+                           "blocks_waiting_for_excitation": len(rs.waiting),
+                           "blocks_assigned_after_waiting": rs.released,
+                           "blocks_dropped_waiting_too_long": rs.dropped})
             if not self.core.runs:
                 ex.level = ERROR if self.monitor.n_blocks else STALE
-                ex.message = f"no excitation received on {TOPIC_EXCITATION}: nothing can be accumulated"
+                ex.message = f"no excitation received on {TOPIC_EXCITATION}: blocks wait, nothing is accumulated"
+            elif rs.dropped:
+                ex.level = WARN
+                ex.message = f"{rs.dropped} block(s) dropped after waiting too long for their run's excitation"
             items.append(ex)
-            nvec = {rid: len(v) for rid, v in self.core.vectors["measured"].items()}
+            nvec = self.core.vector_counts("measured")
             acc = DiagItem(f"{NAME}: accumulation", OK, "ok", {
                 "vectors_per_run": ", ".join(f"{k}: {n}" for k, n in nvec.items()) or "none",
                 "record": str(self.core.record.path), "resumed_vectors": self.core.resumed["vectors"],
-                "published_results": self.published, "blocks_without_speed": self.skipped["no_speed"]})
+                "published_results": self.published, "blocks_without_speed": self.skipped["no_speed"],
+                "blocks_without_sample_angles": self.skipped["no_angles"]})
+            if self.skipped["no_angles"]:
+                acc.level = WARN
+                acc.message = (f"{self.skipped['no_angles']} block(s) without sample_angles: their angle assumes "
+                               f"constant speed over the block (biased on speed ramps)")
             if self.solve_time is not None:
                 acc.values["last_solve_s"] = self.solve_time
             if self.latency:
@@ -572,6 +599,9 @@ def identifiability_item(results, publish_undetermined: bool = False) -> DiagIte
     if bad:
         tail = "published flagged" if publish_undetermined else "not published"
         return DiagItem(name, WARN, f"{'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''} -- {tail}", vals)
+    misfit = sorted({n for r in results for n in (r.notes or []) if "MISFIT" in n.upper()})
+    if misfit:       # a model that does not fit the data is a warning, never an OK
+        return DiagItem(name, WARN, f"all {len(results)} speed(s) determined, but: {misfit[0]}", vals)
     return DiagItem(name, OK, f"all {len(results)} speed(s) determined", vals)
 
 

@@ -28,8 +28,9 @@ import numpy as np
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
 from ..params import Probe
 from .common import (ERROR, OK, STALE, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION,
-                     TOPIC_INNOVATION, TOPIC_SPEED, WARN, DiagItem, ExcitationTimeline, ParamSpec, StreamMonitor,
+                     TOPIC_INNOVATION, TOPIC_SPEED, WARN, DiagItem, ParamSpec, StreamMonitor,
                      diagnostics_msg, qos_latched, qos_stream, run_node, sec_to_stamp, stamp_to_sec)
+from .runs import RunResolver
 
 NAME = "kf_estimator"
 ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_validity)
@@ -89,6 +90,14 @@ def innovation_health(terms: list) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ pure part
+def block_speed(angles: np.ndarray, sample_rate: float) -> float | None:
+    """Mean rotor speed [rad/s] over a block from its per-sample angles [rad] (None when not positive/finite)."""
+    if angles.size < 2:
+        return None
+    w = float((angles[-1] - angles[0]) * sample_rate / (angles.size - 1))
+    return w if math.isfinite(w) and w > 0 else None
+
+
 def band_key(speed: float, width: float) -> int:
     """Index of the relative speed band holding ``speed`` [rad/s] (bands of relative width ``width``)."""
     return int(math.floor(math.log(speed) / math.log1p(width)))
@@ -104,6 +113,7 @@ class Output:
     innovations: np.ndarray      # (n, m) [m]
     nis: np.ndarray              # (n,)
     block: object = None         # the input block (sample rate, angle, probes, frame)
+    run_id: str = ""             # the excitation run the block was filtered with
 
 
 class EstimatorCore:
@@ -111,7 +121,8 @@ class EstimatorCore:
 
     ``submit(block, run, speed, contiguous)`` queues a checked block; ``drain()`` processes every queued block whose
     model is ready, in order, and returns the Outputs.  ``block`` needs ``seq``, ``stamp`` [s], ``samples`` (n, m),
-    ``angle`` [rad] at the first sample, ``sample_rate`` [Hz], ``probes`` (params.Probe per channel).
+    ``angles()`` (n,) keyphasor angle of every sample [rad], ``sample_rate`` [Hz], ``probes`` (params.Probe per
+    channel).  ``speed`` [rad/s] selects the model (its speed band) and the forcing frequency.
     """
 
     def __init__(self, rig, Q: float, R_std: float, band: float, max_pending: int = 400, nis_window: int = 50):
@@ -228,8 +239,8 @@ class EstimatorCore:
                 self.resets += 1
                 self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
             kf = act[2]
-            n = block.samples.shape[0]
-            angle = block.angle + speed * np.arange(n) / block.sample_rate
+            angle = block.angles()
+            n = angle.size
             est, nu, nis = kf.step_block(block.samples, angle, speed)
             self.nis_hist.append((float(np.sum(nis)), n))
             self.health_hist.append(innovation_health_terms(nu, angle))
@@ -237,7 +248,7 @@ class EstimatorCore:
             for j, b in enumerate(self.rig.bearings):
                 r = np.sqrt(est[:, 2 * j] ** 2 + est[:, 2 * j + 1] ** 2)
                 self.last_orbit[b.name] = (float(np.max(r)), speed)
-            out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block))
+            out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id))
         return out
 
     # ---- health
@@ -319,7 +330,7 @@ def _make_node():
 
     from ..io import messages as M
     from ..params import load_rig
-    from .common import declare_parameters
+    from .common import declare_parameters, qos_input, relative, subscribe_latched
 
     class KFEstimator(Node):
         def __init__(self):
@@ -332,12 +343,12 @@ def _make_node():
             self.core = EstimatorCore(rig, v["process_noise"], v["measurement_noise"], v["speed_band"],
                                       v["max_pending_blocks"], v["nis_window"])
             self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v["max_displacement"])
-            self.timeline = ExcitationTimeline()
+            self.resolver = RunResolver(v["max_pending_blocks"])
             self.last_speed = None            # (speed, wall time)
             self.speed_msgs = 0
             self.last_block_speed = None
             self.problems: deque = deque(maxlen=10)
-            self.skipped = {"no_speed": 0, "no_excitation": 0, "slow": 0}
+            self.skipped = {"no_speed": 0, "no_angles": 0, "slow": 0}
             speeds = v["prebuild_speeds_rpm"]
             if speeds is None and rig.simulation is not None:
                 speeds = list(rig.simulation.speeds_rpm)
@@ -348,13 +359,14 @@ def _make_node():
                     self.core.request(float(rpm_to_rad_s(s)), probes, fs)
             top = max(speeds) if speeds else 3000.0
             self.core.request_threshold(float(rpm_to_rad_s(top)) * 2.0)
-            self.pub_est = self.create_publisher(M.DisplacementBlock, TOPIC_BEARING_DISPLACEMENT, qos_stream())
-            self.pub_nu = self.create_publisher(M.DisplacementBlock, TOPIC_INNOVATION, qos_stream())
+            self.pub_est = self.create_publisher(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
+                                                 qos_stream())
+            self.pub_nu = self.create_publisher(M.DisplacementBlock, relative(TOPIC_INNOVATION), qos_stream())
             self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
             # excitation and speed subscriptions first: ready together with a block, they are taken first
-            self.create_subscription(M.Excitation, TOPIC_EXCITATION, self.on_excitation, qos_latched())
-            self.create_subscription(M.RotorSpeed, TOPIC_SPEED, self.on_speed, qos_stream(50))
-            self.create_subscription(M.DisplacementBlock, TOPIC_DISPLACEMENT, self.on_block, qos_stream())
+            subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
+            self.create_subscription(M.RotorSpeed, relative(TOPIC_SPEED), self.on_speed, qos_input(self, 50))
+            self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
             self.create_timer(0.02, self.drain)
             self.create_timer(v["diagnostics_period"], self.diagnostics)
             self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, "
@@ -367,9 +379,19 @@ def _make_node():
             self.speed_msgs += 1
 
         def on_excitation(self, msg):
-            run = M.excitation_from_msg(msg)
-            if self.timeline.add(stamp_to_sec(msg.header.stamp), run):
+            try:
+                run = M.excitation_from_msg(msg)
+                stamp = stamp_to_sec(msg.header.stamp)
+            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+                self._problem(f"malformed Excitation rejected: {exc}")
+                return
+            new, released = self.resolver.announce(stamp, run)
+            if new:
                 self.get_logger().info(f"excitation: run {run.id} with {len(run.excitation)} entries")
+            for b, r, (speed, contiguous) in released:    # blocks that arrived before their run's announcement
+                self._submit(b, r, speed, contiguous)
+            if released:
+                self.drain()
 
         def _problem(self, text):
             self.problems.append(text)
@@ -378,15 +400,23 @@ def _make_node():
         def on_block(self, msg):
             try:
                 b = M.block_from_msg(msg)
-            except (ValueError, TypeError) as exc:
-                self._problem(f"malformed DisplacementBlock seq {msg.sequence}: {exc}")
+            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+                self._problem(f"malformed DisplacementBlock rejected: {exc}")
                 return
             chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
             for p in chk.problems:
                 self._problem(p)
             if not chk.usable:
                 return
-            speed = b.speed if (math.isfinite(b.speed) and b.speed > 0) else None
+            if b.has_sample_angles:
+                bad = M.check_sample_angles(b.sample_angles, b.sample_rate)
+                if bad:
+                    self._problem(f"block seq {b.seq}: {bad[0]}; block skipped")
+                    return
+                speed = block_speed(b.sample_angles, b.sample_rate)
+            else:
+                self.skipped["no_angles"] += 1
+                speed = b.speed if (math.isfinite(b.speed) and b.speed > 0) else None
             if speed is None and self.last_speed and time.monotonic() - self.last_speed[1] < self.values[
                     "speed_timeout"]:
                 speed = self.last_speed[0]
@@ -399,27 +429,32 @@ def _make_node():
             if speed < rpm_to_rad_s(self.values["min_speed_rpm"]):
                 self.skipped["slow"] += 1
                 return
-            run = self.timeline.at(b.stamp)
-            if run is None:
-                self.skipped["no_excitation"] += 1
-                self._problem(f"no excitation known for block seq {b.seq} (stamp {b.stamp:.3f} s): the filter needs "
-                              f"the known excitation on /rotor/excitation; block skipped")
+            if not b.has_sample_angles and b.n_samples and self.skipped["no_angles"] == 1:
+                self._problem(f"block seq {b.seq} carries no sample_angles: its angle is rebuilt assuming constant "
+                              f"speed over the block (biased on speed ramps)")
+            run = self.resolver.resolve(b, (speed, chk.contiguous))
+            if run is None:               # its run's excitation has not arrived yet: the block waits for it
                 return
-            err = self.core.submit(b, run, speed, chk.contiguous)
+            self._submit(b, run, speed, chk.contiguous)
+            self.drain()
+
+        def _submit(self, b, run, speed, contiguous):
+            err = self.core.submit(b, run, speed, contiguous)
             if err:
                 self._problem(err)
-            self.drain()
 
         def drain(self):
             for o in self.core.drain():
                 b = o.block
                 stamp = sec_to_stamp(o.stamp)
+                ang = b.sample_angles
                 self.pub_est.publish(M.block_to_msg(
-                    samples=o.estimates, sequence=o.seq, sample_rate=b.sample_rate, speed=o.speed, angle=b.angle,
-                    probes=self.core.outputs_probes, stamp=stamp, frame_id=b.frame_id))
+                    samples=o.estimates, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
+                    probes=self.core.outputs_probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang,
+                    run_id=o.run_id))
                 self.pub_nu.publish(M.block_to_msg(
-                    samples=o.innovations, sequence=o.seq, sample_rate=b.sample_rate, speed=o.speed, angle=b.angle,
-                    probes=b.probes, stamp=stamp, frame_id=b.frame_id))
+                    samples=o.innovations, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
+                    probes=b.probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang, run_id=o.run_id))
 
         def diagnostics(self):
             items = [self.monitor.status(f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"])]
@@ -430,14 +465,20 @@ def _make_node():
                 sp_item.level, sp_item.message = STALE, f"no data on {TOPIC_SPEED} for " \
                                                         f"{time.monotonic() - self.last_speed[1]:.1f} s"
             items.append(sp_item)
-            ex = DiagItem(f"{NAME}: input {TOPIC_EXCITATION}", OK, f"{len(self.timeline)} run(s) known",
-                          {"runs": len(self.timeline), "blocks_without_excitation": self.skipped["no_excitation"]})
-            if len(self.timeline) == 0:
+            rs = self.resolver
+            ex = DiagItem(f"{NAME}: input {TOPIC_EXCITATION}", OK, f"{len(rs)} run(s) known",
+                          {"runs": len(rs), "blocks_waiting_for_excitation": len(rs.waiting),
+                           "blocks_assigned_after_waiting": rs.released,
+                           "blocks_dropped_waiting_too_long": rs.dropped})
+            if rs.dropped:
+                ex.level, ex.message = WARN, f"{rs.dropped} block(s) dropped after waiting too long for their run"
+            if len(rs) == 0:
                 ex.level, ex.message = (ERROR if self.monitor.n_blocks else STALE), \
                     f"no excitation received on {TOPIC_EXCITATION}: blocks cannot be filtered"
             items.append(ex)
             proc = DiagItem(f"{NAME}: processing", OK, "ok", {
                 "blocks_without_speed": self.skipped["no_speed"], "blocks_below_min_speed": self.skipped["slow"],
+                "blocks_without_sample_angles": self.skipped["no_angles"],
                 "pending_blocks": self.core.pending})
             if self.problems:
                 proc.level, proc.message = WARN, self.problems[-1]

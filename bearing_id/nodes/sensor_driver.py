@@ -104,7 +104,8 @@ def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, type
     """Everything the driver publishes for ``recordings``, in order: yields (topic, stamp_ns, msg, end_ns).
 
     Per block: an Excitation when the run changes (stamped at the run's first block), a RotorSpeed and the
-    DisplacementBlock (stamp = time of the first sample; ``end_ns`` = time one sample after its last).  ``types``:
+    DisplacementBlock (stamp = time of the first sample; ``end_ns`` = time one sample after its last; the keyphasor
+    angle of every sample in ``sample_angles``; the run in ``run_id``).  ``types``:
     None for rclpy messages, a rosbags typestore for bag writing.
     """
     from ..io import messages as M
@@ -121,7 +122,9 @@ def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, type
         w, a = float(rec.speed[sp.i0]), float(rec.angle[sp.i0])
         yield TOPIC_SPEED, t_ns, M.speed_to_msg(w, a, stamp=t_ns, frame_id=frame_id, types=types), t_ns
         yield (TOPIC_DISPLACEMENT, t_ns, M.block_to_msg(rec.samples[sp.i0:sp.i1], seq, fs, w, a, rec.probes,
-                                                        stamp=t_ns, frame_id=frame_id, types=types), end_ns)
+                                                        stamp=t_ns, frame_id=frame_id, types=types,
+                                                        sample_angles=rec.angle[sp.i0:sp.i1], run_id=rec.run.id),
+               end_ns)
 
 
 # ------------------------------------------------------------------------------------------------ node
@@ -129,7 +132,7 @@ def _make_node():
     from rclpy.node import Node
 
     from ..io import messages as M
-    from .common import declare_parameters
+    from .common import declare_parameters, relative
 
     class SensorDriver(Node):
         def __init__(self):
@@ -143,9 +146,9 @@ def _make_node():
             self.fs = fs.pop()
             self.frame_id = v["frame_id"] or self.recordings[0].rig_name
             self.spans = block_spans([r.samples.shape[0] for r in self.recordings], self.fs, v["block_size"])
-            self.pub_disp = self.create_publisher(M.DisplacementBlock, TOPIC_DISPLACEMENT, qos_stream())
-            self.pub_speed = self.create_publisher(M.RotorSpeed, TOPIC_SPEED, qos_stream(50))
-            self.pub_exc = self.create_publisher(M.Excitation, TOPIC_EXCITATION, qos_latched())
+            self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
+            self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
+            self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
             from diagnostic_msgs.msg import DiagnosticArray
             self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
             self.sent = 0

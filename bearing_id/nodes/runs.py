@@ -1,0 +1,67 @@
+"""Which excitation run a displacement block belongs to, for the kf_estimator and the identifier (no ROS).
+
+A block names its run (``DisplacementBlock.run_id``, set by the sensor_driver) or, when the sender leaves it empty,
+belongs to the run announced last on /rotor/excitation at or before its stamp.  A block whose run is not known yet
+(its Excitation is still on the way, or the node started in the middle of a run) is not dropped: it waits, in
+arrival order, until the run is announced (blocks of one run keep their order: while a run is unknown, all of its
+blocks wait) (at most ``max_waiting`` blocks; beyond that the oldest is dropped and
+counted, and /diagnostics says so).
+"""
+from __future__ import annotations
+
+from collections import deque
+
+from .common import ExcitationTimeline
+
+
+class RunResolver:
+    """``resolve(block, tag)`` -> the block's params.Run, or None when it was queued (with ``tag``, e.g. the block's
+    contiguity) to wait for its announcement; ``announce(stamp, run)`` registers a run and returns the waiting
+    [(block, run, tag)] it releases (in arrival order).
+
+    ``block`` needs ``run_id`` ('' = by stamp) and ``stamp`` [s].  ``known`` maps run id -> Run.
+    """
+
+    def __init__(self, max_waiting: int = 400):
+        self.timeline = ExcitationTimeline()
+        self.known: dict = {}
+        self.waiting: deque = deque()
+        self.max_waiting = int(max_waiting)
+        self.dropped = 0          # blocks that waited too long (queue overflow)
+        self.released = 0         # blocks that waited and were then assigned
+
+    def announce(self, stamp: float, run) -> tuple[bool, list]:
+        """Register ``run`` starting at ``stamp`` [s]: (new announcement?, [(block, run, tag)] released)."""
+        new = self.timeline.add(stamp, run)
+        self.known.setdefault(run.id, run)
+        out, keep = [], deque()
+        while self.waiting:
+            b, tag = self.waiting.popleft()
+            r = self._lookup(b)
+            if r is None:
+                keep.append((b, tag))
+            else:
+                out.append((b, r, tag))
+        self.waiting = keep
+        self.released += len(out)
+        return new, out
+
+    def _lookup(self, block):
+        rid = getattr(block, "run_id", "") or ""
+        if rid:
+            return self.known.get(rid)
+        return self.timeline.at(block.stamp)
+
+    def resolve(self, block, tag=None):
+        """The block's run, or None (the block now waits, with ``tag``; see ``waiting``)."""
+        run = self._lookup(block)
+        if run is not None:
+            return run
+        self.waiting.append((block, tag))
+        if len(self.waiting) > self.max_waiting:
+            self.waiting.popleft()
+            self.dropped += 1
+        return None
+
+    def __len__(self):
+        return len(self.known)
