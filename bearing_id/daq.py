@@ -11,8 +11,10 @@ CSV (one row per sample, comma separated, ``#`` lines are metadata)::
     t,angle,speed,p6x,p6y         or t,keyphasor,p6x,p6y   or t,speed_rpm,angle,...
 
 The rotor angle comes from an ``angle`` column [rad, keyphasor angle] or is rebuilt from a ``keyphasor`` column (a
-once-per-revolution pulse train; rising edges through half its range mark angle = 0 mod 2 pi) by linear
-interpolation between marks.  Speed: ``speed`` [rad/s], ``speed_rpm`` [rpm], or the derivative of the angle.
+once-per-revolution pulse train) by :mod:`bearing_id.keyphasor`: angle = 0 (mod 2 pi) where the rising edge crosses
+half its swing (a square pulse is high while the angle mod 2 pi is in [0, width)), sub-sample key marks (sharp or
+finite-rise edges, whole or fractional samples per revolution), linear between marks.  Speed: ``speed`` [rad/s],
+``speed_rpm`` [rpm], the keyphasor's revolution durations, or the derivative of the angle.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import keyphasor as _kp
 from .params import Probe, Run
 
 UNIT_SCALE = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
@@ -30,34 +33,17 @@ class DaqError(ValueError):
     """The DAQ file cannot be used; the message says what is wrong and where."""
 
 
-def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """Rotor angle [rad] and speed [rad/s] per sample from a once-per-revolution pulse train.
+class KeyphasorDaqError(DaqError, _kp.KeyphasorError):
+    """A keyphasor column that gives no rotor angle (both a DaqError and a keyphasor.KeyphasorError)."""
 
-    Rising edges (crossing the mid level) are the key mark (angle = 2 pi k); the angle is linear in time between
-    marks and extrapolated with the nearest revolution's speed before the first and after the last mark.
-    """
-    p = np.asarray(pulses, dtype=float)
-    mid = 0.5 * (np.nanmin(p) + np.nanmax(p))
-    above = p > mid
-    edges = np.nonzero(~above[:-1] & above[1:])[0] + 1
-    if edges.size < 2:
-        raise DaqError(f"keyphasor: found {edges.size} key marks, need at least 2 (is the column a pulse train?)")
-    # sub-sample edge time by linear interpolation across the crossing
-    e = edges.astype(float) - (p[edges] - mid) / (p[edges] - p[edges - 1])
-    n = p.size
-    idx = np.arange(n, dtype=float)
-    revs = np.arange(e.size, dtype=float)
-    angle = 2 * math.pi * np.interp(idx, e, revs)
-    first_rate = 1.0 / (e[1] - e[0])
-    last_rate = 1.0 / (e[-1] - e[-2])
-    before = idx < e[0]
-    after = idx > e[-1]
-    angle[before] = 2 * math.pi * (idx[before] - e[0]) * first_rate
-    angle[after] = 2 * math.pi * ((e.size - 1) + (idx[after] - e[-1]) * last_rate)
-    per_rev = 2 * math.pi * sample_rate / np.diff(e)             # rad/s of each revolution
-    mids = 0.5 * (e[:-1] + e[1:])
-    speed = np.interp(idx, mids, per_rev) if mids.size > 1 else np.full(n, per_rev[0])
-    return angle, speed
+
+def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float, **kw) -> tuple[np.ndarray, np.ndarray]:
+    """Rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,):
+    :func:`bearing_id.keyphasor.angle_from_keyphasor` (same keywords), raising :class:`KeyphasorDaqError`."""
+    try:
+        return _kp.angle_from_keyphasor(pulses, sample_rate, **kw)
+    except _kp.KeyphasorError as exc:
+        raise KeyphasorDaqError(str(exc)) from None
 
 
 def _parse_channels(text: str) -> tuple[Probe, ...]:
@@ -118,18 +104,22 @@ def read_csv(path: str | Path):
         raise DaqError(f"{path}: {data.shape[1]} columns but {len(header)} header names")
     col = {h: data[:, i] for i, h in enumerate(header)}
     n = data.shape[0]
+    kp_speed = None
     if "angle" in col:
         angle = col["angle"].astype(float)
     elif "keyphasor" in col:
-        angle, _ = angle_from_keyphasor(col["keyphasor"], fs)
+        try:
+            angle, kp_speed = angle_from_keyphasor(col["keyphasor"], fs)
+        except KeyphasorDaqError as exc:
+            raise KeyphasorDaqError(f"{path}: column 'keyphasor': {exc}") from None
     else:
         raise DaqError(f"{path}: need an 'angle' [rad] or a 'keyphasor' column")
     if "speed" in col:
         speed = col["speed"].astype(float)
     elif "speed_rpm" in col:
         speed = col["speed_rpm"] * (2 * math.pi / 60.0)
-    elif "keyphasor" in col:
-        _, speed = angle_from_keyphasor(col["keyphasor"], fs)
+    elif kp_speed is not None:
+        speed = kp_speed
     else:
         speed = np.gradient(angle) * fs
     samples = np.column_stack([col[p.name] for p in probes]) * UNIT_SCALE[units]
@@ -147,17 +137,21 @@ def _header_row(path: Path) -> int:
     return 0
 
 
-def write_csv(rec, path: str | Path, units: str = "m", keyphasor: bool = False) -> Path:
-    """Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads); ``keyphasor`` writes a pulse
-    train instead of the angle column."""
+def write_csv(rec, path: str | Path, units: str = "m", keyphasor: bool = False, *,
+              pulse_width: float = _kp.DEFAULT_WIDTH, rise_time: float = 0.0) -> Path:
+    """Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads).
+
+    ``keyphasor``: write a once-per-revolution pulse column (0..1) instead of the angle, by the key-mark convention
+    (:func:`bearing_id.keyphasor.pulse_from_angle`): high while angle mod 2 pi is in [0, ``pulse_width``) [rad],
+    with linear edges of ``rise_time`` [s] centred on the mark when > 0 (a sampled analog keyphasor).
+    """
     path = Path(path)
     s = UNIT_SCALE[units]
     ch = ", ".join(f"{p.name}@{p.node}{p.direction}" for p in rec.probes)
     lines = [f"# sample_rate: {rec.sample_rate!r}", f"# units: {units}", f"# channels: {ch}",
              f"# run: {rec.run.id}", f"# rig: {rec.rig_name}"]
     if keyphasor:
-        ph = np.mod(rec.angle, 2 * math.pi)
-        pulse = (ph < 0.2 * math.pi).astype(float)
+        pulse = _kp.pulse_from_angle(rec.angle, rec.speed, width=pulse_width, rise_time=rise_time)
         cols = [rec.t, pulse, rec.speed]
         names = ["t", "keyphasor", "speed"]
     else:
