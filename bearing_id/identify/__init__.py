@@ -42,10 +42,14 @@ def get_method(name: str):
 
 
 def identify(method: str, model, rig, data, probes=None, runs=None, options=None) -> list[IdentResult]:
-    """Run ``method`` on harmonic ``data`` (probes and runs default to the data's own)."""
+    """Run ``method`` on harmonic ``data`` (probes and runs default to the data's own), then the physical
+    plausibility gates (:mod:`bearing_id.identify.plausibility`: stability threshold, orbit vs clearance, live
+    channels) -- a speed that fails one is returned not determined, with the reason in its notes."""
+    from .plausibility import gate
     fn = get_method(method)
-    return fn(model, rig, data, tuple(probes if probes is not None else data.probes),
-              tuple(runs if runs is not None else data.runs), options)
+    probes = tuple(probes if probes is not None else data.probes)
+    runs = tuple(runs if runs is not None else data.runs)
+    return gate(fn(model, rig, data, probes, runs, options), model, rig, data, runs, probes)
 
 
 __all__ = ["IdentResult", "eq38_error", "METHODS", "get_method", "identify"]

@@ -254,8 +254,20 @@ def _f64(v) -> np.ndarray:
     return np.asarray(v, dtype=float).ravel()
 
 
-def block_from_msg(msg) -> Block:
-    """A DisplacementBlock (rclpy or rosbags) as :class:`Block`; ``ValueError`` when its shape is inconsistent."""
+#: bounds on one DisplacementBlock (a larger one is refused before its arrays are copied): values in ``samples``
+#: (2^21 = 8 s of 8 channels at 32 kHz, 16 MB) and channels
+MAX_BLOCK_VALUES = 1 << 21
+MAX_CHANNELS = 256
+
+
+def block_from_msg(msg, max_values: int = MAX_BLOCK_VALUES) -> Block:
+    """A DisplacementBlock (rclpy or rosbags) as :class:`Block`; ``ValueError`` when its shape is inconsistent or it
+    holds more than ``max_values`` samples or ``MAX_CHANNELS`` channels (checked before anything is copied)."""
+    if len(msg.samples) > max_values or len(getattr(msg, "sample_angles", ())) > max_values:
+        raise ValueError(f"DisplacementBlock seq {msg.sequence}: {len(msg.samples)} sample values (limit "
+                         f"{max_values}): split it into smaller blocks")
+    if len(msg.channels) > MAX_CHANNELS:
+        raise ValueError(f"DisplacementBlock seq {msg.sequence}: {len(msg.channels)} channels (limit {MAX_CHANNELS})")
     channels = tuple(str(c) for c in msg.channels)
     nch = len(channels)
     nodes = tuple(int(n) for n in msg.nodes)
@@ -397,9 +409,49 @@ def excitation_entries_from_msg(msg) -> list[ExcitationEntry]:
             for k, n, m, p, d, r in zip(*cols.values())]
 
 
-def excitation_from_msg(msg) -> Run:
-    """An Excitation message as :class:`bearing_id.params.Run` (``id``, ``excitation`` tuple of entries)."""
-    return Run(id=str(msg.run_id), excitation=tuple(excitation_entries_from_msg(msg)))
+MAX_FREQUENCY_RATIO = 100.0     # excitation frequency / rotor speed above this is not a rotor excitation
+MAX_RUN_ID = 256                # characters
+
+
+def check_excitation(run_id: str, entries, n_nodes: int | None = None) -> list[str]:
+    """Problems with an excitation run (empty list = usable): run id non-empty and short; per entry a known kind
+    ('unbalance' with direction 'forward', or 'force' along 'x'/'y' or rotating), a 1-based node (<= ``n_nodes`` when
+    given), finite magnitude >= 0, finite phase, finite frequency ratio in (0, MAX_FREQUENCY_RATIO]."""
+    out = []
+    if not run_id or len(run_id) > MAX_RUN_ID:
+        out.append(f"run_id must be 1..{MAX_RUN_ID} characters, got {len(run_id)}")
+    if not entries:
+        out.append("no excitation entries")
+    for i, e in enumerate(entries):
+        where = f"entry {i}"
+        if e.kind == "unbalance":
+            if e.direction != "forward":
+                out.append(f"{where}: an unbalance rotates 'forward', got direction {e.direction!r}")
+        elif e.kind == "force":
+            if e.direction not in ("x", "y", "forward", "backward"):
+                out.append(f"{where}: a force acts along 'x' or 'y' or rotates 'forward'/'backward', got "
+                           f"direction {e.direction!r}")
+        else:
+            out.append(f"{where}: kind must be 'unbalance' or 'force', got {e.kind!r}")
+        if e.node < 1 or (n_nodes is not None and e.node > n_nodes):
+            out.append(f"{where}: node {e.node} is not a node of the model (1..{n_nodes or '?'})")
+        if not (math.isfinite(e.magnitude) and e.magnitude >= 0):
+            out.append(f"{where}: magnitude must be finite and >= 0, got {e.magnitude}")
+        if not math.isfinite(e.phase):
+            out.append(f"{where}: phase must be finite, got {e.phase}")
+        if not (math.isfinite(e.frequency_ratio) and 0 < e.frequency_ratio <= MAX_FREQUENCY_RATIO):
+            out.append(f"{where}: frequency_ratio must be in (0, {MAX_FREQUENCY_RATIO:g}], got {e.frequency_ratio}")
+    return out
+
+
+def excitation_from_msg(msg, n_nodes: int | None = None) -> Run:
+    """An Excitation message as :class:`bearing_id.params.Run` (``id``, ``excitation`` tuple of entries);
+    ``ValueError`` naming every problem (:func:`check_excitation`) when it cannot be used."""
+    run = Run(id=str(msg.run_id), excitation=tuple(excitation_entries_from_msg(msg)))
+    bad = check_excitation(run.id, run.excitation, n_nodes)
+    if bad:
+        raise ValueError(f"Excitation {run.id[:40]!r}: " + "; ".join(bad[:4]) + (" ..." if len(bad) > 4 else ""))
+    return run
 
 
 # --------------------------------------------------------------------------------------------- BearingCoefficients
@@ -476,7 +528,7 @@ def coefficients_from_msg(msg) -> dict[str, Any]:
     return out
 
 
-__all__ = ["PACKAGE", "MESSAGE_NAMES", "MAX_PLAUSIBLE_DISPLACEMENT", "msg_class", "stamp_to_ns", "Block",
+__all__ = ["PACKAGE", "MESSAGE_NAMES", "MAX_PLAUSIBLE_DISPLACEMENT", "MAX_BLOCK_VALUES", "MAX_CHANNELS", "msg_class", "stamp_to_ns", "Block",
            "block_to_msg", "block_from_msg", "validate_block", "check_sample_angles", "speed_to_msg", "speed_from_msg",
-           "excitation_to_msg", "excitation_entries_from_msg", "excitation_from_msg", "coefficients_to_msg",
+           "excitation_to_msg", "excitation_entries_from_msg", "excitation_from_msg", "check_excitation", "coefficients_to_msg",
            "coefficients_from_msg"]

@@ -380,7 +380,7 @@ def _make_node():
 
         def on_excitation(self, msg):
             try:
-                run = M.excitation_from_msg(msg)
+                run = M.excitation_from_msg(msg, self.core.rotor.n_nodes)
                 stamp = stamp_to_sec(msg.header.stamp)
             except (ValueError, TypeError, AttributeError, OverflowError) as exc:
                 self._problem(f"malformed Excitation rejected: {exc}")
