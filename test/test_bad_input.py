@@ -47,17 +47,25 @@ def _inject(msgs, fault: str, arg):
         for t, _, m, _ in msgs:
             if t == "/rotor/displacement":
                 m.samples = array.array("d", [v * 1e6 for v in m.samples])
-    elif fault == "no_speed":
+    elif fault == "no_speed":                   # a DAQ without keyphasor angles and without speed
         msgs = [x for x in msgs if x[0] != "/rotor/speed"]
         for t, _, m, _ in msgs:
             if t == "/rotor/displacement":
                 m.speed = float("nan")
+                m.sample_angles = array.array("d")
     elif fault == "no_excitation":
         msgs = [x for x in msgs if x[0] != "/rotor/excitation"]
-    elif fault == "unsteady":                   # the speed wanders by 1 % steps from block to block
+    elif fault == "unsteady":                   # the keyphasor says the speed wanders by 1 % steps block to block
+        a_end = None
         for t, _, m, _ in msgs:
             if t == "/rotor/displacement":
-                m.speed = m.speed * (1.0 + 0.01 * (m.sequence % 7))
+                a = list(m.sample_angles)
+                f = 1.0 + 0.01 * (m.sequence % 7)
+                a0 = a[0] if a_end is None else a_end
+                new = [a0 + f * (v - a[0]) for v in a]
+                a_end = new[-1] + f * (a[-1] - a[-2])
+                m.sample_angles = array.array("d", new)
+                m.speed = m.speed * f
     elif fault == "runs":                       # only some runs (arg = list of run ids)
         keep, cur = [], None
         for x in msgs:
@@ -158,7 +166,7 @@ def identifier(tmp_path, env, **kw):
                                 **kw}, env)
 
 
-def drive(recordings, tmp_path, fault, arg=None, listen=2.0, env=None):
+def drive(recordings, tmp_path, fault, arg=None, listen=4.0, env=None):
     spec = tmp_path / f"spec_{fault}.json"
     out = tmp_path / f"out_{fault}.json"
     spec.write_text(json.dumps({"recordings": recordings, "fault": fault, "arg": arg, "listen": listen}))
@@ -202,8 +210,12 @@ def test_nonfinite_samples(recordings, tmp_path, fault):
     assert "non-finite sample(s)" in text and f"seq {bad}" in text and "p6y" in text, text
     vecs = vectors(tmp_path)
     _no_vector_spans(vecs, bad)
-    # the good data still give every speed (nothing lost): 2 runs x 2 speeds of vectors, coefficients at both
-    assert len(vecs) == 4 and len(set(got["coefficients"])) == 2, (vecs, got["coefficients"])
+    # the good data still give every speed (nothing lost): 2 runs x 2 speeds of vectors (the dwell with the bad
+    # block contributes both of its halves), coefficients at both speeds
+    assert {(v["run_id"], round(v["speed"])) for v in vecs} == {(r, round(w)) for r in "AB" for w in (
+        1200 * math.pi / 30, 2400 * math.pi / 30)}, vecs
+    assert any(v.get("after_gap") for v in vecs), vecs
+    assert len(set(got["coefficients"])) == 2, got["coefficients"]
 
 
 def test_sequence_gap(recordings, tmp_path):
@@ -263,7 +275,7 @@ def test_no_speed_topic_kf_estimator(recordings, tmp_path):
         got = drive(recordings, tmp_path, "no_speed", env=env)
         finish(node)
     text = diag_text(got, "kf_estimator")
-    assert "no speed for block seq " in text and "/rotor/speed is silent" in text, text
+    assert "rejected" in text and "no sample_angles (unknown rotor speed)" in text, text
     assert any(d["level"] == 3 and "/rotor/speed" in d["message"] for d in got["diagnostics"]), text
     assert got["bearing_blocks"] == 0                 # nothing estimated without a speed
 
@@ -284,7 +296,7 @@ def test_speed_not_steady(recordings, tmp_path):
         got = drive(recordings, tmp_path, "unsteady", env=env)
         finish(node)
     text = diag_text(got, "identifier")
-    assert "no steady window" in text, text
+    assert "too short for a 1X vector" in text, text
     # the speed was never steady for long enough: no vector, no coefficients
     assert len(vectors(tmp_path)) == 0 and got["coefficients"] == []
 

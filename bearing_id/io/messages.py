@@ -319,12 +319,16 @@ def check_sample_angles(angles, sample_rate: float) -> list[str]:
     return []
 
 
-def validate_block(block, max_abs: float = MAX_PLAUSIBLE_DISPLACEMENT) -> list[str]:
-    """Problems with a DisplacementBlock (message or :class:`Block`) as a list of texts (empty = fine). Never raises.
+SAMPLE_RATE_RANGE = (1.0, 1e7)     # Hz a displacement DAQ can plausibly have
 
-    Checks: channel metadata consistent with the samples, directions 'x'/'y', nodes >= 1, sample rate > 0 and finite,
-    speed finite (NaN is reported: unknown speed), NaN/inf sample counts, and |samples| <= ``max_abs`` [m] (larger
-    values almost always mean the data are in mm or µm).
+
+def validate_block(block, max_abs: float = MAX_PLAUSIBLE_DISPLACEMENT, n_nodes: int | None = None) -> list[str]:
+    """Problems with a DisplacementBlock (message or :class:`Block`) as a list of texts (empty = usable). Never raises.
+
+    Checks: channel metadata consistent with the samples, directions 'x'/'y', nodes 1-based (and <= ``n_nodes`` when
+    given), sample rate within ``SAMPLE_RATE_RANGE``, the keyphasor (``sample_angles`` finite, increasing, no jump --
+    :func:`check_sample_angles`; without them a finite positive speed and a finite first-sample angle), NaN/inf
+    sample counts, and |samples| <= ``max_abs`` [m] (larger values almost always mean the data are in mm or µm).
     """
     problems: list[str] = []
     try:
@@ -342,17 +346,19 @@ def validate_block(block, max_abs: float = MAX_PLAUSIBLE_DISPLACEMENT) -> list[s
     bad_dir = [d for d in b.directions if d not in ("x", "y")]
     if bad_dir:
         problems.append(f"directions must be 'x' or 'y', got {bad_dir}")
-    bad_node = [n for n in b.nodes if n < 1]
+    bad_node = [n for n in b.nodes if n < 1 or (n_nodes is not None and n > n_nodes)]
     if bad_node:
-        problems.append(f"FE nodes are 1-based, got {bad_node}")
-    if not (math.isfinite(b.sample_rate) and b.sample_rate > 0):
-        problems.append(f"sample_rate must be a positive finite number of Hz, got {b.sample_rate}")
-    if not math.isfinite(b.speed):
-        problems.append(f"speed is {b.speed} (unknown rotor speed)")
+        problems.append(f"FE nodes are 1-based (1..{n_nodes or '?'}), got {bad_node}")
+    lo, hi = SAMPLE_RATE_RANGE
+    if not (math.isfinite(b.sample_rate) and lo <= b.sample_rate <= hi):
+        problems.append(f"sample_rate must be {lo:g}..{hi:g} Hz, got {b.sample_rate}")
     if b.sample_angles is not None:
         problems += check_sample_angles(b.sample_angles, b.sample_rate)
-    elif not math.isfinite(b.angle):
-        problems.append(f"angle is {b.angle} (no keyphasor reference)")
+    else:
+        if not (math.isfinite(b.speed) and b.speed > 0):
+            problems.append(f"speed is {b.speed} and no sample_angles (unknown rotor speed)")
+        if not math.isfinite(b.angle):
+            problems.append(f"angle is {b.angle} (no keyphasor reference)")
     n_nan = int(np.count_nonzero(np.isnan(x)))
     n_inf = int(np.count_nonzero(np.isinf(x)))
     if n_nan:
@@ -528,7 +534,8 @@ def coefficients_from_msg(msg) -> dict[str, Any]:
     return out
 
 
-__all__ = ["PACKAGE", "MESSAGE_NAMES", "MAX_PLAUSIBLE_DISPLACEMENT", "MAX_BLOCK_VALUES", "MAX_CHANNELS", "msg_class", "stamp_to_ns", "Block",
+__all__ = ["PACKAGE", "MESSAGE_NAMES", "MAX_PLAUSIBLE_DISPLACEMENT", "MAX_BLOCK_VALUES", "MAX_CHANNELS",
+           "SAMPLE_RATE_RANGE", "msg_class", "stamp_to_ns", "Block",
            "block_to_msg", "block_from_msg", "validate_block", "check_sample_angles", "speed_to_msg", "speed_from_msg",
            "excitation_to_msg", "excitation_entries_from_msg", "excitation_from_msg", "check_excitation", "coefficients_to_msg",
            "coefficients_from_msg"]

@@ -437,23 +437,15 @@ def _make_node():
             for p in chk.problems:
                 self._problem(p)
             now = time.monotonic()
-            if not chk.usable:
+            bad = [] if not chk.usable else M.validate_block(b, self.values["max_displacement"],
+                                                             self.core.model.n_nodes)
+            for p in bad:
+                self._problem(f"{source} block seq {b.seq} rejected: {p}")
+            if not chk.usable or bad:
                 self._gap[source] = True       # a rejected block is lost data: the window ends there
                 return
             if not b.has_sample_angles:
                 self.skipped["no_angles"] += 1
-                if not (math.isfinite(b.speed) and b.speed > 0):
-                    self.skipped["no_speed"] += 1
-                    self._problem(f"{source} block seq {b.seq} has neither sample_angles nor a speed; not "
-                                  f"accumulated")
-                    self._gap[source] = True
-                    return
-            else:
-                bad = M.check_sample_angles(b.sample_angles, b.sample_rate)
-                if bad:
-                    self._problem(f"{source} block seq {b.seq}: {bad[0]}; not accumulated")
-                    self._gap[source] = True
-                    return
             if source == "estimated" and self.values["method"] != "paper":
                 return                         # monitored only: no other method uses the estimates
             contiguous = chk.contiguous and not self._gap[source]

@@ -406,13 +406,13 @@ def _make_node():
             chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
             for p in chk.problems:
                 self._problem(p)
-            if not chk.usable:
+            bad = [] if not chk.usable else M.validate_block(b, self.values["max_displacement"],
+                                                             self.core.rotor.n_nodes)
+            for p in bad:
+                self._problem(f"block seq {b.seq} rejected: {p}")
+            if not chk.usable or bad:
                 return
             if b.has_sample_angles:
-                bad = M.check_sample_angles(b.sample_angles, b.sample_rate)
-                if bad:
-                    self._problem(f"block seq {b.seq}: {bad[0]}; block skipped")
-                    return
                 speed = block_speed(b.sample_angles, b.sample_rate)
             else:
                 self.skipped["no_angles"] += 1
