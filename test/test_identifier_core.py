@@ -137,3 +137,14 @@ def test_a_malformed_record_line_is_skipped_with_a_note(rec, rig, tmp_path):
     assert again.resumed["malformed"] == 1 and again.resumed["vectors"] == 1
     assert any("malformed" in n for n in again.notes)
     again.close()
+
+
+def test_a_long_dwell_is_fitted_in_pieces_and_combined(rec):
+    """Windows longer than max_window are fitted in pieces (bounded memory) and combined: the same vector as the
+    whole window within the stated sigma, and a sigma no larger than 1.2 x the whole window's."""
+    whole, = harmonics.recording_vectors(rec)
+    pieces = harmonics.recording_vectors(rec, max_window=0.7)
+    assert len(pieces) == 1                         # one vector per dwell, from several pieces
+    v = pieces[0]
+    assert np.all(np.abs(v.X - whole.X) <= 3 * np.hypot(v.X_std, whole.X_std))
+    assert np.all(v.X_std <= 1.2 * whole.X_std)

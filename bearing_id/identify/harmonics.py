@@ -27,6 +27,7 @@ from ..signals import SteadyWindowTracker, harmonic_vectors, speed_from_angle
 DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
 DEFAULT_TRANSIENTS = 3     # decaying sinusoids (rotor modes ringing after a speed change) fitted with the 1X
+DEFAULT_MAX_WINDOW = 120.0  # s: a longer steady window is fitted in pieces of this length, then combined (memory)
 
 
 @dataclass
@@ -72,6 +73,8 @@ class ClosedWindow:
     i0, i1 : its sample range, counted over everything fed to the run's :class:`RunStream` (for a whole recording:
     indices into it); samples (n, nch) [m]; angle (n,) [rad]; speed (n,) [rad/s] (from the angle);
     after_gap : the window starts right after lost data (the remainder of a dwell split by a lost block);
+    continued : the window continues the previous one, closed only because it reached the length limit (no
+    settling part is dropped from it);
     stamp : time of its first sample [s] when the stream was stamped, else None; seqs : (first, last) block
     sequence numbers when fed block by block, else None.
     """
@@ -84,6 +87,7 @@ class ClosedWindow:
     angle: np.ndarray
     speed: np.ndarray
     after_gap: bool = False
+    continued: bool = False
     stamp: float | None = None
     seqs: tuple | None = None
 
@@ -112,12 +116,13 @@ class RunStream:
     The per-sample speed is :func:`bearing_id.signals.speed_from_angle` of the concatenated angle (each chunk's last
     sample waits for the next chunk's first); windows follow :class:`bearing_id.signals.SteadyWindowTracker`, so any
     chunking gives the windows of the whole record.  ``contiguous=False`` (data were lost before this chunk) ends the
-    open window at the gap.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory).  Only
+    open window at the gap.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory; the next
+    window is then marked ``continued``).  Only
     the open window's samples are buffered.
     """
 
     def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
-                 max_duration: float = math.inf):
+                 max_duration: float = DEFAULT_MAX_WINDOW):
         if not (math.isfinite(sample_rate) and sample_rate > 0):
             raise ValueError(f"sample_rate must be a positive number of Hz, got {sample_rate}")
         self.run, self.probes, self.fs = run, tuple(probes), float(sample_rate)
@@ -127,6 +132,7 @@ class RunStream:
         self._held = None              # (x (1, nch), angle (1,), stamp, seq): last sample, waiting for its speed
         self._last_speed = math.nan
         self._after_gap = False        # the next window starts after a gap
+        self._continued = False        # the next window continues one closed for its length
         self.n_fed = 0
 
     def feed(self, samples, angle, *, contiguous: bool = True, stamp: float | None = None,
@@ -190,8 +196,10 @@ class RunStream:
                 closed = self.tracker.feed(part)
                 k += part.size
                 if self.tracker.open_length >= self.max_len:
-                    closed += self.tracker.close()
-                out += self._cut(closed)
+                    out += self._cut(closed + self.tracker.close())
+                    self._continued = True
+                else:
+                    out += self._cut(closed)
         keep_from = self.tracker.i0 if self.tracker.i0 is not None else self.n_fed
         self._chunks = [c for c in self._chunks if c[0] + c[2].size > keep_from]
         return out
@@ -205,8 +213,9 @@ class RunStream:
             c0, s0 = sl[0]
             st = None if c0[4] is None else c0[4] + s0.start / self.fs
             seqs = None if c0[5] is None else (c0[5], sl[-1][0][5])
-            out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap, st, seqs))
-            self._after_gap = False
+            out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap,
+                                    self._continued, st, seqs))
+            self._after_gap = self._continued = False
         return out
 
 
@@ -226,7 +235,7 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
     n = win.i1 - win.i0
     if n < 2 or win.duration < min_duration:
         return None
-    j0 = int(math.ceil(settle * n))
+    j0 = 0 if win.continued else int(math.ceil(settle * n))
     if n - j0 < 16:
         return None
     w = float(np.median(win.speed[j0:]))
@@ -269,10 +278,12 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
 
 
 def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                      transients: int = DEFAULT_TRANSIENTS) -> list[WindowVector]:
+                      transients: int = DEFAULT_TRANSIENTS, max_window: float = DEFAULT_MAX_WINDOW
+                      ) -> list[WindowVector]:
     """The 1X vectors of every steady window of one recording (fed whole to a :class:`RunStream`, split at its
-    ``gaps``); the two pieces of a dwell split by a gap are combined (:func:`combine_vectors`)."""
-    stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel)
+    ``gaps``); the pieces of a dwell split by a gap or by the ``max_window`` [s] length limit are combined
+    (:func:`combine_vectors`)."""
+    stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel, max_duration=max_window)
     cuts = [0] + sorted(int(g) for g in getattr(rec, "gaps", ()) if 0 < g < rec.samples.shape[0]) + \
         [rec.samples.shape[0]]
     wins = []
@@ -284,7 +295,7 @@ def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, mi
         v = window_vector(win, settle=settle, min_duration=min_duration, transients=transients)
         if v is None:
             continue
-        if win.after_gap and out and abs(out[-1].speed - v.speed) <= tol_rel * v.speed:
+        if (win.after_gap or win.continued) and out and abs(out[-1].speed - v.speed) <= tol_rel * v.speed:
             out[-1] = combine_vectors(out[-1], v)
         else:
             out.append(v)
@@ -440,4 +451,5 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
 
 __all__ = ["HarmonicData", "ClosedWindow", "WindowVector", "RunStream", "window_vector", "stationarity_excess",
            "combine_vectors", "recording_vectors", "common_speeds", "from_recordings", "from_npz", "from_bag",
-           "recordings_from_bag", "simulate_data", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS"]
+           "recordings_from_bag", "simulate_data", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS",
+           "DEFAULT_MAX_WINDOW"]

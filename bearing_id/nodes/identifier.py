@@ -63,7 +63,8 @@ SPECS = [
               lo=0.01, hi=3600.0),
     ParamSpec("max_waiting_blocks", 400, "blocks held while their run's excitation has not arrived yet (the oldest "
               "is dropped and counted beyond this)", "blocks", lo=1, hi=100000),
-    ParamSpec("max_segment", 600.0, "a steady window closes at this length (bounds memory)", "s", lo=0.1,
+    ParamSpec("max_segment", 120.0, "a steady window is fitted in pieces of at most this length, then combined "
+              "(bounds memory; the offline route uses the same length)", "s", lo=0.1,
               hi=86400.0),
     ParamSpec("max_displacement", 1e-3, "samples above this are implausible (wrong units or garbage)", "m",
               lo=1e-9, hi=1.0),
@@ -106,7 +107,7 @@ class IdentifierCore:
     """
 
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = 0.005,
-                 settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float = 600.0):
+                 settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float | None = None):
         from ..record import Record
         from ..rotor.assembly import RotorModel
         self.rig = rig
@@ -115,7 +116,8 @@ class IdentifierCore:
         self.options = options
         self.required = list(required_runs) if required_runs else None
         self.tol_rel, self.settle, self.min_window = float(tol_rel), float(settle), float(min_window)
-        self.max_window = float(max_window)
+        from ..identify.harmonics import DEFAULT_MAX_WINDOW
+        self.max_window = float(DEFAULT_MAX_WINDOW if max_window is None else max_window)
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
@@ -243,11 +245,11 @@ class IdentifierCore:
                 self.notes.append(f"{what} ({win.duration:.2f} s): too short for a 1X vector; not used")
             return []
         with self.lock:
-            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap)
+            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued)
             self.sample_rate = win.sample_rate
         self.record.append("vector", source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
-                           seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap,
+                           seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
                            used=how != "duplicate")
         if how == "duplicate":
             self.notes.append(f"{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; "
@@ -468,7 +470,8 @@ def _make_node():
             # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for w in windows:
-                self._jobs.put(("window", w, source, now))
+                if w.duration >= 0.5 * self.core.min_window:   # (shorter ones, e.g. ramp steps, give nothing)
+                    self._jobs.put(("window", w, source, now))
 
         def tick(self):
             now = time.monotonic()
