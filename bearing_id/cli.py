@@ -2,13 +2,21 @@
 
 Each subcommand lives in ``bearing_id/commands/<name>.py`` and exposes ``add_parser(subparsers)`` and
 ``run(args) -> int``.  Exit codes: 0 success, 1 a result that must not be trusted (e.g. undetermined
-coefficients), 2 bad input (parameters, files).
+coefficients), 2 bad input (parameters, files), 3 an internal error (a bug), 130 interrupted.
+
+Bad input never shows a traceback: the readers (:mod:`bearing_id.params`, :mod:`bearing_id.rig`,
+:mod:`bearing_id.daq`, :mod:`bearing_id.io.bags`) turn every malformed file into an error naming the file and the
+problem, printed here as one paragraph on stderr.  An unexpected exception is reported as an internal error with
+where it happened; ``BEARING_ID_TRACEBACK=1`` prints the full traceback.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import traceback
+from pathlib import Path
 
 from .params import ParamError
 
@@ -33,20 +41,54 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _say(command: str, text: str) -> None:
+    """One paragraph on stderr (whitespace of a multi-line library message folded)."""
+    text = " ".join(str(text).split())
+    if len(text) > 2000:
+        text = text[:2000] + " ..."
+    try:
+        print(f"bearing-id {command}: {text}", file=sys.stderr)
+    except (BrokenPipeError, OSError):  # pragma: no cover - stderr gone
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    from .daq import DaqError
+    from .io.bags import BagError
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    cmd = args.command
     try:
         return int(args._run(args) or 0)
     except ParamError as exc:
-        print(f"bearing-id {args.command}: parameter error: {exc}", file=sys.stderr)
+        from .commands.inputs import InputError
+        _say(cmd, exc if isinstance(exc, InputError) else f"parameter error: {exc}")
         return 2
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"bearing-id {args.command}: {exc}", file=sys.stderr)
+    except (BagError, DaqError) as exc:
+        _say(cmd, exc)
         return 2
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        _say(cmd, exc)
+        return 2
+    except MemoryError:
+        _say(cmd, "out of memory: the input is too large for this machine")
+        return 2
+    except KeyboardInterrupt:
+        _say(cmd, "interrupted")
+        return 130
+    except BrokenPipeError:             # `bearing-id ... | head`
+        return 0
+    except Exception as exc:            # a bug: say where, without a wall of traceback (unless asked)
+        if os.environ.get("BEARING_ID_TRACEBACK"):
+            traceback.print_exc()
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno} in {tb[-1].name}" if tb else ""
+        _say(cmd, f"internal error{where}: {type(exc).__name__}: {exc} -- this is a bug, not your input; please "
+                  f"report it with the command line (BEARING_ID_TRACEBACK=1 prints the traceback)")
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,11 +2,19 @@
 
 Every error names the offending field (``bearings[1].clearance``) and the expected unit and range, so that a
 malformed file fails at load time with a message a person can act on.  SI units throughout.
+
+Reading YAML is bounded (:func:`load_yaml_bounded`, also used for bag metadata): files larger than
+``YAML_MAX_BYTES`` are refused before reading, nesting deeper than ``YAML_MAX_DEPTH`` and documents whose anchors and
+aliases would expand to more than ``YAML_MAX_NODES`` nodes (a "billion laughs") are refused from the parser's event
+stream before anything is built, so a hostile file costs milliseconds, not memory.  A wrong type anywhere (a number
+where a mapping is expected, ``bearings: [1, 2]``, a string where a number is expected) is a :class:`ParamError`
+naming the field, never an AttributeError/TypeError/KeyError.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
+import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -164,8 +172,113 @@ class RigParams:
         return tuple(b.node for b in self.bearings)
 
 
+# ---------------------------------------------------------------------------------------------- bounded YAML
+YAML_MAX_BYTES = 4 * 1024 * 1024    # a rig file is ~4 kB; an augmented one ~10 kB
+YAML_MAX_DEPTH = 64                 # nesting of mappings/sequences (rig files use 4)
+YAML_MAX_NODES = 200_000            # nodes after expanding every alias (rig files have ~300)
+
+
+def _yaml_loader():
+    return getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def check_yaml_events(text: str, what: str, *, max_depth: int = YAML_MAX_DEPTH,
+                      max_nodes: int = YAML_MAX_NODES) -> None:
+    """Walk the parser's event stream (no objects are built) and refuse nesting deeper than ``max_depth`` or a
+    document whose aliases would expand to more than ``max_nodes`` nodes; raises ParamError (or yaml.YAMLError for a
+    syntax error).  Linear in the size of the text; a billion-laughs file is refused after a few hundred events."""
+    depth = 0
+    total = 0                           # nodes so far, every alias counted as the size of what it refers to
+    open_anchors: list = []             # (anchor or None, total at its start), one per open collection
+    sizes: dict = {}                    # anchor -> expanded size of its node
+    for ev in yaml.parse(text, Loader=_yaml_loader()):
+        if isinstance(ev, yaml.AliasEvent):
+            n = sizes.get(ev.anchor)
+            if n is None:               # an alias to an anchor still open (recursive) or undefined
+                raise ParamError(f"{what}: alias *{ev.anchor} refers to an undefined or enclosing anchor")
+            total += n
+        elif isinstance(ev, yaml.ScalarEvent):
+            total += 1
+            if ev.anchor is not None:
+                sizes[ev.anchor] = 1
+        elif isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            total += 1
+            if depth > max_depth:
+                raise ParamError(f"{what}: nested deeper than {max_depth} levels (refused; a parameter file needs "
+                                 f"a handful)")
+            open_anchors.append((ev.anchor, total - 1))
+        elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
+            anchor, start = open_anchors.pop()
+            if anchor is not None:
+                sizes[anchor] = total - start
+        if total > max_nodes:
+            raise ParamError(f"{what}: more than {max_nodes} values once its anchors/aliases are expanded (refused: "
+                             f"an alias bomb such as 'billion laughs')")
+
+
+def load_yaml_bounded(path: str | Path, what: str | None = None, *, max_bytes: int = YAML_MAX_BYTES,
+                      max_depth: int = YAML_MAX_DEPTH, max_nodes: int = YAML_MAX_NODES):
+    """``yaml.safe_load`` of a file with bounds: size <= ``max_bytes`` (checked before reading), nesting <=
+    ``max_depth``, nodes after alias expansion <= ``max_nodes`` (checked on the event stream before anything is
+    constructed).  Every failure -- unreadable, too big, not UTF-8, not YAML, over a bound -- is a ParamError naming
+    the file."""
+    path = Path(path)
+    what = what or str(path)
+    try:
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise ParamError(f"{what}: {size} bytes, more than the {max_bytes} a parameter file may have (refused "
+                             f"unread)")
+        with open(path, "rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise ParamError(f"cannot read {what}: {exc}") from exc
+    if len(raw) > max_bytes:            # grew since stat, or a device
+        raise ParamError(f"{what}: more than {max_bytes} bytes (refused)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ParamError(f"{what} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    try:
+        check_yaml_events(text, what, max_depth=max_depth, max_nodes=max_nodes)
+        return yaml.load(text, Loader=_yaml_loader())   # noqa: S506 - a SafeLoader (C or Python)
+    except yaml.YAMLError as exc:
+        text = " ".join(str(exc).replace('"<unicode string>"', path.name).split())
+        raise ParamError(f"{what} is not valid YAML: {text}") from None
+    except RecursionError:              # unreachable with the depth bound; kept as a last line
+        raise ParamError(f"{what}: nested too deeply") from None
+
+
 # ---------------------------------------------------------------------------------------------- validation
+def _kind(v) -> str:
+    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(v), "a number" if isinstance(v, (int, float)) else type(v).__name__)
+
+
+def _short(v, n: int = 60) -> str:
+    """repr of a value for a message, cut to ``n`` characters (a hostile value may be huge)."""
+    r = reprlib.Repr()
+    r.maxstring, r.maxother, r.maxlist, r.maxdict, r.maxlevel = n, n, 6, 6, 2
+    return r.repr(v)
+
+
+def _map(v, where: str) -> dict:
+    """``v`` itself must be a mapping (a section or one list item)."""
+    if not isinstance(v, dict):
+        raise ParamError(f"{where} must be a mapping (key: value), got {_kind(v)} {_short(v)}")
+    return v
+
+
+def _list(v, where: str) -> list:
+    if not isinstance(v, list):
+        raise ParamError(f"{where} must be a list, got {_kind(v)} {_short(v)}")
+    return v
+
+
 def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any = ..., allow_none=False):
+    _map(d, where)
     if key not in d:
         if default is ...:
             raise ParamError(f"{where}.{key} is missing ({unit})".replace(" ()", ""))
@@ -175,12 +288,15 @@ def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any 
         return None
     if isinstance(v, str):  # YAML 1.1 reads 2.06e11 (no dot, no sign) as a string
         try:
-            v = float(v)
+            v = float(v.strip())
         except ValueError:
-            raise ParamError(f"{where}.{key} must be a number [{unit}], got {v!r}") from None
+            raise ParamError(f"{where}.{key} must be a number [{unit}], got {_short(v)}") from None
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ParamError(f"{where}.{key} must be a number [{unit}], got {v!r}")
-    v = float(v)
+        raise ParamError(f"{where}.{key} must be a number [{unit}], got {_kind(v)} {_short(v)}")
+    try:
+        v = float(v)
+    except OverflowError:   # an integer beyond the float range
+        raise ParamError(f"{where}.{key} = {_short(v)} [{unit}] is out of range") from None
     if not math.isfinite(v):
         raise ParamError(f"{where}.{key} must be finite [{unit}], got {v!r}")
     if lo is not None and v < lo or hi is not None and v > hi:
@@ -190,31 +306,51 @@ def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any 
 
 def _int(d, key, where, lo=None, hi=None, default: Any = ...):
     v = _num(d, key, where, lo, hi, default=default)
-    if v is not None and v is not ... and float(v) != int(v):
+    if v is None or v is ...:
+        return v
+    if float(v) != int(v):
         raise ParamError(f"{where}.{key} must be a whole number, got {v!r}")
     return int(v)
 
 
 def _choice(d, key, where, choices, default: Any = ...):
+    _map(d, where)
     if key not in d:
         if default is ...:
             raise ParamError(f"{where}.{key} is missing (one of {choices})")
         return default
     v = d[key]
-    if v not in choices:
-        raise ParamError(f"{where}.{key} must be one of {choices}, got {v!r}")
+    if not isinstance(v, str) or v not in choices:
+        raise ParamError(f"{where}.{key} must be one of {choices}, got {_short(v)}")
     return v
 
 
+def _text(d, key, where, default: str) -> str:
+    """A name: a string (a number is accepted and written as text)."""
+    v = _map(d, where).get(key, default)
+    if v is None:
+        return default
+    if isinstance(v, bool) or not isinstance(v, (str, int, float)):
+        raise ParamError(f"{where}.{key} must be a name (text), got {_kind(v)} {_short(v)}")
+    return str(v)
+
+
 def _section(d, key, where, kind=dict, optional=False):
+    _map(d, where)
     if key not in d or d[key] is None:
         if optional:
             return None
         raise ParamError(f"{where}.{key} is missing")
     v = d[key]
     if not isinstance(v, kind):
-        raise ParamError(f"{where}.{key} must be a {'mapping' if kind is dict else 'list'}, got {type(v).__name__}")
+        raise ParamError(f"{where}.{key} must be {'a mapping' if kind is dict else 'a list'}, got {_kind(v)} "
+                         f"{_short(v)}")
     return v
+
+
+def _numbers(v, where: str, lo=None, hi=None, unit="-") -> tuple:
+    """A list of numbers (each checked like :func:`_num`)."""
+    return tuple(_num({"v": x}, "v", f"{where}[{i}]", lo, hi, unit) for i, x in enumerate(_list(v, where)))
 
 
 def _node(d, key, where, n_nodes):
@@ -224,6 +360,7 @@ def _node(d, key, where, n_nodes):
 
 def parse_shaft(d: dict) -> Shaft:
     w = "shaft"
+    _map(d, w)
     length = _num(d, "length", w, 1e-3, 100, "m")
     n_el = _int(d, "n_elements", w, 1, 500)
     el = d.get("element_lengths")
@@ -231,8 +368,9 @@ def parse_shaft(d: dict) -> Shaft:
         el = (length / n_el,) * n_el
     else:
         if not isinstance(el, list) or len(el) != n_el:
-            raise ParamError(f"{w}.element_lengths must be a list of {n_el} lengths [m] or null")
-        el = tuple(_num({"v": x}, "v", f"{w}.element_lengths[{i}]", 1e-5, 100, "m") for i, x in enumerate(el))
+            raise ParamError(f"{w}.element_lengths must be a list of {n_el} lengths [m] or null, got {_kind(el)} "
+                             f"{_short(el)}")
+        el = _numbers(el, f"{w}.element_lengths", 1e-5, 100, "m")
         if abs(sum(el) - length) > 1e-9 * max(1.0, length):
             raise ParamError(f"{w}.element_lengths sum to {sum(el)!r} m, not shaft.length = {length!r} m")
     return Shaft(
@@ -250,6 +388,7 @@ def parse_shaft(d: dict) -> Shaft:
 
 
 def parse_excitation(d: dict, where: str, n_nodes: int) -> ExcitationEntry:
+    _map(d, where)
     kind = _choice(d, "kind", where, ("unbalance", "force"))
     direction = _choice(d, "direction", where, ("forward", "x", "y") if kind == "force" else ("forward",),
                         default="forward" if kind == "unbalance" else ...)
@@ -269,14 +408,26 @@ def parse_excitation(d: dict, where: str, n_nodes: int) -> ExcitationEntry:
 
 
 def parse_rig(d: dict) -> RigParams:
-    """Validate a rig mapping (as loaded from YAML) into :class:`RigParams`."""
+    """Validate a rig mapping (as loaded from YAML) into :class:`RigParams`; every problem is a ParamError naming
+    the field."""
     if not isinstance(d, dict):
-        raise ParamError("the rig file must be a YAML mapping")
+        raise ParamError(f"the rig file must be a YAML mapping (name:, shaft:, bearings:, ...), got {_kind(d)}")
+    try:
+        return _parse_rig(d)
+    except ParamError:
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, ArithmeticError) as exc:
+        # every field is checked above; this is the last line for a shape nobody foresaw
+        raise ParamError(f"malformed rig file ({type(exc).__name__}: {_short(str(exc), 200)})") from None
+
+
+def _parse_rig(d: dict) -> RigParams:
     shaft = parse_shaft(_section(d, "shaft", "rig"))
     nn = shaft.n_nodes
     discs = []
     for i, dd in enumerate(_section(d, "discs", "rig", list, optional=True) or []):
         w = f"discs[{i}]"
+        _map(dd, w)
         od = _num(dd, "outer_diameter", w, 1e-4, 10, "m")
         idd = _num(dd, "inner_diameter", w, 0, od, "m", default=shaft.diameter)
         discs.append(Disc(node=_node(dd, "node", w, nn), outer_diameter=od, inner_diameter=idd,
@@ -286,19 +437,23 @@ def parse_rig(d: dict) -> RigParams:
     bearings = []
     for i, bd in enumerate(_section(d, "bearings", "rig", list)):
         w = f"bearings[{i}]"
+        _map(bd, w)
         bearings.append(Bearing(
-            name=str(bd.get("name", f"bearing{i + 1}")), node=_node(bd, "node", w, nn),
+            name=_text(bd, "name", w, f"bearing{i + 1}"), node=_node(bd, "node", w, nn),
             diameter=_num(bd, "diameter", w, 1e-4, 10, "m"), length=_num(bd, "length", w, 1e-5, 10, "m"),
             clearance=_num(bd, "clearance", w, 1e-7, 1e-2, "m"),
             viscosity=_num(bd, "viscosity", w, 1e-5, 10, "Pa s"),
             load=_num(bd, "load", w, 0, 1e7, "N", default=None, allow_none=True),
             model=_choice(bd, "model", w, ("short", "finite"), default="short")))
+    if not bearings:
+        raise ParamError("rig.bearings is empty (a rotor needs its bearings)")
     if len({b.node for b in bearings}) != len(bearings):
         raise ParamError("bearings: two bearings on one node")
     probes = []
     for i, pd in enumerate(_section(d, "probes", "rig", list, optional=True) or []):
         w = f"probes[{i}]"
-        probes.append(Probe(name=str(pd.get("name", f"probe{i}")), node=_node(pd, "node", w, nn),
+        _map(pd, w)
+        probes.append(Probe(name=_text(pd, "name", w, f"probe{i}"), node=_node(pd, "node", w, nn),
                             direction=_choice(pd, "direction", w, ("x", "y"))))
     sim = None
     sd = _section(d, "simulation", "rig", optional=True)
@@ -310,22 +465,25 @@ def parse_rig(d: dict) -> RigParams:
         def per_bearing(key):
             v = td.get(key, [1.0] * nb)
             if not isinstance(v, list) or len(v) != nb:
-                raise ParamError(f"simulation.truth.{key} must be a list with one factor per bearing ({nb})")
-            return tuple(_num({"v": x}, "v", f"simulation.truth.{key}[{j}]", 0.05, 20, "-") for j, x in enumerate(v))
+                raise ParamError(f"simulation.truth.{key} must be a list with one factor per bearing ({nb}), got "
+                                 f"{_kind(v)} {_short(v)}")
+            return _numbers(v, f"simulation.truth.{key}", 0.05, 20)
 
         truth = Truth(bearing_model=_choice(td, "bearing_model", f"{w}.truth", ("short", "finite"), default="short"),
                       viscosity_factor=per_bearing("viscosity_factor"),
                       clearance_factor=per_bearing("clearance_factor"))
         runs = []
         for j, rd in enumerate(_section(sd, "runs", w, list)):
-            ex = tuple(parse_excitation(e, f"{w}.runs[{j}].excitation[{k}]", nn)
-                       for k, e in enumerate(_section(rd, "excitation", f"{w}.runs[{j}]", list)))
-            runs.append(Run(id=str(rd.get("id", chr(ord("A") + j))), excitation=ex))
-        speeds = _section(sd, "speeds_rpm", w, list)
+            wr = f"{w}.runs[{j}]"
+            _map(rd, wr)
+            ex = tuple(parse_excitation(e, f"{wr}.excitation[{k}]", nn)
+                       for k, e in enumerate(_section(rd, "excitation", wr, list)))
+            runs.append(Run(id=_text(rd, "id", wr, chr(ord("A") + j % 26)), excitation=ex))
+        speeds = _numbers(_section(sd, "speeds_rpm", w, list), f"{w}.speeds_rpm", 0, 1e6, "rpm")
         sim = Simulation(
             sample_rate=_num(sd, "sample_rate", w, 10, 1e7, "Hz"),
             block_size=_int(sd, "block_size", w, 16, 1 << 20, default=1024),
-            speeds_rpm=tuple(_num({"v": s}, "v", f"{w}.speeds_rpm[{k}]", 0, 1e6, "rpm") for k, s in enumerate(speeds)),
+            speeds_rpm=speeds,
             dwell=_num(sd, "dwell", w, 1e-3, 1e5, "s"),
             ramp=_num(sd, "ramp", w, 0, 1e4, "s", default=0.0),
             noise=_num(sd, "noise", w, 0, 1, "-", default=0.0),
@@ -334,24 +492,28 @@ def parse_rig(d: dict) -> RigParams:
     mt = None
     md = _section(d, "modal_test", "rig", optional=True)
     if md is not None:
-        mt = ModalTest(measured_hz=tuple(float(x) for x in md.get("measured_hz", [])),
-                       paper_initial_hz=tuple(float(x) for x in md.get("paper_initial_hz", [])),
-                       paper_updated_hz=tuple(float(x) for x in md.get("paper_updated_hz", [])))
-    return RigParams(name=str(d.get("name", "rig")), shaft=shaft, discs=tuple(discs), bearings=tuple(bearings),
-                     probes=tuple(probes), simulation=sim, modal_test=mt, extra=dict(d.get("extra", {}) or {}))
+        w = "modal_test"
+
+        def hz(key):
+            v = md.get(key)
+            return () if v is None else _numbers(v, f"{w}.{key}", 0, 1e7, "Hz")
+
+        mt = ModalTest(measured_hz=hz("measured_hz"), paper_initial_hz=hz("paper_initial_hz"),
+                       paper_updated_hz=hz("paper_updated_hz"))
+    extra = d.get("extra")
+    if extra is not None and not isinstance(extra, dict):
+        raise ParamError(f"rig.extra must be a mapping, got {_kind(extra)} {_short(extra)}")
+    return RigParams(name=_text(d, "name", "rig", "rig"), shaft=shaft, discs=tuple(discs), bearings=tuple(bearings),
+                     probes=tuple(probes), simulation=sim, modal_test=mt, extra=dict(extra or {}))
 
 
 def load_rig(path: str | Path | None = None) -> RigParams:
-    """Load a rig YAML file; ``None`` loads the packaged default ``params/rig.yaml``."""
+    """Load a rig YAML file; ``None`` loads the packaged default ``params/rig.yaml``.  Bounded reading
+    (:func:`load_yaml_bounded`); every problem is a ParamError naming the file and the field."""
     path = Path(path) if path is not None else default_rig_path()
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ParamError(f"cannot read parameter file {path}: {exc}") from exc
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ParamError(f"{path} is not valid YAML: {exc}") from exc
+    if path.is_dir():
+        raise ParamError(f"cannot read parameter file {path}: it is a directory")
+    data = load_yaml_bounded(path, f"parameter file {path}")
     try:
         return parse_rig(data)
     except ParamError as exc:
@@ -379,4 +541,5 @@ def default_rig_path() -> Path:
 
 
 __all__ = ["ParamError", "Shaft", "Disc", "Bearing", "Probe", "ExcitationEntry", "Run", "Truth", "Simulation",
-           "ModalTest", "RigParams", "parse_rig", "load_rig", "default_rig_path", "GRAVITY"]
+           "ModalTest", "RigParams", "parse_rig", "load_rig", "default_rig_path", "load_yaml_bounded",
+           "check_yaml_events", "GRAVITY"]

@@ -85,6 +85,8 @@ class Recording:
     segments : list of (i0, i1, speed [rad/s], steady) sample ranges of constant speed (truth bookkeeping).
     truth : dict with 'coefficients': {speed_rad_s: {node: (K, C)}} of the truth bearings, and 'description'.
     rig_name : str.
+    gaps : sample indices at which the record resumes after lost data (a bag with a missing block); no steady window
+        spans a gap.
     """
     sample_rate: float
     t: np.ndarray
@@ -96,6 +98,7 @@ class Recording:
     segments: list = field(default_factory=list)
     truth: dict = field(default_factory=dict)
     rig_name: str = "rig"
+    gaps: tuple = ()
 
     @property
     def channels(self) -> list[str]:
@@ -133,39 +136,253 @@ def _truth_arrays(coeffs: dict):
     return np.array(speeds), np.array(nodes), K, C
 
 
+# .npz reading: every member's header is read (a few hundred bytes each) and the arrays' declared shapes, dtypes
+# and sizes are checked against each other and against the zip member before any array is read.
+NPZ_BOMB_RATIO = 200                 # uncompressed / compressed: float data compresses ~1-3x, zeros ~1000x
+NPZ_BOMB_MIN_BYTES = 64 << 20        # ... a member is judged by that ratio only above this size
+NPZ_REQUIRED = ("sample_rate", "speed", "angle", "samples", "channels", "nodes", "directions")
+NPZ_EXCITATION = ("ex_kind", "ex_node", "ex_magnitude", "ex_phase", "ex_direction", "ex_frequency_ratio")
+
+
+def _npz_memory_budget() -> int:
+    """Bytes the arrays of one .npz may declare in total: half the physical memory (at least 1 GiB), or
+    ``BEARING_ID_NPZ_MAX_BYTES``."""
+    import os
+    env = os.environ.get("BEARING_ID_NPZ_MAX_BYTES")
+    if env:
+        try:
+            return int(float(env))
+        except ValueError:
+            pass
+    try:
+        return max(1 << 30, os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def _npz_headers(zf, path: Path) -> dict:
+    """{key: (ZipInfo, shape, dtype)} from the .npy headers of every member (nothing else decompressed)."""
+    import zipfile
+    fmt = np.lib.format
+    out = {}
+    total = 0
+    disk = path.stat().st_size
+    for info in zf.infolist():
+        name = info.filename
+        if not name.endswith(".npy"):
+            continue            # np.savez writes only .npy members; anything else is ignored
+        key = name[:-4]
+        if info.flag_bits & 0x1:
+            raise ValueError(f"{path}: member {name} is encrypted")
+        if info.compress_size > disk:
+            raise ValueError(f"{path}: member {name} claims {info.compress_size} stored bytes in a file of {disk} "
+                             f"(corrupt or crafted zip directory; refused unread)")
+        try:
+            with zf.open(info) as fh:
+                version = fmt.read_magic(fh)
+                if version == (1, 0):
+                    shape, _fortran, dtype = fmt.read_array_header_1_0(fh)
+                elif version in ((2, 0), (3, 0)):
+                    shape, _fortran, dtype = fmt.read_array_header_2_0(fh)
+                else:
+                    raise ValueError(f"unsupported .npy version {version}")
+                header_len = fh.tell()
+        except (zipfile.BadZipFile, EOFError, OSError, ValueError, NotImplementedError, RuntimeError,
+                SyntaxError, TypeError) as exc:
+            raise ValueError(f"{path}: member {name} has no readable array header ({type(exc).__name__}: {exc})") \
+                from None
+        except Exception as exc:  # zlib.error and the like
+            raise ValueError(f"{path}: member {name} is corrupt ({type(exc).__name__}: {exc})") from None
+        if dtype.hasobject:
+            raise ValueError(f"{path}: {key} holds Python objects (pickled data is never loaded)")
+        count = 1
+        for s in shape:
+            count *= int(s)
+        nbytes = count * dtype.itemsize
+        if info.file_size != header_len + nbytes:
+            raise ValueError(f"{path}: {key} declares shape {shape} of {dtype} ({nbytes} bytes) but its zip member "
+                             f"holds {info.file_size - header_len} bytes of data (corrupt or crafted; refused unread)")
+        if nbytes > NPZ_BOMB_MIN_BYTES and info.file_size > NPZ_BOMB_RATIO * max(info.compress_size, 1):
+            raise ValueError(f"{path}: {key} would expand {info.compress_size} compressed bytes to {nbytes} "
+                             f"(ratio > {NPZ_BOMB_RATIO}: a zip bomb, refused unread)")
+        total += nbytes
+        out[key] = (info, tuple(int(s) for s in shape), dtype)
+    budget = _npz_memory_budget()
+    if total > budget:
+        raise ValueError(f"{path}: its arrays declare {total} bytes, more than the {budget} this machine allows "
+                         f"(BEARING_ID_NPZ_MAX_BYTES) -- refused unread")
+    return out
+
+
+def _npz_check_layout(h: dict, path: Path) -> None:
+    """Shapes and dtypes of a recording, from the headers alone (see :meth:`Recording.save_npz`)."""
+    def kind(key, kinds, what):
+        if key in h and h[key][2].kind not in kinds:
+            raise ValueError(f"{path}: {key} must be {what}, has dtype {h[key][2]}")
+
+    def shape(key):
+        return h[key][1]
+
+    missing = [k for k in NPZ_REQUIRED if k not in h]
+    if missing:
+        raise ValueError(f"{path}: not a bearing_id recording: lacks {missing} (has {sorted(h)[:12]})")
+    num, text, whole = "fiu", "US", "iuf"
+    for k in ("samples", "angle", "speed", "t", "sample_rate", "segments", "truth_speeds", "truth_K", "truth_C",
+              "ex_magnitude", "ex_phase", "ex_frequency_ratio"):
+        kind(k, num, "real numbers")
+    for k in ("nodes", "ex_node", "truth_nodes"):
+        kind(k, whole, "node numbers")
+    for k in ("channels", "directions", "ex_kind", "ex_direction", "run_id", "rig_name", "format"):
+        kind(k, text, "text")
+    s = shape("samples")
+    if len(s) != 2 or s[0] < 2 or s[1] < 1:
+        raise ValueError(f"{path}: samples must be (N >= 2 samples, n_channels >= 1), has shape {s}")
+    n, nch = s
+    for k in ("angle", "speed", "t"):
+        if k in h and shape(k) != (n,):
+            raise ValueError(f"{path}: {k} has shape {shape(k)} but samples has {n} rows: one {k} per sample needed")
+    for k in ("channels", "nodes", "directions"):
+        if shape(k) != (nch,):
+            raise ValueError(f"{path}: {k} has shape {shape(k)} but samples has {nch} column(s): one per channel")
+    if shape("sample_rate") not in ((), (1,)):
+        raise ValueError(f"{path}: sample_rate must be one number, has shape {shape('sample_rate')}")
+    for k in ("run_id", "rig_name", "format"):
+        if k in h and shape(k) not in ((), (1,)):
+            raise ValueError(f"{path}: {k} must be one string, has shape {shape(k)}")
+    present = [k for k in NPZ_EXCITATION if k in h]
+    if present:
+        if len(present) != len(NPZ_EXCITATION):
+            raise ValueError(f"{path}: excitation entries incomplete: has {present}, lacks "
+                             f"{[k for k in NPZ_EXCITATION if k not in h]}")
+        shapes = {shape(k) for k in NPZ_EXCITATION}
+        if len(shapes) != 1 or len(next(iter(shapes))) != 1:
+            raise ValueError(f"{path}: the ex_* arrays must be 1-D of one length, have shapes "
+                             f"{[shape(k) for k in NPZ_EXCITATION]}")
+    if "segments" in h and (len(shape("segments")) != 2 or shape("segments")[1] != 4):
+        raise ValueError(f"{path}: segments must be (k, 4), has shape {shape('segments')}")
+    truth = [k for k in ("truth_speeds", "truth_nodes", "truth_K", "truth_C") if k in h]
+    if truth:
+        if len(truth) != 4:
+            raise ValueError(f"{path}: truth arrays incomplete (has {truth})")
+        ns, nn = shape("truth_speeds"), shape("truth_nodes")
+        if len(ns) != 1 or len(nn) != 1 or ns[0] and (shape("truth_K") != (ns[0], nn[0], 2, 2)
+                                                     or shape("truth_C") != (ns[0], nn[0], 2, 2)):
+            raise ValueError(f"{path}: truth_K/truth_C must be (speeds, nodes, 2, 2) = ({ns}, {nn}, 2, 2), have "
+                             f"{shape('truth_K')}, {shape('truth_C')}")
+    if "gaps" in h and len(shape("gaps")) != 1:
+        raise ValueError(f"{path}: gaps must be 1-D, has shape {shape('gaps')}")
+
+
+def _nonfinite(a) -> str:
+    bad = ~np.isfinite(a)
+    if not bad.any():
+        return ""
+    idx = np.argwhere(bad)[0]
+    return f"{int(bad.sum())} of {a.size} values are NaN/inf (first at index {tuple(int(i) for i in idx)})"
+
+
+def check_recording(rec: "Recording", where: str = "recording") -> "Recording":
+    """Refuse a Recording the offline pipeline cannot use (ValueError naming what): sizes that disagree, a sample
+    rate that is not > 0, NaN/inf in samples/angle/speed/t, a displacement beyond
+    :data:`bearing_id.io.messages.MAX_PLAUSIBLE_DISPLACEMENT` (not metres, or damaged data), probe nodes < 1 or
+    directions other than x/y, excitation entries of unknown kind.  Returns ``rec``."""
+    fs = rec.sample_rate
+    if not (isinstance(fs, (int, float, np.floating, np.integer)) and math.isfinite(float(fs)) and fs > 0):
+        raise ValueError(f"{where}: sample_rate must be a number > 0 Hz, got {fs!r}")
+    x = np.asarray(rec.samples)
+    if x.ndim != 2 or x.shape[0] < 2 or x.shape[1] < 1:
+        raise ValueError(f"{where}: samples must be (N >= 2, n_channels >= 1), has shape {x.shape}")
+    if x.shape[1] != len(rec.probes):
+        raise ValueError(f"{where}: {x.shape[1]} sample column(s) but {len(rec.probes)} channel(s)")
+    for name in ("angle", "speed", "t"):
+        a = np.asarray(getattr(rec, name))
+        if a.shape != (x.shape[0],):
+            raise ValueError(f"{where}: {name} has shape {a.shape}, samples has {x.shape[0]} rows")
+    for name in ("samples", "angle", "speed", "t"):
+        problem = _nonfinite(np.asarray(getattr(rec, name), dtype=float))
+        if problem:
+            raise ValueError(f"{where}: {name}: {problem}; remove or repair those samples")
+    from .io.messages import MAX_PLAUSIBLE_DISPLACEMENT as limit
+    peak = float(np.max(np.abs(x)))
+    if peak > limit:
+        i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
+        raise ValueError(f"{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m a shaft "
+                         f"displacement can be: not metres (mm or um?) or damaged data")
+    for p in rec.probes:
+        if p.direction not in ("x", "y") or int(p.node) < 1:
+            raise ValueError(f"{where}: channel {p.name!r}: node {p.node} direction {p.direction!r} (need a 1-based "
+                             f"node and x or y)")
+    for e in rec.run.excitation:
+        if e.kind not in ("unbalance", "force") or e.direction not in ("forward", "x", "y") or e.node < 1 \
+                or not all(math.isfinite(v) for v in (e.magnitude, e.phase, e.frequency_ratio)):
+            raise ValueError(f"{where}: run {rec.run.id}: invalid excitation entry {e}")
+    return rec
+
+
 def load_npz(path: str | Path) -> Recording:
-    """Read a recording written by :meth:`Recording.save_npz`; raises ValueError naming what is wrong."""
+    """Read a recording written by :meth:`Recording.save_npz`; raises ValueError naming what is wrong.
+
+    Hostile files are refused before anything large is read: the zip directory and every member's .npy header are
+    checked first (declared size = the member's size, no zip bomb, total within memory, no pickled objects), then the
+    shapes against each other (samples rows = angle = speed = t, channel metadata = sample columns, excitation and
+    truth arrays consistent), then the values (:func:`check_recording`)."""
+    import zipfile
     path = Path(path)
     try:
-        d = np.load(path, allow_pickle=False)
-    except Exception as exc:  # zipfile / OSError / ValueError on a truncated file
-        raise ValueError(f"{path}: not a readable .npz recording ({exc})") from exc
-    need = ("sample_rate", "speed", "angle", "samples", "channels", "nodes", "directions")
-    missing = [k for k in need if k not in d.files]
-    if missing:
-        raise ValueError(f"{path}: recording lacks {missing}")
-    samples = np.asarray(d["samples"], dtype=float)
-    if samples.ndim != 2 or samples.shape[1] != len(d["channels"]):
-        raise ValueError(f"{path}: samples must be (N, n_channels) with one column per channel")
-    probes = tuple(Probe(str(c), int(n), str(r)) for c, n, r in zip(d["channels"], d["nodes"], d["directions"]))
-    ex = []
-    if "ex_kind" in d.files:
-        for k, n, m, p, r, f in zip(d["ex_kind"], d["ex_node"], d["ex_magnitude"], d["ex_phase"], d["ex_direction"],
-                                    d["ex_frequency_ratio"]):
-            ex.append(ExcitationEntry(str(k), int(n), float(m), float(p), str(r), float(f)))
-    n = samples.shape[0]
-    fs = float(d["sample_rate"])
-    truth = {}
-    if "truth_speeds" in d.files and len(d["truth_speeds"]):
-        truth["coefficients"] = {float(s): {int(nd): (d["truth_K"][i, j], d["truth_C"][i, j])
-                                            for j, nd in enumerate(d["truth_nodes"])}
-                                 for i, s in enumerate(d["truth_speeds"])}
-    segs = [(int(a), int(b), float(s), bool(st)) for a, b, s, st in d["segments"]] if "segments" in d.files else []
-    return Recording(sample_rate=fs, t=np.asarray(d["t"]) if "t" in d.files else np.arange(n) / fs,
-                     speed=np.asarray(d["speed"], dtype=float), angle=np.asarray(d["angle"], dtype=float),
-                     probes=probes, samples=samples, run=Run(str(d["run_id"]) if "run_id" in d.files else "?",
-                                                             tuple(ex)),
-                     segments=segs, truth=truth, rig_name=str(d["rig_name"]) if "rig_name" in d.files else "rig")
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise ValueError(f"{path}: not a readable .npz recording (not a zip archive: {exc})") from None
+    with zf:
+        h = _npz_headers(zf, path)
+        _npz_check_layout(h, path)
+
+        def get(key):
+            info = h[key][0]
+            try:
+                with zf.open(info) as fh:
+                    return np.lib.format.read_array(fh, allow_pickle=False)
+            except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, ValueError on a damaged member
+                raise ValueError(f"{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})") from None
+
+        def text(key, default):
+            return str(get(key).reshape(-1)[0]) if key in h else default
+
+        samples = np.asarray(get("samples"), dtype=float)
+        n = samples.shape[0]
+        fs = float(get("sample_rate").reshape(-1)[0])
+        nodes = get("nodes")
+        if not np.all(np.isfinite(nodes)) or np.any(nodes != np.round(nodes)) or np.any(nodes < 1):
+            raise ValueError(f"{path}: nodes must be 1-based whole numbers, got {nodes.tolist()[:8]}")
+        probes = tuple(Probe(str(c), int(nd), str(r)) for c, nd, r in zip(get("channels"), nodes, get("directions")))
+        ex = []
+        if "ex_kind" in h:
+            cols = [get(k) for k in NPZ_EXCITATION]
+            if not np.all(np.isfinite(cols[1])):
+                raise ValueError(f"{path}: ex_node must be node numbers")
+            for k, nd, m, p, r, f in zip(*cols):
+                ex.append(ExcitationEntry(str(k), int(nd), float(m), float(p), str(r), float(f)))
+        truth = {}
+        if "truth_speeds" in h and h["truth_speeds"][1][0]:
+            ts, tn, tK, tC = (get(k) for k in ("truth_speeds", "truth_nodes", "truth_K", "truth_C"))
+            truth["coefficients"] = {float(s): {int(nd): (tK[i, j], tC[i, j]) for j, nd in enumerate(tn)}
+                                     for i, s in enumerate(ts)}
+        segs = []
+        if "segments" in h:
+            for a, b, s, st in get("segments"):
+                if not (math.isfinite(a) and math.isfinite(b) and 0 <= a <= b <= n):
+                    raise ValueError(f"{path}: segment ({a}, {b}) is outside the {n} samples")
+                segs.append((int(a), int(b), float(s), bool(st)))
+        extra = {}
+        if "gaps" in h and "gaps" in {f.name for f in dataclasses.fields(Recording)}:
+            g = get("gaps")
+            if not np.all(np.isfinite(g)) or np.any((g < 0) | (g > n)):
+                raise ValueError(f"{path}: gaps must be sample indices in [0, {n}]")
+            extra["gaps"] = tuple(int(i) for i in g)
+        rec = Recording(sample_rate=fs, t=np.asarray(get("t"), dtype=float) if "t" in h else np.arange(n) / fs,
+                        speed=np.asarray(get("speed"), dtype=float), angle=np.asarray(get("angle"), dtype=float),
+                        probes=probes, samples=samples, run=Run(text("run_id", "?"), tuple(ex)),
+                        segments=segs, truth=truth, rig_name=text("rig_name", "rig"), **extra)
+    return check_recording(rec, str(path))
 
 
 # ------------------------------------------------------------------------------------------------- truth model

@@ -17,8 +17,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                    "order and speed, sub-synchronous lines, slow roll), fit candidate effects, rank "
                                    "them by BIC with held-out validation, and write the verdict, the augmented "
                                    "params file and a before/after report.")
-    p.add_argument("recordings", nargs="+", help="recording files: .npz (bearing-id simulate / DAQ export) or a bag "
-                                                  "directory / .mcap / .db3 (one run per /rotor/excitation)")
+    p.add_argument("recordings", nargs="+", help="recording files: .npz (bearing-id simulate / DAQ export), .csv "
+                                                  "(DAQ export) or a bag directory (one run per /rotor/excitation)")
     p.add_argument("--params", help="nominal rig YAML (default: the packaged params/rig.yaml)")
     p.add_argument("--json", help="write the diagnosis JSON here")
     p.add_argument("--report", help="directory for plots, summary.txt and augmented_params.yaml")
@@ -39,30 +39,20 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def _load(paths) -> list:
-    from ..rig import load_npz
-    recs = []
-    for s in paths:
-        path = Path(s)
-        if not path.exists():
-            raise FileNotFoundError(f"no such recording: {path}")
-        if path.suffix == ".npz":
-            try:
-                recs.append(load_npz(path))
-            except ValueError as exc:
-                raise ParamError(str(exc)) from None
-        else:
-            from ..identify.harmonics import recordings_from_bag
-            recs.extend(recordings_from_bag(path))
-    return recs
+    """Recordings from .npz / .csv files and bags (one per excitation run); ParamError (exit 2) for any bad input."""
+    from .inputs import load_recordings
+    return load_recordings(paths)
 
 
 def run(args) -> int:
-    from ..diagnose import diagnose
-    from ..diagnose.report import write_json, write_params, write_report
     if not 0 <= args.rel_tol < 1:
         raise ParamError("--rel-tol must be in [0, 1)")
+    from .inputs import attach_excitation, check_probe_nodes
     rig = load_rig(args.params)
-    recs = _load(args.recordings)
+    recs = attach_excitation(_load(args.recordings), rig, required=False)   # all checked before the heavy imports
+    check_probe_nodes(recs, rig.shaft.n_nodes)
+    from ..diagnose import diagnose
+    from ..diagnose.report import write_json, write_params, write_report
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings)
     except ValueError as exc:

@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                        description="Identify K [N/m] and C [N s/m] of each bearing per steady speed from .npz "
                                    "recordings (one file per excitation run) or a bag. Coefficients the data do "
                                    "not determine are named and the command exits 1 unless --allow-undetermined.")
-    p.add_argument("inputs", nargs="+", help=".npz recordings (one per run) or one bag (directory or .mcap)")
+    p.add_argument("inputs", nargs="+", help=".npz or .csv recordings (one per run) or one bag directory")
     p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
     p.add_argument("--method", default="paper", choices=("paper", "conventional", "direct", "physical"))
     p.add_argument("--json", help="write the results to this JSON file")
@@ -39,25 +39,19 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def load_data(inputs):
-    """HarmonicData from .npz files or a bag."""
+def load_data(inputs, rig=None):
+    """HarmonicData from .npz / .csv recordings (one per run) or one bag; ParamError (exit 2) for any bad input.
+    With ``rig``, a recording without excitation (a CSV export) takes that of the params' run of the same id."""
+    from .inputs import attach_excitation, load_recordings
+    recs = load_recordings(inputs, one_bag_only=True)
+    if rig is not None:
+        recs = attach_excitation(recs, rig, required=True)
     from ..identify import harmonics
-    paths = [Path(s) for s in inputs]
-    for p in paths:
-        if not p.exists():
-            raise FileNotFoundError(f"no such file: {p}")
-    if all(p.suffix == ".npz" for p in paths):
-        try:
-            return harmonics.from_npz(paths)
-        except ValueError as exc:
-            raise ParamError(str(exc)) from exc
-    if len(paths) != 1:
-        raise ParamError("give .npz recordings (one per run) or a single bag")
-    from ..io.bags import BagError
+    from .inputs import InputError
     try:
-        return harmonics.from_bag(paths[0])
-    except (ValueError, BagError) as exc:
-        raise ParamError(str(exc)) from exc
+        return harmonics.from_recordings(recs)
+    except ValueError as exc:
+        raise InputError(f"{', '.join(map(str, inputs))}: {exc}") from None
 
 
 def _fmt(v):
@@ -127,14 +121,13 @@ def bearing_vectors_plot(model, data, results, plot_path):
 
 
 def run(args) -> int:
+    from .inputs import check_probe_nodes
+    rig = load_rig(args.params)
+    data = load_data(args.inputs, rig)      # every input checked before the heavy imports
     from ..identify import identify
     from ..rotor.assembly import RotorModel
-    rig = load_rig(args.params)
     model = RotorModel.from_params(rig)
-    data = load_data(args.inputs)
-    for p in data.probes:
-        if p.node > model.n_nodes:
-            raise ParamError(f"probe {p.name} is at node {p.node} but the model has nodes 1..{model.n_nodes}")
+    check_probe_nodes(data.recordings, model.n_nodes)
     opts = {}
     if args.Q is not None:
         if args.method != "paper":

@@ -2,7 +2,8 @@
 
 The bag's raw CDR bytes are published unchanged (rclpy accepts serialized messages), paced by the bag timestamps in
 real time or ``--rate`` times faster, after every stream topic has at least ``--wait-for`` subscribers.  QoS matches
-the nodes (:mod:`bearing_id.nodes.common`): reliable, deep queue for streams; reliable + transient-local for
+the nodes (:mod:`bearing_id.nodes.common`): reliable, deep queue for streams; reliable + transient-local (latched)
+for a topic whose recorded ``offered_qos_profiles`` are all transient-local, and -- when the bag stores none -- for
 ``/rotor/excitation`` and ``/bearing_id/coefficients``.  A truncated or corrupt bag is played up to the damage, then
 the command says where it stopped and exits 2.
 """
@@ -38,11 +39,19 @@ def msg_class(msgtype: str):
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
 
 
+def latched(topic: str, profiles) -> bool:
+    """Replay ``topic`` latched: its recorded publishers all offered TRANSIENT_LOCAL (the bag's
+    ``offered_qos_profiles``), or -- none recorded -- it is one of bearing_id's latched topics."""
+    if profiles:
+        return all(getattr(q.durability, "name", "") == "TRANSIENT_LOCAL" for q in profiles)
+    return topic in LATCHED
+
+
 def run(args) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from ..io.bags import BagError, bag_topics, read_bag
+    from ..io.bags import BagError, bag_topics, offered_qos, read_bag
     from ..nodes.common import StopFlag, qos_latched, qos_stream
     if not args.rate > 0:
         print("bearing-id play: --rate must be > 0", file=sys.stderr)
@@ -50,6 +59,7 @@ def run(args) -> int:
     path = Path(args.bag)
     try:
         topics = bag_topics(path)
+        offered = offered_qos(path)
     except BagError as exc:
         print(f"bearing-id play: {exc}", file=sys.stderr)
         return 2
@@ -70,7 +80,7 @@ def run(args) -> int:
         except (ImportError, AttributeError, ValueError) as exc:
             print(f"bearing-id play: topic {t}: no rclpy class for {mt} ({exc}); skipped", file=sys.stderr)
             continue
-        pubs[t] = node.create_publisher(cls, t, qos_latched() if t in LATCHED else qos_stream())
+        pubs[t] = node.create_publisher(cls, t, qos_latched() if latched(t, offered.get(t)) else qos_stream())
     code = 0
     n = 0
     try:

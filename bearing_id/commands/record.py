@@ -1,8 +1,20 @@
 """``bearing-id record``: record ROS 2 topics into a rosbag2 bag (mcap or sqlite3), since ``ros2 bag`` is not on PyPI.
 
-Subscribes to each topic with the nodes' QoS (:mod:`bearing_id.nodes.common`), takes the raw serialized bytes (no
-decode, no re-encode) and writes them with :func:`bearing_id.io.bags.write_bag` when it stops: on SIGINT/SIGTERM,
-after ``--duration`` seconds, or after ``--idle`` seconds without a message (once something arrived).
+Subscribes to each topic with the nodes' QoS (:mod:`bearing_id.nodes.common`; latched topics as transient-local, so a
+message published before the recorder started is still recorded), takes the raw serialized bytes (no decode, no
+re-encode) and writes each message as it arrives (:class:`bearing_id.io.bags.BagWriter`).  It stops on SIGINT/SIGTERM,
+after ``--duration`` seconds, or after ``--idle`` seconds without a message (once something arrived), and then
+finishes the bag (index and ``metadata.yaml``).
+
+Surviving a kill: everything received is made durable at least every ``--flush`` seconds (default 1: the mcap chunk
+is closed, written and fsync'ed; sqlite3 commits), so ``kill -9`` or a power cut loses at most the last second.  Such
+a bag has no ``metadata.yaml``; readers say so, and ``bearing-id record --recover BAG`` salvages every complete
+message into a complete bag in place (the unfinished original is kept as ``BAG.unfinished``).
+
+QoS: each topic's ``offered_qos_profiles`` are the QoS its publishers really offer (``get_publishers_info_by_topic``
+when its first message arrives), as ``ros2 bag record`` stores them, so ``ros2 bag play`` (and ``bearing-id play``)
+replays a latched topic (``/rotor/excitation``: RELIABLE + TRANSIENT_LOCAL) as latched; when no publisher can be
+asked, the bearing_id nodes' QoS for that topic (:func:`bearing_id.io.bags.default_qos`).
 """
 from __future__ import annotations
 
@@ -23,15 +35,22 @@ DEFAULT_TOPICS = {
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("record", help="record ROS 2 topics into a bag (raw bytes; mcap or sqlite3)",
+    p = sub.add_parser("record", help="record ROS 2 topics into a bag (raw bytes; mcap or sqlite3; survives kill -9)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("bag", help="output bag directory (must not exist unless --overwrite)")
+    p.add_argument("bag", help="output bag directory (must not exist unless --overwrite); with --recover the "
+                               "unfinished bag to repair")
     p.add_argument("--topics", nargs="+", metavar="TOPIC[:TYPE]",
                    help="topics to record (default: all bearing_id topics); TYPE like pkg/msg/Name for others")
     p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument("--idle", type=float, help="stop after this many seconds without a message (once one arrived)")
+    p.add_argument("--flush", type=float, default=1.0, metavar="SECONDS",
+                   help="make what was received durable at least this often (default 1 s: a kill -9 loses at most "
+                        "that much)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing bag directory")
+    p.add_argument("--recover", action="store_true",
+                   help="do not record: turn the unfinished bag BAG (recorder killed, no metadata.yaml) into a "
+                        "complete one, keeping the original as BAG.unfinished")
     return p
 
 
@@ -48,11 +67,37 @@ def parse_topics(items) -> dict:
     return out
 
 
+def recover(path: Path) -> int:
+    from ..io.bags import BagError, recover_bag
+    try:
+        out, sv, backup = recover_bag(path)
+    except BagError as exc:
+        print(f"bearing-id record --recover: {exc}", file=sys.stderr)
+        return 2
+    counts = {t.topic: t.count for t in sv.topics.values()}
+    print(f"bearing-id record --recover: wrote {sv.message_count} message(s) to {out} ({sv.storage}): {counts}; "
+          f"read {sv.valid_bytes} of {sv.total_bytes} bytes of {sv.storage_file.name} ({sv.stopped}); the unfinished "
+          f"original is kept as {backup}")
+    return 0
+
+
+def publisher_qos(node, topic: str) -> list:
+    """The QoS every publisher of ``topic`` offers, as rosbags ``Qos`` (empty when none is known)."""
+    from ..io.bags import qos_from_rclpy
+    try:
+        return [qos_from_rclpy(i.qos_profile) for i in node.get_publishers_info_by_topic(topic)]
+    except Exception:  # pragma: no cover - graph query failed; the caller falls back to the nodes' QoS
+        return []
+
+
 def run(args) -> int:
+    path = Path(args.bag)
+    if args.recover:
+        return recover(path)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from ..io.bags import BagError, write_bag
+    from ..io.bags import BagError, BagWriter, default_qos, typestore
     from ..nodes.common import StopFlag, qos_latched, qos_stream
     from .play import LATCHED, msg_class
     try:
@@ -60,26 +105,49 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"bearing-id record: {exc}", file=sys.stderr)
         return 2
-    path = Path(args.bag)
+    if not args.flush > 0:
+        print("bearing-id record: --flush must be > 0 s", file=sys.stderr)
+        return 2
     if path.exists() and not args.overwrite:
         print(f"bearing-id record: {path} exists (use --overwrite)", file=sys.stderr)
+        return 2
+    unknown = [f"{t} ({ty})" for t, ty in topics.items() if ty not in typestore().types]
+    if unknown:
+        print(f"bearing-id record: unknown message type(s): {', '.join(unknown)}", file=sys.stderr)
+        return 2
+    classes = {}
+    for topic, typ in topics.items():
+        try:
+            classes[topic] = msg_class(typ)
+        except (ImportError, AttributeError, ValueError) as exc:
+            print(f"bearing-id record: no rclpy class for {typ} ({exc})", file=sys.stderr)
+            return 2
+    try:
+        writer = BagWriter(path, args.storage, overwrite=args.overwrite, flush_period=args.flush)
+    except BagError as exc:
+        print(f"bearing-id record: {exc}", file=sys.stderr)
         return 2
     stop = StopFlag().install()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("bearing_id_record")
-    got = []
     last = [None]
+    failure = []
 
     def cb_for(topic, typ):
         def cb(data):
-            now = node.get_clock().now().nanoseconds
-            got.append((topic, typ, now, bytes(data)))
+            try:
+                if topic not in writer.counts:
+                    writer.add_connection(topic, typ, publisher_qos(node, topic) or default_qos(topic))
+                writer.write(topic, typ, node.get_clock().now().nanoseconds, bytes(data))
+            except (BagError, OSError) as exc:      # disk full, ...: stop, keep what is on disk
+                failure.append(exc)
+                stop.event.set()
             last[0] = time.monotonic()
         return cb
 
     for topic, typ in topics.items():
         qos = qos_latched() if topic in LATCHED else (10 if topic == "/diagnostics" else qos_stream())
-        node.create_subscription(msg_class(typ), topic, cb_for(topic, typ), qos, raw=True)
+        node.create_subscription(classes[topic], topic, cb_for(topic, typ), qos, raw=True)
     t0 = time.monotonic()
     from rclpy.executors import SingleThreadedExecutor
     ex = SingleThreadedExecutor()
@@ -87,6 +155,7 @@ def run(args) -> int:
     try:
         while not stop.event.is_set():
             ex.spin_once(timeout_sec=0.05)
+            writer.maybe_flush()
             now = time.monotonic()
             if args.duration is not None and now - t0 >= args.duration:
                 break
@@ -95,14 +164,16 @@ def run(args) -> int:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    got.sort(key=lambda m: m[2])
+    if failure:
+        writer.abort()
+        print(f"bearing-id record: stopped: {failure[0]}; {writer.message_count} message(s) are in {path}, "
+              f"`bearing-id record --recover {path}` finishes it", file=sys.stderr)
+        return 2
     try:
-        write_bag(path, got, storage=args.storage, overwrite=args.overwrite)
+        writer.close()
     except BagError as exc:
         print(f"bearing-id record: {exc}", file=sys.stderr)
         return 2
-    counts = {}
-    for t, *_ in got:
-        counts[t] = counts.get(t, 0) + 1
-    print(f"bearing-id record: wrote {len(got)} message(s) to {path} ({args.storage}): {counts}")
+    print(f"bearing-id record: wrote {writer.message_count} message(s) to {path} ({args.storage}): "
+          f"{dict(writer.counts)}")
     return 0
