@@ -358,7 +358,7 @@ def _make_node():
     from ..io import messages as M
     from ..params import load_rig
     from .common import declare_parameters, qos_input, relative, subscribe_latched
-    from .runs import RunResolver
+    from .runs import MALFORMED, RunResolver, excitation_of
 
     class Identifier(Node):
         def __init__(self):
@@ -413,9 +413,8 @@ def _make_node():
 
         def on_excitation(self, msg):
             try:
-                run = M.excitation_from_msg(msg, self.core.model.n_nodes)
-                stamp = stamp_to_sec(msg.header.stamp)
-            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+                stamp, run = excitation_of(msg, self.core.model.n_nodes)
+            except MALFORMED as exc:
                 self._problem(f"malformed Excitation rejected: {exc}")
                 return
             new = False
@@ -431,7 +430,7 @@ def _make_node():
         def on_block(self, msg, source):
             try:
                 b = M.block_from_msg(msg)
-            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+            except MALFORMED as exc:
                 self._problem(f"malformed DisplacementBlock on the {source} stream: {exc}")
                 return
             mon = self.monitor if source == "measured" else self.monitor_est

@@ -30,7 +30,7 @@ from ..params import Probe
 from .common import (ERROR, OK, STALE, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION,
                      TOPIC_INNOVATION, TOPIC_SPEED, WARN, DiagItem, ParamSpec, StreamMonitor,
                      diagnostics_msg, qos_latched, qos_stream, run_node, sec_to_stamp, stamp_to_sec)
-from .runs import RunResolver
+from .runs import MALFORMED, RunResolver, excitation_of
 
 NAME = "kf_estimator"
 ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_validity)
@@ -380,9 +380,8 @@ def _make_node():
 
         def on_excitation(self, msg):
             try:
-                run = M.excitation_from_msg(msg, self.core.rotor.n_nodes)
-                stamp = stamp_to_sec(msg.header.stamp)
-            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+                stamp, run = excitation_of(msg, self.core.rotor.n_nodes)
+            except MALFORMED as exc:
                 self._problem(f"malformed Excitation rejected: {exc}")
                 return
             new, released = self.resolver.announce(stamp, run)
@@ -400,7 +399,7 @@ def _make_node():
         def on_block(self, msg):
             try:
                 b = M.block_from_msg(msg)
-            except (ValueError, TypeError, AttributeError, OverflowError) as exc:
+            except MALFORMED as exc:
                 self._problem(f"malformed DisplacementBlock rejected: {exc}")
                 return
             chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
