@@ -5,7 +5,12 @@ PYTHON := $(VENV)/bin/python
 PYTEST_ARGS ?= -q
 TESTS ?= test
 
-# DDS discovery stays on this machine (the default range multicasts on every interface).
+# DDS stays on this machine: LOCALHOST discovery, and the Fast DDS profile params/fastdds_localhost.xml, which binds
+# every socket that receives DDS traffic to 127.0.0.1 (UDPv4 on 127.0.0.1 + shared memory, no multicast);
+# test/test_stock_tools.py checks a node's sockets.  Another profile: `make demo DDS_PROFILE=/path/to/profile.xml`.
+DDS_PROFILE ?= $(CURDIR)/params/fastdds_localhost.xml
+export FASTRTPS_DEFAULT_PROFILES_FILE := $(DDS_PROFILE)
+export FASTDDS_DEFAULT_PROFILES_FILE := $(DDS_PROFILE)
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export BEARING_ID_VENV := $(VENV)
 export OPENBLAS_NUM_THREADS ?= 1

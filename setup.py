@@ -1,7 +1,8 @@
 """ament_python package bearing_id (ROS 2 Jazzy), also pip-installable (editable) into a plain venv.
 
-colcon / ament: the data_files put the resource-index marker, package.xml and params/*.yaml under share/bearing_id,
-and setup.cfg puts the console scripts in lib/bearing_id so that ``ros2 run bearing_id <node>`` finds them.
+colcon / ament: the data_files put the resource-index marker, package.xml, params/*.yaml and the Fast DDS profile
+params/fastdds_localhost.xml under share/bearing_id, and setup.cfg puts the console scripts in lib/bearing_id so that
+``ros2 run bearing_id <node>`` finds them.
 """
 from glob import glob
 
@@ -16,7 +17,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/params", sorted(glob("params/*.yaml"))),
+        ("share/" + package_name + "/params", sorted(glob("params/*.yaml") + glob("params/*.xml"))),
     ],
     install_requires=["setuptools"],
     zip_safe=False,

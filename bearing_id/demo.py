@@ -25,9 +25,11 @@ NODES = ("identifier", "kf_estimator", "sensor_driver")
 
 
 def ros_env(domain_id: int | None = None) -> dict:
-    """Environment for ROS processes: discovery on this machine only, a private domain id."""
+    """Environment for ROS processes: DDS on this machine only (LOCALHOST discovery and the loopback Fast DDS profile,
+    :func:`bearing_id.nodes.common.loopback_dds_env`), a private domain id."""
+    from .nodes.common import loopback_dds_env
     env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.update(loopback_dds_env())
     if domain_id is None:
         domain_id = int(env.get("ROS_DOMAIN_ID") or (10 + os.getpid() % 90))
     env["ROS_DOMAIN_ID"] = str(domain_id)
@@ -242,7 +244,8 @@ def main(argv=None) -> int:
     t0 = time.monotonic()
     print(f"bearing_id demo: rig {rig.name}, runs {[r.id for r in rig.simulation.runs]}, speeds {speeds} rpm, "
           f"method {args.method}, rate x{args.rate:g}, ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} (localhost only)")
-    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
+    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID",
+                                           "FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")})
     common = {"rig_params": args.params} if args.params else {}
     drv = dict(common, speeds_rpm=speeds, rate_factor=args.rate, wait_for_subscribers=2, exit_when_done=True)
     if args.dwell:

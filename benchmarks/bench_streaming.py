@@ -53,7 +53,8 @@ def run_once(rate: float, speeds, dwell: float, method: str, out: Path) -> dict:
         import shutil
         shutil.rmtree(rec_dir)
     env = ros_env()
-    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
+    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID",
+                                           "FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")})
     from bearing_id.params import load_rig
     rig = load_rig()
     n_runs = len(rig.simulation.runs)

@@ -3,8 +3,12 @@ teardown, upstream eProsima/Fast-DDS#6513, so each ROS participant lives in a bo
 
 * :func:`ros_python` -- a Python that imports rclpy and bearing_id_msgs (this one, else ``<repo>/.venv``); the
   :func:`require_ros` guard skips a ROS test when there is none -- except under CI (``CI`` set), where it fails.
-* :func:`ros_env` -- the environment for ROS subprocesses: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a
-  ``ROS_DOMAIN_ID`` unique to this test process (1..100, reserved with a lock file so parallel runs never share one).
+* :func:`ros_env` -- the environment for ROS subprocesses: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` plus the
+  Fast DDS profile ``params/fastdds_localhost.xml`` (UDPv4 on 127.0.0.1 + shared memory, discovery by unicast to
+  127.0.0.1), and a ``ROS_DOMAIN_ID`` unique to this test process (1..100, reserved with a lock file so parallel runs
+  never share one).
+* :func:`script` -- a console script of bearing_id: next to the ROS python (``.venv/bin``), else in a colcon install
+  (``<prefix>/lib/bearing_id/`` of ``AMENT_PREFIX_PATH``), else on ``PATH``.
 * :class:`RosProcess` -- a subprocess in its own process group with a hard kill timeout; ``interrupt()`` sends SIGINT
   and reports whether it exited within 5 s.
 * :func:`run` -- run to completion with a hard timeout (the process group is killed on expiry).
@@ -20,6 +24,7 @@ import functools
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -28,6 +33,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+DDS_PROFILE = REPO / "params" / "fastdds_localhost.xml"
 SESSION_START = time.time()
 DOMAIN_RANGE = range(1, 101)
 _domain_lock = None  # (domain id, open lock file) held for the life of this process
@@ -66,10 +72,36 @@ def require_ros() -> str:
     return py
 
 
+def script_candidates(name: str, python: str | None = None) -> list[Path]:
+    """Where a console script of bearing_id may be, in the order :func:`script` tries them: next to ``python`` (the
+    venv of ``make test``), in ``<prefix>/lib/bearing_id/`` of each ``AMENT_PREFIX_PATH`` entry (a colcon install,
+    where setup.cfg puts them and ``ros2 run`` looks), then on ``PATH``."""
+    out = []
+    if python:
+        out.append(Path(python).parent / name)
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            out.append(Path(prefix) / "lib" / "bearing_id" / name)
+    found = shutil.which(name)
+    if found:
+        out.append(Path(found))
+    return out
+
+
 def script(name: str) -> str:
-    """Path of a console script (sensor_driver, kf_estimator, identifier, bearing-id) next to the ROS python."""
+    """Path of a console script (sensor_driver, kf_estimator, identifier, bearing-id): see :func:`script_candidates`.
+    Fails (under CI) or skips the test when there is none."""
+    import pytest
+
     py = require_ros()
-    return str(Path(py).parent / name)
+    cands = script_candidates(name, py)
+    for c in cands:
+        if c.is_file() and os.access(c, os.X_OK):
+            return str(c)
+    text = f"console script {name!r} not found (looked at {', '.join(map(str, cands))})"
+    if os.environ.get("CI"):
+        pytest.fail(text)
+    pytest.skip(text)
 
 
 # -------------------------------------------------------------------------------------------------- environment
@@ -109,18 +141,29 @@ def _base_env() -> dict:
         env["LD_LIBRARY_PATH"] = os.pathsep.join(ld)
     else:
         env.pop("LD_LIBRARY_PATH", None)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    for k in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "FASTRTPS_DEFAULT_PROFILES_FILE",
-              "FASTDDS_DEFAULT_PROFILES_FILE", "ROS_DISCOVERY_SERVER"):
+    for k in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "ROS_DISCOVERY_SERVER", "RMW_FASTRTPS_USE_QOS_FROM_XML",
+              "FASTDDS_BUILTIN_TRANSPORTS"):
         env.pop(k, None)
+    env.update(loopback_dds_env())
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     env["PYTHONUNBUFFERED"] = "1"
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     return env
 
 
+def loopback_dds_env() -> dict:
+    """DDS on this machine: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule for every ROS process)
+    plus the Fast DDS profile :data:`DDS_PROFILE` (Fast DDS 2.x and 3.x variable names), which binds the sockets
+    that receive DDS traffic to 127.0.0.1.  The same as the Makefile and ``bearing_id.nodes.common.loopback_dds_env``;
+    kept here so the test helpers do not depend on the package under test."""
+    if not DDS_PROFILE.is_file():
+        raise FileNotFoundError(f"Fast DDS profile {DDS_PROFILE} is missing")
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE), "FASTDDS_DEFAULT_PROFILES_FILE": str(DDS_PROFILE),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+
 def ros_env(extra: dict | None = None) -> dict:
-    """os.environ + LOCALHOST discovery + this process's ROS_DOMAIN_ID (+ ``extra``)."""
+    """os.environ + DDS on loopback (:func:`loopback_dds_env`) + this process's ROS_DOMAIN_ID (+ ``extra``)."""
     env = _base_env()
     env["ROS_DOMAIN_ID"] = str(domain_id())
     if extra:
@@ -427,6 +470,7 @@ def sample_messages() -> list[dict]:
         {"topic": "/bearing_id_test/displacement", "type": "bearing_id_msgs/msg/DisplacementBlock",
          "fields": {"header": header, "sequence": 4_294_967_295, "sample_rate": 2560.0,
                     "speed": 314.1592653589793, "angle": 6.2,
+                    "sample_angles": [6.2 + 314.1592653589793 * i / 2560.0 for i in range(n)], "run_id": "Ä run",
                     "channels": ["probe_x", "probe_y", "probe_x2", "probe_y2"], "nodes": [3, 3, 7, 7],
                     "directions": ["x", "y", "x", "y"], "samples": samples}},
         {"topic": "/bearing_id_test/speed", "type": "bearing_id_msgs/msg/RotorSpeed",
@@ -466,7 +510,8 @@ def build_with_converters(sample: dict, types=None):
     if name == "DisplacementBlock":
         nch = len(f["channels"])
         return M.block_to_msg(np.array(f["samples"]).reshape(-1, nch), f["sequence"], f["sample_rate"], f["speed"],
-                              f["angle"], channels=f["channels"], nodes=f["nodes"], directions=f["directions"], **kw)
+                              f["angle"], channels=f["channels"], nodes=f["nodes"], directions=f["directions"],
+                              sample_angles=f["sample_angles"], run_id=f["run_id"], **kw)
     if name == "RotorSpeed":
         return M.speed_to_msg(f["speed"], f["angle"], **kw)
     if name == "Excitation":

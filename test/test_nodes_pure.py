@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bearing_id.daq import DaqError, angle_from_keyphasor, read_csv, read_daq, write_csv
-from bearing_id.nodes.common import ParamSpec, StreamMonitor, validate_values, yaml_block
+from bearing_id.nodes.common import ParamSpec, StreamMonitor, validate_values, with_common, yaml_block
 from bearing_id.params import ParamError, Probe, Run
 from bearing_id.record import Record
 
@@ -35,7 +35,7 @@ def test_defaults_validate_and_bad_values_name_the_parameter():
 def test_yaml_block_round_trips_defaults():
     import yaml
     text = yaml_block("sensor_driver", SPECS)
-    d = yaml.safe_load(text)["sensor_driver"]["ros__parameters"]
+    d = yaml.safe_load(text)["/**"]["ros__parameters"]
     assert d == {s.name: s.default for s in SPECS}
     assert text.count("#") >= len(SPECS)   # every default commented
 
@@ -149,15 +149,16 @@ def test_params_yaml_documents_every_parameter_with_its_default(node):
     from bearing_id.params import PACKAGE_PARAMS
     mod = importlib.import_module(f"bearing_id.nodes.{node}")
     text = (PACKAGE_PARAMS / f"{node}.yaml").read_text()
-    d = yaml.safe_load(text)[node]["ros__parameters"]
-    for s in mod.SPECS:
+    d = yaml.safe_load(text)["/**"]["ros__parameters"]
+    specs = with_common(mod.SPECS)
+    for s in specs:
         if s.default is None:
             assert f"# {s.name}:" in text and s.name not in d
         else:
             assert d[s.name] == (list(s.default) if isinstance(s.default, tuple) else s.default), s.name
         assert s.description.split(" (")[0][:40] in text.replace("\n    # ", " "), s.name
-    assert set(d) <= {s.name for s in mod.SPECS}
-    validate_values(mod.SPECS, d)
+    assert set(d) <= {s.name for s in specs}
+    validate_values(specs, d)
 
 
 def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path):

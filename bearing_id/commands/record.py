@@ -19,6 +19,8 @@ asked, the bearing_id nodes' QoS for that topic (:func:`bearing_id.io.bags.defau
 from __future__ import annotations
 
 import argparse
+import collections
+import hashlib
 import sys
 import time
 from pathlib import Path
@@ -98,7 +100,7 @@ def run(args) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from ..io.bags import BagError, BagWriter, default_qos, typestore
-    from ..nodes.common import StopFlag, qos_latched, qos_stream
+    from ..nodes.common import StopFlag, qos_stream, subscribe_latched
     from .play import LATCHED, msg_class
     try:
         topics = parse_topics(args.topics)
@@ -133,8 +135,15 @@ def run(args) -> int:
     last = [None]
     failure = []
 
+    seen = {t: collections.deque(maxlen=64) for t in topics if t in LATCHED}   # latched: heard twice (below)
+
     def cb_for(topic, typ):
         def cb(data):
+            if topic in seen:
+                key = hashlib.sha1(bytes(data)).digest()
+                if key in seen[topic]:
+                    return                     # the second copy of a transient-local publisher's message
+                seen[topic].append(key)
             try:
                 if topic not in writer.counts:
                     writer.add_connection(topic, typ, publisher_qos(node, topic) or default_qos(topic))
@@ -146,7 +155,10 @@ def run(args) -> int:
         return cb
 
     for topic, typ in topics.items():
-        qos = qos_latched() if topic in LATCHED else (10 if topic == "/diagnostics" else qos_stream())
+        if topic in LATCHED:       # transient-local AND volatile subscriptions: a plain `ros2 bag play` is heard too
+            subscribe_latched(node, classes[topic], topic, cb_for(topic, typ), raw=True)
+            continue
+        qos = 10 if topic == "/diagnostics" else qos_stream()
         node.create_subscription(classes[topic], topic, cb_for(topic, typ), qos, raw=True)
     t0 = time.monotonic()
     from rclpy.executors import SingleThreadedExecutor

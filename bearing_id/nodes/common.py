@@ -4,15 +4,30 @@ diagnostics assembly and the process main loop (clean exit on SIGINT/SIGTERM).
 The pure parts (:class:`ParamSpec`, :func:`validate_values`, :class:`StreamMonitor`, :class:`DiagItem`) import no ROS
 and are tested without it; the ROS parts import rclpy lazily.
 
+Topic names: the ``TOPIC_*`` constants are the names in the root namespace (what bags store and ``bearing-id
+play/record`` use); the nodes create their topics with :func:`relative` names, so a namespace (``--ros-args -r
+__ns:=/rig1``) moves them to ``/rig1/rotor/displacement`` etc.  ``/diagnostics`` stays absolute (the ROS convention:
+one aggregated topic).  Params files use the ``/**:`` key, so they apply to a node in any namespace.
+
 QoS (the choice, documented also in params/*.yaml and the README):
     * displacement blocks (``/rotor/displacement``, ``/bearing_id/bearing_displacement``, ``/bearing_id/innovation``):
       RELIABLE, KEEP_LAST with a deep queue (``QOS_STREAM_DEPTH`` blocks = 40 s of data at 1024 samples/10,240 Hz):
       identification needs contiguous blocks, so a slow subscriber must get back-pressure, not silent loss; the depth
       absorbs a model rebuild or a garbage-collection pause.  VOLATILE: a late joiner starts at the present.
     * ``/rotor/speed``: RELIABLE, KEEP_LAST 50.
-    * ``/rotor/excitation`` and ``/bearing_id/coefficients``: RELIABLE + TRANSIENT_LOCAL (latched), KEEP_LAST 20: a
-      node started late still learns the current run's excitation and the latest results.
+    * Subscriptions to the streams follow the parameter ``input_reliability`` (every node, :data:`COMMON_SPECS`):
+      ``reliable`` (default) or ``best_effort``, which also accepts a best-effort publisher (a DAQ driver with
+      SensorDataQoS); the trade-off: a block lost on the way is not re-sent, it is detected by its sequence number
+      and ends the steady window.  Publishers stay RELIABLE, which serves both kinds of subscriber.
+    * ``/rotor/excitation`` and ``/bearing_id/coefficients``: published RELIABLE + TRANSIENT_LOCAL (latched),
+      KEEP_LAST 20: a node started late still learns the current run's excitation and the latest results.  The
+      excitation is subscribed twice (:func:`subscribe_latched`): TRANSIENT_LOCAL to receive the latched value, and
+      VOLATILE to match a volatile publisher too (``ros2 bag play`` of a bag without recorded QoS offers RELIABLE,
+      VOLATILE, depth 10); a transient-local publisher matches both, and the callbacks ignore the repeat.
     * ``/diagnostics``: the ROS default (RELIABLE, VOLATILE, depth 10).
+
+DDS transport: ``params/fastdds_localhost.xml`` (:data:`FASTDDS_PROFILE`, :func:`loopback_dds_env`) confines Fast DDS to
+127.0.0.1 and shared memory; the Makefile and the tests choose it.
 """
 from __future__ import annotations
 
@@ -23,6 +38,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -30,6 +46,7 @@ import numpy as np
 from ..params import ParamError
 
 # ------------------------------------------------------------------------------------------------ topics
+# Names in the root namespace (bags, play/record, diagnostics texts); nodes create them as relative(TOPIC_...).
 TOPIC_DISPLACEMENT = "/rotor/displacement"
 TOPIC_SPEED = "/rotor/speed"
 TOPIC_EXCITATION = "/rotor/excitation"
@@ -37,6 +54,14 @@ TOPIC_BEARING_DISPLACEMENT = "/bearing_id/bearing_displacement"
 TOPIC_INNOVATION = "/bearing_id/innovation"
 TOPIC_COEFFICIENTS = "/bearing_id/coefficients"
 TOPIC_DIAGNOSTICS = "/diagnostics"
+
+
+def relative(topic: str) -> str:
+    """The name a node creates ``topic`` with: relative, so it resolves in the node's namespace
+    (``/rotor/displacement`` -> ``rotor/displacement``, i.e. ``/rig1/rotor/displacement`` under ``__ns:=/rig1`` and
+    unchanged in the root namespace).  ``/diagnostics`` stays absolute."""
+    return topic if topic == TOPIC_DIAGNOSTICS else topic.lstrip("/")
+
 
 QOS_STREAM_DEPTH = 400
 QOS_LATCHED_DEPTH = 20
@@ -109,7 +134,7 @@ def _check_number(spec: ParamSpec, v, where: str) -> float:
 def validate_value(spec: ParamSpec, v):
     """Check one value against its spec; returns it (ints kept int) or raises ParamError naming the parameter."""
     kind = spec.kind
-    if v is None and spec.default is None:
+    if spec.default is None and is_unset(v):
         return None
     if kind == "bool":
         if not isinstance(v, bool):
@@ -137,11 +162,53 @@ def validate_value(spec: ParamSpec, v):
                     raise ParamError(f"parameter '{spec.name}[{i}]' must be a string, got {x!r}")
             else:
                 _check_number(spec, x, f"{spec.name}[{i}]")
+        if kind == "float[]":
+            v = [float(x) for x in v]
     if spec.check is not None:
         msg = spec.check(v)
         if msg:
             raise ParamError(f"parameter '{spec.name}' = {v!r}: {msg}")
     return v
+
+
+def unset_value(kind: str):
+    """The typed value a parameter without a default is declared with, so that every declared parameter has a value
+    (rclpy's get_parameters service -- ``ros2 param dump`` -- answers nothing at all for a request that names a
+    declared parameter without one): an empty list, NaN for a float, '' for a string."""
+    if kind.endswith("[]"):
+        return []
+    if kind == "float":
+        return float("nan")
+    if kind == "str":
+        return ""
+    raise TypeError(f"a parameter of kind {kind} needs a default (no 'unset' value for it)")
+
+
+def is_unset(v) -> bool:
+    """True for the values that mean "unset" for a parameter without a default: None (``[]`` in a params file reads
+    as not set), an empty list, NaN, ''."""
+    if v is None or (isinstance(v, (list, tuple)) and len(v) == 0) or (isinstance(v, str) and v == ""):
+        return True
+    return isinstance(v, float) and math.isnan(v)
+
+
+INPUT_RELIABILITY = ("reliable", "best_effort")
+
+# Parameters every node declares (appended to its own specs by with_common()).
+COMMON_SPECS = [
+    ParamSpec("input_reliability", "reliable",
+              "reliability this node's stream subscriptions request (displacement, speed, bearing displacement; "
+              "sensor_driver has none): reliable = nothing lost, a slow node back-pressures the publisher; "
+              "best_effort = also accepts a best-effort publisher (e.g. a DAQ driver with SensorDataQoS), but a "
+              "block lost on the way is not re-sent (it is detected by its sequence number and ends the steady "
+              "window). Publishers stay reliable", choices=INPUT_RELIABILITY),
+]
+
+
+def with_common(specs: list[ParamSpec]) -> list[ParamSpec]:
+    """``specs`` + the :data:`COMMON_SPECS` it does not already hold: the parameters a node really declares."""
+    names = {s.name for s in specs}
+    return list(specs) + [c for c in COMMON_SPECS if c.name not in names]
 
 
 def validate_values(specs: list[ParamSpec], values: dict) -> dict:
@@ -160,10 +227,16 @@ def help_epilog(specs: list[ParamSpec]) -> str:
     return "\n".join(lines)
 
 
+PARAMS_KEY = "/**"
+
+
 def yaml_block(node_name: str, specs: list[ParamSpec]) -> str:
-    """The ``params/<node>.yaml`` text for ``specs`` (every default written and commented)."""
+    """The body of ``params/<node>.yaml`` for ``specs`` (every default written and commented; unset ones commented
+    out).  Keyed ``/**:`` (any node name, any namespace): a file keyed by the node name is silently ignored when
+    the node runs under a namespace (``/rig1/kf_estimator`` does not match ``kf_estimator:``).  ``node_name`` only
+    names the node in a comment."""
     import yaml
-    out = [f"{node_name}:", "  ros__parameters:"]
+    out = [f"{PARAMS_KEY}:  # the {node_name} node, under any namespace", "  ros__parameters:"]
     for s in specs:
         out.append("")
         for ln in _wrap(s.doc(), 110):
@@ -177,38 +250,67 @@ def yaml_block(node_name: str, specs: list[ParamSpec]) -> str:
     return "\n".join(out) + "\n"
 
 
+def write_params_file(path, node_name: str, specs: list[ParamSpec]) -> str:
+    """(Re)write ``params/<node>.yaml``: its leading comment block (the hand-written header) is kept, the body is
+    :func:`yaml_block` of ``with_common(specs)``.  Returns the text.  Regenerate all three after changing a node's
+    SPECS: ``python -m bearing_id.nodes.common``."""
+    path = Path(path)
+    header = []
+    if path.exists():
+        for ln in path.read_text().splitlines():
+            if ln.strip() and not ln.startswith("#"):
+                break
+            header.append(ln)
+        while header and not header[-1].strip():
+            header.pop()
+    text = ("\n".join(header) + "\n\n" if header else "") + yaml_block(node_name, with_common(specs))
+    path.write_text(text)
+    return text
+
+
 def _wrap(text: str, width: int) -> list[str]:
     import textwrap
     return textwrap.wrap(text, width) or [""]
 
 
 def declare_parameters(node, specs: list[ParamSpec]) -> dict:
-    """Declare ``specs`` on an rclpy node with descriptors (description + unit, numeric ranges, read-only) and
-    return the validated values.  Raises ParamError naming the parameter on any bad value."""
+    """Declare ``specs`` + :data:`COMMON_SPECS` on an rclpy node with descriptors (description + unit, numeric ranges,
+    read-only) and return the validated values.  Raises ParamError naming the parameter on any bad value.
+
+    Every parameter is declared with a value, so ``ros2 param dump`` / ``get_parameters`` answer for all of them: one
+    without a default gets its :func:`unset_value` ([] / NaN / '') and dynamic typing (an empty list has no element
+    type in rclpy, and a params file sets the typed value); its validated python value stays None."""
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
     from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                                   ParameterException)
+    from rclpy.parameter import Parameter
     values = {}
+    specs = with_common(specs)
     for s in specs:
         desc = ParameterDescriptor(description=s.doc(), read_only=True)
         kind = s.kind
-        if kind in ("float", "float[]") and (s.lo is not None or s.hi is not None):
+        if s.default is None:
+            desc.dynamic_typing = True      # type checked by validate_value; no range (NaN is not in one)
+        elif kind in ("float", "float[]") and (s.lo is not None or s.hi is not None):
             desc.floating_point_range = [FloatingPointRange(
                 from_value=float(-sys.float_info.max if s.lo is None else s.lo),
                 to_value=float(sys.float_info.max if s.hi is None else s.hi), step=0.0)]
-        if kind in ("int", "int[]") and (s.lo is not None or s.hi is not None):
+        if s.default is not None and kind in ("int", "int[]") and (s.lo is not None or s.hi is not None):
             desc.integer_range = [IntegerRange(from_value=int(-2**62 if s.lo is None else s.lo),
                                                to_value=int(2**62 if s.hi is None else s.hi), step=1)]
         if s.choices:
             desc.additional_constraints = "one of: " + ", ".join(map(str, s.choices))
         default = list(s.default) if isinstance(s.default, tuple) else s.default
+        # `[]` in a params file (what `ros2 param dump` writes for an unset list) reads as NOT_SET: declare the
+        # sentinel instead, so that a dump of this node shows [] again (a NOT_SET value dumps as null, which a params
+        # file reads as the string 'null')
+        ignore = False
         if default is None:
-            from rclpy.parameter import Parameter
-            default = {"bool": Parameter.Type.BOOL, "int": Parameter.Type.INTEGER, "float": Parameter.Type.DOUBLE,
-                       "str": Parameter.Type.STRING, "str[]": Parameter.Type.STRING_ARRAY,
-                       "int[]": Parameter.Type.INTEGER_ARRAY, "float[]": Parameter.Type.DOUBLE_ARRAY}[kind]
+            default = unset_value(kind)
+            override = getattr(node, "_parameter_overrides", {}).get(s.name)
+            ignore = override is not None and override.type_ == Parameter.Type.NOT_SET
         try:
-            p = node.declare_parameter(s.name, default, desc)
+            p = node.declare_parameter(s.name, default, desc, ignore_override=ignore)
         except (InvalidParameterValueException, InvalidParameterTypeException, ParameterException, TypeError) as exc:
             text = str(exc).split("\n")[0]
             raise ParamError(f"parameter '{s.name}': {text} (expected {s.doc()})") from None
@@ -217,16 +319,103 @@ def declare_parameters(node, specs: list[ParamSpec]) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ QoS
-def qos_stream(depth: int = QOS_STREAM_DEPTH):
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+def _reliability(name: str):
+    from rclpy.qos import ReliabilityPolicy
+    if name not in INPUT_RELIABILITY:
+        raise ParamError(f"reliability must be one of {list(INPUT_RELIABILITY)}, got {name!r}")
+    return ReliabilityPolicy.RELIABLE if name == "reliable" else ReliabilityPolicy.BEST_EFFORT
+
+
+def qos_stream(depth: int = QOS_STREAM_DEPTH, reliability: str = "reliable"):
+    """Data streams: KEEP_LAST ``depth``, VOLATILE, RELIABLE (``reliability='best_effort'`` for a subscription that
+    must also accept a best-effort publisher; see :func:`qos_input`)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=_reliability(reliability),
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def input_reliability(node) -> str:
+    """The node's ``input_reliability`` parameter (declared by :func:`declare_parameters`); 'reliable' for a node
+    that does not declare it (e.g. ``bearing-id record``)."""
+    if node.has_parameter("input_reliability"):
+        return node.get_parameter("input_reliability").value
+    return "reliable"
+
+
+def qos_input(node, depth: int = QOS_STREAM_DEPTH):
+    """QoS of a node's stream subscription: :func:`qos_stream` with the node's :func:`input_reliability`.  A
+    best-effort subscription matches reliable and best-effort publishers alike; a reliable one only reliable
+    publishers."""
+    return qos_stream(depth, input_reliability(node))
 
 
 def qos_latched(depth: int = QOS_LATCHED_DEPTH):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def subscribe_latched(node, msg_type, topic: str, callback, depth: int = QOS_LATCHED_DEPTH, raw: bool = False) -> tuple:
+    """Subscribe to a latched topic so that both kinds of publisher are heard; returns the two subscriptions.
+
+    * TRANSIENT_LOCAL + RELIABLE, KEEP_LAST ``depth``: receives what a transient-local publisher holds (the current
+      run's excitation from sensor_driver or ``bearing-id play``), also when this node starts after it was sent.
+      Its "incompatible QoS" event for a volatile publisher is expected and not logged.
+    * VOLATILE with the node's :func:`input_reliability`, KEEP_LAST ``depth``: matches a volatile publisher, e.g.
+      ``ros2 bag play`` of a bag recorded without QoS (it offers RELIABLE, VOLATILE, depth 10) or ``ros2 topic pub``.
+
+    A transient-local publisher matches both, so each of its messages arrives twice: ``callback`` must ignore a
+    repeat (the nodes' excitation callbacks do, through :meth:`ExcitationTimeline.add`; a recorder must drop the
+    second copy).  ``raw``: as for ``create_subscription`` (serialized bytes).
+    """
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
+
+    quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _event: None)
+    latched = node.create_subscription(msg_type, topic, callback, qos_latched(depth), event_callbacks=quiet, raw=raw)
+    volatile = node.create_subscription(
+        msg_type, topic, callback,
+        QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, durability=DurabilityPolicy.VOLATILE,
+                   reliability=_reliability(input_reliability(node))), raw=raw)
+    return latched, volatile
+
+
+# ------------------------------------------------------------------------------------------------ DDS transport
+FASTDDS_PROFILE = Path(__file__).resolve().parents[2] / "params" / "fastdds_localhost.xml"
+
+
+def fastdds_profile() -> Path | None:
+    """The Fast DDS profile that confines DDS to loopback: ``params/fastdds_localhost.xml`` of the source tree, else
+    the installed copy (``share/bearing_id/params``, colcon); None when neither exists."""
+    if FASTDDS_PROFILE.is_file():
+        return FASTDDS_PROFILE
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    except ImportError:
+        return None
+    try:
+        p = Path(get_package_share_directory("bearing_id")) / "params" / FASTDDS_PROFILE.name
+    except PackageNotFoundError:
+        return None
+    return p if p.is_file() else None
+
+
+def loopback_dds_env(profile: Path | str | None = None) -> dict:
+    """Environment variables that confine DDS to 127.0.0.1 and shared memory (no socket on another interface):
+
+    * ``FASTRTPS_DEFAULT_PROFILES_FILE`` / ``FASTDDS_DEFAULT_PROFILES_FILE`` = the profile (Fast DDS 2.x reads the
+      first, 3.x the second): UDPv4 restricted to 127.0.0.1 + SHM, discovery by unicast to 127.0.0.1, no multicast;
+    * ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (discovery by unicast to this host only; the project's rule for
+      every ROS process of its tests, demo and CI).  In that mode rmw_fastrtps (Jazzy) still opens two send-only
+      UDP sockets outside loopback (0.0.0.0 and the external interface, ephemeral ports) whatever the profile says;
+      every socket that *receives* DDS traffic is on 127.0.0.1.  (``SYSTEM_DEFAULT`` with this profile leaves no
+      socket outside loopback at all -- a choice for a plant's own launch environment.)
+    """
+    path = Path(profile) if profile is not None else fastdds_profile()
+    if path is None or not Path(path).is_file():
+        raise FileNotFoundError(f"Fast DDS profile not found: {path or FASTDDS_PROFILE}")
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(path), "FASTDDS_DEFAULT_PROFILES_FILE": str(path),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
 
 # ------------------------------------------------------------------------------------------------ diagnostics
@@ -430,7 +619,7 @@ def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
     from rclpy.utilities import remove_ros_args
     argv = list(sys.argv if argv is None else argv)
     non_ros = remove_ros_args(argv)[1:]
-    ap = argparse.ArgumentParser(prog=prog, description=description, epilog=help_epilog(specs),
+    ap = argparse.ArgumentParser(prog=prog, description=description, epilog=help_epilog(with_common(specs)),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ns = ap.parse_args(non_ros)
     return argv, ns
@@ -445,6 +634,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
     """
     argv, _ = parse_cli(prog, description, specs, argv)
     import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
     stop = StopFlag().install()
@@ -466,6 +656,9 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
             return 2
         except (FileNotFoundError, ValueError) as exc:
             print(f"{prog}: cannot start: {exc}", file=sys.stderr)
+            return 2
+        except RCLError as exc:     # e.g. ROS_SECURITY_ENABLE with a Fast DDS built without security, bad enclave
+            print(f"{prog}: cannot start: {str(exc).strip()}", file=sys.stderr)
             return 2
         ex = SingleThreadedExecutor()
         ex.add_node(node)
@@ -528,3 +721,14 @@ class ExcitationTimeline:
 
     def __len__(self):
         return len(self._runs)
+
+
+if __name__ == "__main__":  # python -m bearing_id.nodes.common [PARAMS_DIR]: regenerate params/<node>.yaml
+    import importlib
+
+    from bearing_id.nodes import common as _common   # the module the nodes' specs refer to, not this __main__ copy
+    _dir = Path(sys.argv[1]) if len(sys.argv) > 1 else _common.FASTDDS_PROFILE.parent
+    for _node in ("sensor_driver", "kf_estimator", "identifier"):
+        _specs = importlib.import_module(f"bearing_id.nodes.{_node}").SPECS
+        _common.write_params_file(_dir / f"{_node}.yaml", _node, _specs)
+        print(f"wrote {_dir / (_node + '.yaml')}")
