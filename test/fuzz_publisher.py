@@ -17,8 +17,9 @@ import time
 
 def _block_mutations(rng):
     def nan(m):
-        s = m.samples
+        s = m.samples if len(m.samples) else array.array("d", [0.0, 0.0])
         s[rng.randrange(len(s))] = rng.choice([math.nan, math.inf, -math.inf])
+        m.samples = s
 
     def units(m):
         m.samples = array.array("d", [x * 1e6 for x in m.samples])
@@ -38,19 +39,26 @@ def _block_mutations(rng):
     def rate(m):
         m.sample_rate = rng.choice([0.0, -10240.0, math.nan, math.inf, 1e-300, 1e300])
 
+    def _angles(m):
+        a = list(m.sample_angles)
+        return a if len(a) >= 3 else [0.0, 0.1, 0.2]         # (after another mutation emptied them)
+
     def angles_len(m):
-        m.sample_angles = array.array("d", list(m.sample_angles)[:rng.randrange(1, len(m.sample_angles))])
+        a = _angles(m)
+        m.sample_angles = array.array("d", a[:rng.randrange(1, len(a) - 1)])
 
     def angles_nan(m):
-        m.sample_angles[rng.randrange(len(m.sample_angles))] = math.nan
+        a = _angles(m)
+        a[rng.randrange(len(a))] = math.nan
+        m.sample_angles = array.array("d", a)
 
     def angles_back(m):
-        a = list(m.sample_angles)
-        m.sample_angles = array.array("d", a[::-1])
+        m.sample_angles = array.array("d", _angles(m)[::-1])
 
     def angles_jump(m):
-        k = rng.randrange(1, len(m.sample_angles))
-        m.sample_angles = array.array("d", [x + (3.0 if i >= k else 0.0) for i, x in enumerate(m.sample_angles)])
+        a = _angles(m)
+        k = rng.randrange(1, len(a))
+        m.sample_angles = array.array("d", [x + (3.0 if i >= k else 0.0) for i, x in enumerate(a)])
 
     def empty(m):
         m.samples = array.array("d")

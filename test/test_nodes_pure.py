@@ -44,6 +44,34 @@ def _block(n=1024, nch=2, amp=1e-5, seed=0):
     return np.random.default_rng(seed).standard_normal((n, nch)) * amp
 
 
+def test_stream_monitor_resynchronises_after_restarts_jumps_and_hostile_blocks():
+    """Issue 10: one bad block never blocks the stream for good (a far-future stamp, an absurd sample rate, a
+    sequence reset when the DAQ restarts, a renumbered source)."""
+    fs, n = 10240.0, 1024
+    ch = ["p6x", "p6y"]
+    m = StreamMonitor("/rotor/displacement", expected_channels=ch)
+    for k in range(3):
+        assert m.check(k, k * n / fs, fs, ch, _block()).usable
+    r = m.check(3, 1e6, fs, ch, _block())                 # stamped a million seconds ahead
+    assert r.usable and not r.contiguous and "time gap" in r.problems[0]
+    r = m.check(4, 4 * n / fs, fs, ch, _block())          # the next one is on time again: accepted, new segment
+    assert r.usable and not r.contiguous and "stamp went back" in r.problems[0]
+    r = m.check(5, 5 * n / fs, fs, ch, _block())
+    assert r.usable and r.contiguous and not r.problems
+    r = m.check(6, 6 * n / fs, 1e-300, ch, _block())      # absurd rate: rejected, no state change
+    assert not r.usable
+    r = m.check(6, 6 * n / fs, fs, ch, _block())
+    assert r.usable and r.contiguous, r.problems
+    r = m.check(0, 100.0, fs, ch, _block())               # the driver restarted: sequence back to 0
+    assert r.usable and not r.contiguous and "restarted" in r.problems[0]
+    r = m.check(1, 100.0 + n / fs, fs, ch, _block())
+    assert r.usable and r.contiguous
+    r = m.check(4_000_000_000, 100.0 + 2 * n / fs, fs, ch, _block())   # renumbered: not 4e9 lost blocks
+    assert r.usable and not r.contiguous and "jumped" in r.problems[0]
+    st = m.status("x")
+    assert st.values["source_restarts"] == 1 and st.values["sequence_jumps"] == 1 and st.values["lost_blocks"] == 0
+
+
 def test_stream_monitor_flags_each_fault_where_it_happens():
     fs, n = 10240.0, 1024
     m = StreamMonitor("/rotor/displacement", expected_channels=["p6x", "p6y"])
@@ -60,11 +88,14 @@ def test_stream_monitor_flags_each_fault_where_it_happens():
     bad[17, 1] = np.nan
     r = m.check(5, 5 * n / fs, fs, ch, bad, now=0.3)
     assert not r.usable and "sample 17" in r.problems[0] and "p6y" in r.problems[0]
-    # out-of-order stamp (goes back one block)
+    # stamp goes back one block on a contiguous sequence number: the clock jumped -- a new segment, not a loss
     r = m.check(6, 4 * n / fs, fs, ch, _block(), now=0.4)
-    assert not r.usable and "out of order" in r.problems[0]
+    assert r.usable and not r.contiguous and "stamp went back" in r.problems[0]
     # repeated sequence
     r = m.check(6, 7 * n / fs, fs, ch, _block(), now=0.5)
+    assert not r.usable and "went back" in r.problems[0]
+    # a late block (sequence behind, stamp behind)
+    r = m.check(5, 3 * n / fs, fs, ch, _block(), now=0.55)
     assert not r.usable and "went back" in r.problems[0]
     # wrong channel names
     r = m.check(7, 7 * n / fs, fs, ["a", "b"], _block(), now=0.6)
@@ -75,7 +106,7 @@ def test_stream_monitor_flags_each_fault_where_it_happens():
     st = m.status("x", now=0.8)
     assert st.level == 1
     assert st.values["sequence_gaps"] == 1 and st.values["lost_blocks"] == 2
-    assert st.values["nonfinite_samples"] == 1 and st.values["out_of_order"] == 2
+    assert st.values["nonfinite_samples"] == 1 and st.values["out_of_order"] == 2 and st.values["stamp_jumps"] == 1
     assert st.values["wrong_channels"] == 1 and st.values["implausible_amplitude"] == 1
     # nothing new for a while -> stale
     assert m.status("x", stale_after=5.0, now=10.0).level == 3

@@ -43,6 +43,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..io.messages import SAMPLE_RATE_RANGE
 from ..params import ParamError
 
 # ------------------------------------------------------------------------------------------------ topics
@@ -428,6 +429,21 @@ class DiagItem:
     values: dict = field(default_factory=dict)
 
 
+def flag_publishers(node, topic: str, item: DiagItem) -> DiagItem:
+    """WARN on ``item`` when more than one publisher feeds ``topic`` (two DAQ drivers, or a bag replayed into a
+    live system): their blocks interleave and every window breaks (``publishers`` is added to its values)."""
+    try:
+        n = node.count_publishers(relative(topic))
+    except Exception:            # noqa: BLE001 -- a graph query must never take diagnostics down
+        return item
+    item.values["publishers"] = n
+    if n > 1 and item.level < WARN:
+        item.level = WARN
+        item.message = (f"{n} publishers on {topic}: their blocks interleave (sequence restarts, stamps going "
+                        f"back) -- stop all but one")
+    return item
+
+
 def diagnostics_msg(items: list[DiagItem], stamp, hardware_id: str = ""):
     """DiagnosticArray with one status per item (values formatted with repr-precision for floats)."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -457,6 +473,10 @@ class BlockCheck:
     problems: list
 
 
+REORDER_WINDOW = 16        # blocks: a lower sequence number and stamp within this many blocks is a late block
+SEQUENCE_JUMP = 100_000    # blocks: a jump further ahead than this is a renumbered source, not lost data
+
+
 class StreamMonitor:
     """Checks a stream of displacement blocks and keeps the counters /diagnostics reports.
 
@@ -478,6 +498,9 @@ class StreamMonitor:
         self.nan_samples = 0
         self.bad_channels = 0
         self.bad_units = 0
+        self.restarts = 0
+        self.sequence_jumps = 0
+        self.stamp_jumps = 0
         self.last_seq: int | None = None
         self.last_end: float | None = None      # stamp [s] one sample after the end of the last block
         self.recent: list[str] = []
@@ -488,7 +511,20 @@ class StreamMonitor:
 
     def check(self, seq: int, stamp: float, sample_rate: float, channels, samples: np.ndarray,
               now: float | None = None) -> BlockCheck:
-        """Check one block. ``stamp`` [s] = time of the first sample; ``samples`` (n, nch) [m]."""
+        """Check one block. ``stamp`` [s] = time of the first sample; ``samples`` (n, nch) [m].
+
+        Ordering (a stream always resynchronises, one bad block never blocks the ones after it):
+
+        * the sequence number leads: ``last + 1`` is contiguous; a repeated number, or a lower one (by at most
+          ``REORDER_WINDOW``) stamped within that many blocks before the last, is a duplicate or late block
+          (rejected); any other lower number means the source restarted or another recording began (``restarts``);
+          a jump far
+          ahead means it renumbered (``sequence_jumps``): both start a new segment and are accepted;
+        * stamps: a gap starts a new segment; a stamp that goes back on a contiguous sequence number means the
+          previous stamp (or the clock) jumped: a new segment, accepted (``stamp_jumps``); otherwise rejected;
+        * a block with an implausible sample rate is rejected and changes no state; a block rejected for its content
+          (NaN, units, channels) still advances the sequence state (it was not lost).
+        """
         now = time.monotonic() if now is None else now
         problems = []
         usable = True
@@ -496,32 +532,61 @@ class StreamMonitor:
         where = f"{self.topic} block seq {seq} (stamp {stamp:.4f} s)"
         samples = np.asarray(samples, dtype=float)
         n = samples.shape[0] if samples.ndim == 2 else 0
+        lo, hi = SAMPLE_RATE_RANGE
         with self._lock:
             self.n_blocks += 1
             self.n_samples += n
             self._arrivals.append(now)
             self._arrivals = self._arrivals[-50:]
             self._last_arrival = now
+            if not (math.isfinite(sample_rate) and lo <= sample_rate <= hi and math.isfinite(stamp)):
+                self.n_rejected += 1
+                problems.append(f"sample_rate {sample_rate} Hz or stamp {stamp} implausible at {where}; block "
+                                f"rejected")
+                self.recent = (self.recent + problems)[-self.keep:]
+                return BlockCheck(False, False, problems)
+            order_ok, new_segment = True, False
             if self.last_seq is not None:
-                if seq <= self.last_seq:
+                d = seq - self.last_seq
+                span = REORDER_WINDOW * max(n, 1) / sample_rate          # how far back a late block can be [s]
+                late = d < 0 and -d <= REORDER_WINDOW and self.last_end is not None and \
+                    self.last_end - span - 0.5 / sample_rate <= stamp < self.last_end - 0.5 / sample_rate
+                if d == 0 or late:
                     self.out_of_order += 1
-                    usable = contiguous = False
+                    order_ok = usable = contiguous = False
                     problems.append(f"sequence went back from {self.last_seq} to {seq} at {where}: repeated or "
                                     f"reordered block rejected")
-                elif seq != self.last_seq + 1:
-                    lost = seq - self.last_seq - 1
+                elif d < 0:
+                    self.restarts += 1
+                    new_segment = True
+                    problems.append(f"sequence restarted at {seq} (last was {self.last_seq}) at {where}: the source "
+                                    f"restarted; a new segment starts here")
+                elif d > SEQUENCE_JUMP:
+                    self.sequence_jumps += 1
+                    new_segment = True
+                    problems.append(f"sequence jumped from {self.last_seq} to {seq} at {where}: renumbered source; "
+                                    f"a new segment starts here")
+                elif d > 1:
                     self.gaps += 1
-                    self.lost_blocks += lost
+                    self.lost_blocks += d - 1
                     contiguous = False
-                    problems.append(f"sequence gap: {lost} block(s) lost between seq {self.last_seq} and {seq} "
+                    problems.append(f"sequence gap: {d - 1} block(s) lost between seq {self.last_seq} and {seq} "
                                     f"at {where}; windows restart here")
-            if usable and self.last_end is not None and sample_rate > 0:
+            if new_segment:
+                contiguous = False
+            elif order_ok and self.last_end is not None:
                 dt = stamp - self.last_end
                 if dt < -0.5 / sample_rate:
-                    self.out_of_order += 1
-                    usable = contiguous = False
-                    problems.append(f"stamp out of order: {where} starts {-dt:.4f} s before the end of the "
-                                    f"previous block; block rejected")
+                    if self.last_seq is not None and seq == self.last_seq + 1:
+                        self.stamp_jumps += 1
+                        contiguous = False
+                        problems.append(f"stamp went back {-dt:.4g} s at {where} although the sequence is "
+                                        f"contiguous: the previous stamp or the clock jumped; a new segment starts")
+                    else:
+                        self.out_of_order += 1
+                        order_ok = usable = contiguous = False
+                        problems.append(f"stamp out of order: {where} starts {-dt:.4f} s before the end of the "
+                                        f"previous block; block rejected")
                 elif contiguous and dt > 1.5 / sample_rate:
                     contiguous = False
                     problems.append(f"time gap of {dt:.4f} s before {where}; windows restart here")
@@ -549,9 +614,8 @@ class StreamMonitor:
                     problems.append(f"implausible amplitude {np.max(np.abs(samples)):.4g} (limit {self.max_abs:g} m) "
                                     f"in channel {list(channels)[j]} at {where}: samples must be metres "
                                     f"(micrometres sent?); block rejected")
-            if usable or seq > (self.last_seq if self.last_seq is not None else -1):
-                self.last_seq = max(seq, self.last_seq) if self.last_seq is not None else seq
-            if usable and sample_rate > 0:
+            if order_ok:                     # the block took its place in the stream (whatever its content)
+                self.last_seq = seq
                 self.last_end = stamp + n / sample_rate
             if not usable:
                 self.n_rejected += 1
@@ -573,6 +637,8 @@ class StreamMonitor:
                     "block_rate_hz": self.input_rate(), "sequence_gaps": self.gaps, "lost_blocks": self.lost_blocks,
                     "out_of_order": self.out_of_order, "nonfinite_samples": self.nan_samples,
                     "wrong_channels": self.bad_channels, "implausible_amplitude": self.bad_units,
+                    "source_restarts": self.restarts, "sequence_jumps": self.sequence_jumps,
+                    "stamp_jumps": self.stamp_jumps,
                     "last_sequence": self.last_seq if self.last_seq is not None else -1}
             recent = list(self.recent)
             self.recent = []

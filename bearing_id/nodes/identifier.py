@@ -357,7 +357,7 @@ def _make_node():
 
     from ..io import messages as M
     from ..params import load_rig
-    from .common import declare_parameters, qos_input, relative, subscribe_latched
+    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
     from .runs import MALFORMED, RunResolver, excitation_of
 
     class Identifier(Node):
@@ -526,7 +526,8 @@ def _make_node():
                 t_req = None
 
         def diagnostics(self):
-            items = [self.monitor.status(f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"]),
+            items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
+                         f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"])),
                      self.monitor_est.status(f"{NAME}: input {TOPIC_BEARING_DISPLACEMENT}", self.values["stale_after"])]
             if self.values["method"] != "paper" and items[1].level == STALE:
                 items[1].level = OK

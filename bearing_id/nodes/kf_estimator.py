@@ -330,7 +330,7 @@ def _make_node():
 
     from ..io import messages as M
     from ..params import load_rig
-    from .common import declare_parameters, qos_input, relative, subscribe_latched
+    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
 
     class KFEstimator(Node):
         def __init__(self):
@@ -456,7 +456,8 @@ def _make_node():
                     probes=b.probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang, run_id=o.run_id))
 
         def diagnostics(self):
-            items = [self.monitor.status(f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"])]
+            items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
+                f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"]))]
             sp_item = DiagItem(f"{NAME}: input {TOPIC_SPEED}", OK, "receiving", {"messages": self.speed_msgs})
             if self.last_speed is None:
                 sp_item.level, sp_item.message = STALE, f"no data received on {TOPIC_SPEED}"
