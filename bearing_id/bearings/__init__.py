@@ -2,7 +2,10 @@
 
 * :mod:`.short`     -- closed-form short bearing (Ocvirk, pi film): ``ocvirk(D, L, c, mu, W, speed)``.
 * :mod:`.finite`    -- finite-length bearing, Reynolds equation by finite volumes with Reynolds cavitation and the
-  perturbation method: ``reynolds(D, L, c, mu, W, speed, n_theta, n_z)``.
+  perturbation method: ``reynolds(D, L, c, mu, W, speed, n_theta, n_z)`` (the direct solver, 0.1-0.4 s a call).
+* :mod:`.finite_table` -- the same bearing from a precomputed dimensionless table vs Sommerfeld number (smooth,
+  ~50 us a call; validated against the direct solver, see its docstring).  Model ``'finite'`` below uses the table;
+  ``'finite_direct'`` (not a params/rig.yaml choice) the direct solver on its default grid.
 * :mod:`.stability` -- onset speed of oil whirl/whip of the rotor on its bearings: ``threshold_speed``.
 
 Both models return a :class:`BearingSolution` (eccentricity, attitude angle, Sommerfeld number, K [N/m] and
@@ -21,10 +24,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from . import finite_table
 from .finite import reynolds
 from .short import BearingSolution, ocvirk
 
 MODELS = ("short", "finite")
+MODELS_ALL = MODELS + ("finite_direct",)     # 'finite_direct': the direct Reynolds solver (slow, for checks)
 
 
 def solution(bearing, speed: float, load: float, *, viscosity: float | None = None, clearance: float | None = None,
@@ -35,7 +40,7 @@ def solution(bearing, speed: float, load: float, *, viscosity: float | None = No
     ``bearing.model``.  Raises ValueError for speed <= 0 (no hydrodynamic film) or a non-positive load.
     """
     model = model or bearing.model
-    if model not in MODELS:
+    if model not in MODELS_ALL:
         raise ValueError(f"bearing model must be one of {MODELS}, got {model!r}")
     speed = float(speed)
     if not (math.isfinite(speed) and speed > 0):
@@ -49,7 +54,8 @@ def solution(bearing, speed: float, load: float, *, viscosity: float | None = No
 @lru_cache(maxsize=8192)
 def _solve(model, D, L, c, mu, W, speed) -> BearingSolution:
     """Cached solve (identical bearings and repeated calls from the KF/identification cost nothing)."""
-    s = (ocvirk if model == "short" else reynolds)(D, L, c, mu, W, speed)
+    fn = {"short": ocvirk, "finite": finite_table.solution, "finite_direct": reynolds}[model]
+    s = fn(D, L, c, mu, W, speed)
     s.K.setflags(write=False)      # shared between callers: read-only
     s.C.setflags(write=False)
     return s
@@ -100,7 +106,7 @@ class BearingFunction:
         nb = len(rig.bearings)
         vf = _per_bearing(viscosity_factor, nb, "viscosity_factor")
         cf = _per_bearing(clearance_factor, nb, "clearance_factor")
-        if model is not None and model not in MODELS:
+        if model is not None and model not in MODELS_ALL:
             raise ValueError(f"bearing model must be one of {MODELS}, got {model!r}")
         self.bearings = tuple(rig.bearings)
         self.loads = dict(loads) if loads is not None else static_loads(rig)
@@ -138,4 +144,4 @@ def bearing_fn(rig, model=None, viscosity_factor=None, clearance_factor=None, lo
 
 
 __all__ = ["BearingSolution", "ocvirk", "reynolds", "solution", "coefficients", "bearing_fn", "BearingFunction",
-           "static_loads", "MODELS"]
+           "static_loads", "MODELS", "MODELS_ALL", "finite_table"]

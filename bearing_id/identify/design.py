@@ -14,6 +14,12 @@ Rank rules (stated)
     * rank (noise-based): directions whose relative 1-sigma 1/s_k <= ``max_rel_std`` (default 0.05, i.e. the
       combination is known to 5 % of the coefficients' size).
     A coefficient is *determined* when at most NULL_FRACTION of its unit vector lies in the undetermined directions.
+    ``DesignReport.rule_determined`` applies the identification methods' one rule
+    (:mod:`bearing_id.identify.determined`: estimable, |value| >= 3 sigma) at the linearisation point with the
+    predicted data-only sigma -- what a direct fit of these data would call determined.
+
+The shared pieces (Jacobian, scales, :func:`analyse`, the eqs 33-37 system, probe pairs) live in :mod:`.lsq` and are
+re-exported here; this module imports nothing from paper/conventional (no import circle).
 
 Noise model
     Each real component of X[r, c] has std ``noise_rel`` x RMS over channels of |X[r, :]| (the rig's noise is a
@@ -23,16 +29,16 @@ Noise model
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..conventions import COEFF_ORDER, dof_index, rad_s_to_rpm
+from ..conventions import dof_index, rad_s_to_rpm
 from ..params import ExcitationEntry, Probe, Run
-
-STRUCTURAL_RTOL = 1e-9
-NULL_FRACTION = 0.01
-DEFAULT_MAX_REL_STD = 0.05
+from .determined import judge
+from .lsq import (DEFAULT_MAX_REL_STD, NULL_FRACTION, STRUCTURAL_RTOL, Identifiability, analyse,  # noqa: F401
+                  coefficient_jacobian, coefficient_labels, coefficient_scales, coeffs_to_theta, ls_system,
+                  probe_pairs, whitened_jacobian)
 
 
 def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> float:
@@ -44,101 +50,6 @@ def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> fl
     return float(sample_noise) / math.sqrt(float(n_samples))
 
 
-def coefficient_labels(nodes) -> list[str]:
-    """Names of the 8 nb unknowns in the order used here: K of each bearing, then C of each bearing."""
-    out = [f"node{n}.K{c}" for n in nodes for c in COEFF_ORDER]
-    return out + [f"node{n}.C{c}" for n in nodes for c in COEFF_ORDER]
-
-
-def coefficient_scales(coeffs: dict, speed: float, nodes) -> np.ndarray:
-    """Reference size (8 nb,) [N/m] of each unknown (K, then Omega C) from the coefficients ``coeffs``."""
-    sk = [max(np.linalg.norm(coeffs[n][0]) / 2, 1e-300) for n in nodes]
-    sc = [max(speed * np.linalg.norm(coeffs[n][1]) / 2, 1e-300) for n in nodes]
-    return np.array([s for s in sk for _ in range(4)] + [s for s in sc for _ in range(4)])
-
-
-def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> tuple[np.ndarray, np.ndarray]:
-    """(J, X): J complex (n_runs * nch, 8 nb) d X / d beta [m per N/m] and X complex (n_runs * nch,) [m].
-
-    forces : list of complex (ndof,) 1X force phasors [N], one per run; probes : params.Probe list.
-    beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.
-    """
-    from ..rotor.assembly import dynamic_stiffness, probe_matrix
-    nodes = list(model.bearing_nodes)
-    nb = len(nodes)
-    Z = dynamic_stiffness(model, speed, speed, coeffs)
-    S = probe_matrix(model, probes)
-    F = np.array(forces, dtype=complex).T                     # (ndof, nr)
-    Q = np.linalg.solve(Z, F)                                  # (ndof, nr)
-    W = np.linalg.solve(Z.T, S.T).T                            # S Z^-1 (nch, ndof)
-    nch, nr = S.shape[0], F.shape[1]
-    J = np.zeros((nr, nch, 8 * nb), dtype=complex)
-    for b, n in enumerate(nodes):
-        ix = dof_index(n, "x", model.n_nodes)
-        for i in range(2):
-            for j in range(2):
-                col = -W[:, ix + i][None, :] * Q[ix + j, :][:, None]   # (nr, nch)
-                J[:, :, 4 * b + 2 * i + j] = col
-                J[:, :, 4 * nb + 4 * b + 2 * i + j] = 1j * col
-    X = (S @ Q).T                                              # (nr, nch)
-    return J.reshape(nr * nch, 8 * nb), X.reshape(nr * nch)
-
-
-@dataclass
-class Identifiability:
-    """SVD analysis of a whitened, scaled information matrix (see module docstring)."""
-    singular_values: np.ndarray
-    Vh: np.ndarray
-    rank: int
-    structural_rank: int
-    unknowns: int
-    condition: float
-    determined: np.ndarray          # (unknowns,) bool
-    rel_std: np.ndarray             # (unknowns,) 1-sigma relative to the coefficient scale, NaN if undetermined
-    undetermined_combinations: list = field(default_factory=list)
-
-
-def analyse(Jw: np.ndarray, labels=None, *, max_rel_std=DEFAULT_MAX_REL_STD) -> Identifiability:
-    """Identifiability of a real, whitened and scaled Jacobian ``Jw`` (m, n) (columns = scaled unknowns)."""
-    Jw = np.asarray(Jw, dtype=float)
-    n = Jw.shape[1]
-    _, s, Vh = np.linalg.svd(Jw, full_matrices=True)
-    sv = np.zeros(n)
-    sv[:s.size] = s
-    smax = sv[0] if sv.size and sv[0] > 0 else 1.0
-    structural = int(np.count_nonzero(sv > STRUCTURAL_RTOL * smax))
-    rank = int(np.count_nonzero(sv * max_rel_std >= 1.0))
-    rank = min(rank, structural)
-    null = Vh[rank:]
-    leak = np.sum(null**2, axis=0)
-    det = leak <= NULL_FRACTION
-    Vr = Vh[:rank]
-    with np.errstate(divide="ignore"):
-        var = np.sum((Vr / sv[:rank, None]) ** 2, axis=0) if rank else np.zeros(n)
-    rel_std = np.where(det, np.sqrt(var), np.nan)
-    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
-    combos = []
-    labels = labels or [f"p{k}" for k in range(n)]
-    for v in null:
-        big = np.argsort(-np.abs(v))
-        terms = [f"{v[k]:+.2f} {labels[k]}" for k in big if abs(v[k]) >= 0.1][:6]
-        combos.append(" ".join(terms))
-    return Identifiability(sv, Vh, rank, structural, n, cond, det, rel_std, combos)
-
-
-def whitened_jacobian(model, speed, coeffs, probes, forces, noise_rel) -> tuple[np.ndarray, np.ndarray]:
-    """(Jw real (2 n_runs nch, 8 nb), scales (8 nb,)): scaled coefficient Jacobian divided by the noise std."""
-    nodes = list(model.bearing_nodes)
-    J, X = coefficient_jacobian(model, speed, coeffs, probes, forces)
-    scale = coefficient_scales(coeffs, speed, nodes)
-    nch = len(probes)
-    Xr = X.reshape(-1, nch)
-    sig = noise_rel * np.sqrt(np.mean(np.abs(Xr) ** 2, axis=1))           # per run
-    sig = np.repeat(np.maximum(sig, 1e-300), nch)
-    Js = J * scale[None, :] / sig[:, None]
-    return np.vstack([Js.real, Js.imag]), scale
-
-
 @dataclass
 class DesignReport:
     """Design check at one speed.  ``methods`` maps a method name to its Identifiability (or a reason string)."""
@@ -147,6 +58,7 @@ class DesignReport:
     methods: dict
     advice: list
     labels: list
+    rule_determined: np.ndarray | None = None     # (8 nb,) the identification rule at the linearisation point
 
     @property
     def speed_rpm(self) -> float:
@@ -158,6 +70,12 @@ class DesignReport:
         for m, v in self.methods.items():
             lines.append(f"    {m:12s}: " + (v if isinstance(v, str) else
                                             f"rank {v.rank} of {v.unknowns}, condition {v.condition:.3g}"))
+        if self.rule_determined is not None:
+            nd = int(np.count_nonzero(self.rule_determined))
+            lines.append(f"    identification rule (estimable, |value| >= 3 predicted sigma; direct fit, no prior): "
+                         f"{nd} of {self.rule_determined.size} determined"
+                         + ("" if nd in (0, self.rule_determined.size) else " -- not: " + ", ".join(
+                             lab for lab, d in zip(self.labels, self.rule_determined) if not d)[:200]))
         if self.data.undetermined_combinations:
             lines.append("    undetermined combinations: " + "; ".join(self.data.undetermined_combinations[:4])
                          + (" ..." if len(self.data.undetermined_combinations) > 4 else ""))
@@ -241,7 +159,6 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
     KF -- the data cannot carry more than this -- capped by the eqs 33-37 system on bearing displacements),
     'conventional' (needs two probes per bearing and direction).
     """
-    from .paper import ls_system
     noise_rel = harmonic_noise_rel(sample_noise, n_samples) if noise_rel is None else float(noise_rel)
     nodes = list(model.bearing_nodes)
     labels = coefficient_labels(nodes)
@@ -265,14 +182,15 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
         methods["paper"] = (f"rank {min(ls_rank, data.rank)} of {data.unknowns} (eqs 33-37 system rank {ls_rank}; "
                             f"the KF adds no information beyond the data rank {data.rank})")
         try:
-            from .conventional import probe_pairs
             probe_pairs(model, probes)
             methods["conventional"] = methods["paper"]
         except ValueError as exc:
             methods["conventional"] = f"not applicable: {exc}"
         adv = advise(model, w, coeffs, probes, runs, noise_rel, max_rel_std=max_rel_std, max_steps=max_steps) \
             if advice and data.rank < data.unknowns else []
-        out.append(DesignReport(w, data, methods, adv, labels))
+        value = coeffs_to_theta(coeffs, w, nodes)
+        rule = judge(value, data.data_rel_std * scale, estimable=data.estimable).determined
+        out.append(DesignReport(w, data, methods, adv, labels, rule))
     return out
 
 

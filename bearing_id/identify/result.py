@@ -4,8 +4,15 @@ One :class:`IdentResult` per speed.  Arrays are indexed ``[bearing, row, col]`` 
 :mod:`bearing_id.conventions` (force on the shaft ``-K q - C q'``).  SI units: K [N/m], C [N s/m], speed [rad/s].
 
 ``determined`` masks say, per coefficient, whether the data fix it (True) or a prior / the theory / nothing does
-(False).  A coefficient with ``determined == False`` must never be shown to a person as a plain number; its std is
-NaN when no uncertainty can be given, and its value (when not NaN) is the prior's or the minimum-norm solution's.
+(False), by the one rule of :mod:`bearing_id.identify.determined` (estimable, |value| >= 3 sigma, prior pull <= 0.1).
+A coefficient with ``determined == False`` must never be shown to a person as a plain number; its std is NaN when no
+uncertainty can be given, and its value (when not NaN) is the prior's or the minimum-norm solution's.
+
+``flags`` carry what every printer must show next to the numbers: ``'misfit'`` (the model does not reproduce the data
+within their noise: the chi-square test of :func:`bearing_id.identify.determined.fit_quality` failed; the 1-sigma are
+Birge-scaled and still a lower bound) -- a misfit result is never shown as plainly determined.
+``extra['fit_quality']`` (a :class:`~bearing_id.identify.determined.FitQuality`) and ``extra['parameters']`` (fitted
+physical parameters with their 1-sigma, method ``physical``) are serialised by :meth:`IdentResult.to_dict`.
 """
 from __future__ import annotations
 
@@ -36,7 +43,9 @@ class IdentResult:
     condition : condition number of that matrix (largest / smallest singular value; inf when rank deficient).
     residual : relative residual norm ||A x - b|| / ||b|| of the fit (dimensionless).
     notes : free-text remarks for people (what was done, warnings, how much the prior dominates).
-    extra : method-specific data (e.g. the KF bearing-node estimates, the theory used) -- not serialised.
+    extra : method-specific data (e.g. the KF bearing-node estimates, the theory used) -- not serialised, except
+        ``extra['fit_quality']`` and ``extra['parameters']`` (see the module docstring).
+    flags : machine-readable warnings every printer must show: 'misfit' (see the module docstring).
     """
     speed: float
     method: str
@@ -54,6 +63,21 @@ class IdentResult:
     residual: float
     notes: list = field(default_factory=list)
     extra: dict = field(default_factory=dict, repr=False)
+    flags: list = field(default_factory=list)
+
+    @property
+    def misfit(self) -> bool:
+        """True when the model does not fit the data within their noise (chi-square test): a warning, never an OK."""
+        return "misfit" in self.flags
+
+    @property
+    def plainly_determined(self) -> bool:
+        """Every coefficient determined AND no misfit: the only state a printer may show as a plain OK."""
+        return self.fully_determined and not self.misfit
+
+    def set_flag(self, name: str) -> None:
+        if name not in self.flags:
+            self.flags.append(name)
 
     @property
     def speed_rpm(self) -> float:
@@ -83,7 +107,7 @@ class IdentResult:
         def arr(a):
             return [[_num(v) for v in row] for row in np.asarray(a, dtype=float)]
 
-        return {
+        out = {
             "speed_rpm": float(self.speed_rpm),
             "speed_rad_s": float(self.speed),
             "method": self.method,
@@ -92,6 +116,7 @@ class IdentResult:
             "condition": _num(self.condition),
             "residual": _num(self.residual),
             "fully_determined": self.fully_determined,
+            "plainly_determined": self.plainly_determined,
             "bearings": [
                 {"name": str(name), "node": int(self.nodes[i]),
                  "K": arr(self.K[i]), "C": arr(self.C[i]),
@@ -100,13 +125,38 @@ class IdentResult:
                                 "C": np.asarray(self.C_determined[i], bool).tolist()}}
                 for i, name in enumerate(self.bearings)],
             "units": {"K": "N/m", "C": "N s/m", "speed": "rpm"},
+            "flags": list(self.flags),
+            "misfit": self.misfit,
             "notes": list(self.notes),
         }
+        fq = self.extra.get("fit_quality")
+        if fq is not None:
+            out["fit_quality"] = fq.to_dict() if hasattr(fq, "to_dict") else dict(fq)
+        if self.extra.get("parameters"):
+            out["parameters"] = _jsonable(self.extra["parameters"])
+        return out
 
 
 def _num(v):
     v = float(v)
     return v if math.isfinite(v) else None
+
+
+def _jsonable(v):
+    """Nested dict/list/number/str/bool -> JSON-ready (NaN/inf -> None)."""
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return _num(v)
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    return v if isinstance(v, str) or v is None else str(v)
 
 
 def empty_result(speed: float, method: str, bearings, nodes) -> IdentResult:
