@@ -652,13 +652,15 @@ def test_legitimate_aliases_still_load(tmp_path):
 
 @pytest.mark.parametrize("fmt", ["csv", "bag"])
 def test_valid_base_inputs_identify(fmt, base, tmp_path):
-    """Control: the unmodified inputs the campaign damages are accepted (exit 0)."""
+    """Control: the unmodified inputs the campaign damages are read and analysed -- exit 1, not 2: one run at one
+    speed with one probe pair gives 4 equations for the physical method's 4 unknowns, which the data do not fix
+    separately (the honest answer), and the output says so instead of printing numbers."""
     if fmt == "bag":
         path = _bag(base, tmp_path, "good_bag")
     else:
         path = base["csv"]
     rc, out, err, dt = run_cli(["identify", path, "--method", "physical"], timeout=60)
-    assert rc == 0, out + err
+    assert rc == 1 and "UNDETERMINED" in out + err and "Traceback" not in err, (rc, out + err)
 
 
 def test_read_bag_salvage_and_recover_without_ros(base, tmp_path):

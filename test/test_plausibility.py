@@ -17,7 +17,8 @@ from bearing_id.rotor.assembly import RotorModel
 def setup():
     rig = load_rig()
     model = RotorModel.from_params(rig)
-    data = harmonics.simulate_data(rig, rig.simulation.runs, [900.0, 1800.0, 2700.0], noise=0.01, model=model)
+    # 1-sigma 0.1 % of |X| per 1X vector (the rig's 1 % sample noise averaged over a dwell is smaller still)
+    data = harmonics.simulate_data(rig, rig.simulation.runs, [900.0, 1800.0, 2700.0], noise=0.001, model=model)
     rng = np.random.default_rng(5)
     data.X = data.X + (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape)) * data.X_std
     return rig, model, data

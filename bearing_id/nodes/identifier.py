@@ -594,9 +594,11 @@ def identifiability_item(results, publish_undetermined: bool = False) -> DiagIte
     if bad:
         tail = "published flagged" if publish_undetermined else "not published"
         return DiagItem(name, WARN, f"{'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''} -- {tail}", vals)
-    misfit = sorted({n for r in results for n in (r.notes or []) if "MISFIT" in n.upper()})
+    misfit = [r for r in results if r.misfit]
     if misfit:       # a model that does not fit the data is a warning, never an OK
-        return DiagItem(name, WARN, f"all {len(results)} speed(s) determined, but: {misfit[0]}", vals)
+        note = next((n for n in misfit[0].notes if "MISFIT" in n), "model misfit")
+        return DiagItem(name, WARN, f"all {len(results)} speed(s) determined, but {len(misfit)} with a MODEL MISFIT "
+                                    f"(1-sigma a lower bound): {note}", vals)
     return DiagItem(name, OK, f"all {len(results)} speed(s) determined", vals)
 
 
