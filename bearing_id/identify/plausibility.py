@@ -25,20 +25,25 @@ import numpy as np
 ORBIT_LIMIT = 0.30      # fraction of the radial clearance (same rule as rig.check_validity and kf_estimator)
 SIGNAL_SIGMA = 3.0      # a channel's 1X amplitude must exceed this many of its 1-sigma in some run
 
-_THRESHOLDS: dict = {}  # (id(model), rig name, speed_max) -> threshold [rad/s]
-
-
 def stability_threshold(model, rig, speed_max: float) -> float:
-    """The nominal model's stability threshold [rad/s] up to 2 x ``speed_max`` (inf when stable there); cached."""
+    """The nominal model's stability threshold [rad/s], searched up to at least 2 x ``speed_max`` (inf when stable
+    there).  Kept on the model object for this rig: a later call within the range searched reuses it (the live
+    identifier solves again at every new speed)."""
     from ..bearings import bearing_fn
     from ..bearings.stability import threshold_speed
-    key = (id(model), rig.name, round(float(speed_max), 6))
-    if key not in _THRESHOLDS:
-        try:
-            _THRESHOLDS[key] = threshold_speed(model, bearing_fn(rig), 2.0 * float(speed_max))
-        except ValueError:          # unstable already at the bottom of the range
-            _THRESHOLDS[key] = 0.0
-    return _THRESHOLDS[key]
+    cached = getattr(model, "_plausibility_threshold", None)       # (rig, top of the range searched, threshold)
+    if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
+        return cached[2]
+    top = 4.0 * float(speed_max)
+    try:
+        thr = threshold_speed(model, bearing_fn(rig), top)
+    except ValueError:              # unstable already at the bottom of the range
+        thr = 0.0
+    try:
+        model._plausibility_threshold = (rig, top, thr)
+    except AttributeError:          # a model that takes no attributes: no cache
+        pass
+    return thr
 
 
 def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:

@@ -348,7 +348,7 @@ def _result_payload(r) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ node
-SOLVE_AFTER = 0.25     # s: a new complete speed is solved at the latest this long after its window closed
+SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this long after its window closed
 
 
 def _make_node():
