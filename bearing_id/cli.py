@@ -20,7 +20,7 @@ from pathlib import Path
 
 from .params import ParamError
 
-COMMANDS = ("model", "simulate", "design", "identify", "diagnose", "record", "play")
+COMMANDS = ("model", "simulate", "design", "identify", "diagnose", "report", "record", "play")
 
 
 def build_parser() -> argparse.ArgumentParser:

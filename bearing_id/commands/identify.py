@@ -30,6 +30,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write the coefficients-vs-speed plot (PNG); with --method paper also "
                                   "<name>_bearing_vectors.png: KF bearing-node amplitude/phase vs speed (and the "
                                   "truth when the recordings carry it)")
+    p.add_argument("--report", metavar="DIR", help="also write DIR/report.html: one self-contained page with the "
+                                                   "Campbell diagram, mode shapes, Bode / polar / orbit / spectrum "
+                                                   "plots, the coefficients vs speed and these tables")
     p.add_argument("--allow-undetermined", action="store_true",
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
     p.add_argument("--Q", type=float, default=None, help="paper method: KF process noise (default 1e-16)")
@@ -158,14 +161,19 @@ def run(args) -> int:
         Path(args.json).write_text(json.dumps({"method": args.method, "results": out}, indent=1))
     if args.plot:
         from ..plots import plot_coefficients
-        truth_fn = None
-        if data.truth:
-            truth_fn = lambda w: data.truth[min(data.truth, key=lambda s: abs(s - w))]  # noqa: E731
-        plot_coefficients(results, args.plot, truth_fn=truth_fn, title=f"method {args.method}")
+        from ..bearings import bearing_fn
+        plot_coefficients(results, args.plot, truth_fn=data.truth or None, theory_fn=bearing_fn(rig),
+                          title=f"method {args.method}")
         if args.method == "paper":
             p = bearing_vectors_plot(model, data, results, args.plot)
             if p is not None:
                 print(f"bearing-node vectors plot: {p}")
+    if args.report:
+        from .report import build_report
+        info = build_report(rig, data.recordings, args.report, data=data, results=results,
+                            allow_undetermined=args.allow_undetermined,
+                            command="bearing-id identify " + " ".join(args.inputs) + f" --method {args.method}")
+        print(f"report: {info.path}")
     if undet:
         print("\nUNDETERMINED by the data (prior/theory-dominated"
               + (", printed flagged '(prior)'" if args.allow_undetermined else ", not printed") + "):",

@@ -1,7 +1,9 @@
 """``bearing-id model``: the rotor-bearing model of a params file — natural frequencies, critical speeds, stability
 threshold, bearing coefficients vs speed, Campbell diagram, and the Table-2 model-updating table.
 
-Prints tables (rpm, Hz, N/m, N s/m) and writes ``campbell.png``, ``coefficients.png`` and ``model.json`` (SI units:
+Prints tables (rpm, Hz, N/m, N s/m) and writes ``campbell.png`` (0.5X / 1X / 2X lines, log-decrement colour,
+labelled critical speeds and stability threshold), ``coefficients.png`` (one panel per coefficient, each bearing in
+its own style), ``mode_shapes.png`` (at the critical speeds) and ``model.json`` (SI units:
 rad/s, N/m, N s/m, plus rpm/Hz copies for people) into ``--out``.
 """
 from __future__ import annotations
@@ -13,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import COEFF_ORDER, rad_s_to_rpm, rpm_to_rad_s
+from ..conventions import COEFF_ORDER, rpm_to_rad_s
 from ..params import ParamError, load_rig
 
 TWO_PI = 2.0 * math.pi
@@ -27,8 +29,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                    "whip), bearing coefficients vs speed, a Campbell diagram, and the paper's "
                                    "Table-2 model updating against modal_test.measured_hz.")
     p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--out", default="out/model", help="directory for campbell.png, coefficients.png, model.json "
-                                                      "(default out/model)")
+    p.add_argument("--out", default="out/model", help="directory for campbell.png, coefficients.png, "
+                                                      "mode_shapes.png, model.json (default out/model)")
     p.add_argument("--max-rpm", type=float, default=6000.0,
                    help="upper end of the speed range for Campbell, critical speeds and stability [rpm] "
                         "(default 6000, the rig's maximum)")
@@ -57,9 +59,9 @@ def _speeds(args, rig):
 def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     """Everything the command prints, as a dict (SI, with rpm/Hz copies)."""
     from .. import bearings
-    from ..bearings import stability
+    from ..plots.data import campbell_data
     from ..rotor.assembly import RotorModel, static_bearing_loads
-    from ..rotor.modal import campbell, critical_speeds, damped_modes, free_free_frequencies
+    from ..rotor.modal import damped_modes, free_free_frequencies
 
     model = RotorModel.from_params(rig)
     bfn = bearings.bearing_fn(rig)
@@ -79,20 +81,14 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
                      "whirl": list(m.whirl)})
     out["speeds"] = rows
     lo, hi = float(rpm_to_rad_s(max(50.0, max_rpm / 60))), float(rpm_to_rad_s(max_rpm))
-    grid = np.linspace(lo, hi, 40)
-    cb = campbell(model, grid, bfn, n_modes)
-    out["campbell"] = {"speeds_rpm": rad_s_to_rpm(grid).tolist(), "frequency_hz": (cb.frequency / TWO_PI).tolist(),
-                       "log_dec": cb.log_dec.tolist(), "whirl": cb.whirl.tolist()}
-    crit = critical_speeds(model, bfn, (lo, hi), n_grid=40, n_modes=n_modes)
-    out["critical_speeds_rpm"] = rad_s_to_rpm(crit).tolist() if crit.size else []
-    zc = []
-    for c in crit:   # damping ratio of the forward mode that crosses 1X there (amplification factor ~ 1 / (2 zeta))
-        m = damped_modes(model, c, bfn(c), n_modes)
-        k = int(np.argmin([abs(f - c) if w == "forward" else np.inf for f, w in zip(m.frequency, m.whirl)]))
-        zc.append(float(m.damping_ratio[k]))
-    out["critical_damping_ratio"] = zc
-    thr = stability.threshold_speed(model, bfn, hi)
-    out["stability_threshold_rpm"] = (float(rad_s_to_rpm(thr)) if thr is not None and np.isfinite(thr) else None)
+    cd = campbell_data(model, bfn, hi, min_speed=lo, n_modes=n_modes, n_grid=40)
+    out["campbell"] = {"speeds_rpm": cd.speeds_rpm.tolist(), "frequency_hz": cd.frequency_hz.tolist(),
+                       "log_dec": cd.log_dec.tolist(), "whirl": cd.whirl.tolist()}
+    out["critical_speeds_rpm"] = cd.critical_rpm.tolist()
+    out["critical_damping_ratio"] = cd.critical_zeta.tolist()   # of the forward mode crossing 1X (AF ~ 1 / 2 zeta)
+    out["stability_threshold_rpm"] = cd.threshold_rpm
+    out["stability_whirl_ratio"] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
+    out["notes"] = list(cd.notes)
     if update and rig.modal_test is not None and rig.modal_test.measured_hz:
         from ..updating import update_model
         res = update_model(rig, rig.modal_test.measured_hz, maxiter=1500)
@@ -117,8 +113,12 @@ def _print_report(r: dict) -> None:
     print("\ncritical speeds (forward whirl = 1X) [rpm] (damping ratio; > 0.2 is critically damped, API 684): "
           + (", ".join(f"{c:.0f} ({z:.2f})" for c, z in zip(crit, r["critical_damping_ratio"])) or "none in range"))
     thr = r["stability_threshold_rpm"]
-    print("stability threshold (onset of oil whip) [rpm]: " + (f"{thr:.0f}" if thr is not None else
-                                                               "none in range"))
+    wr = r.get("stability_whirl_ratio")
+    print("stability threshold (onset of oil whip) [rpm]: " + (f"{thr:.0f}" + (f" (the unstable mode whirls at "
+                                                                              f"{wr:.2f}X)" if wr else "")
+                                                               if thr is not None else "none in range"))
+    for n in r.get("notes", []):
+        print(f"  note: {n}")
     print("\nbearing coefficients vs speed (K [N/m], C [N s/m], order " + " ".join(COEFF_ORDER) + "):")
     hdr = f"{'rpm':>7} {'node':>4} " + " ".join(f"{'K' + c:>11}" for c in COEFF_ORDER) + " " + \
         " ".join(f"{'C' + c:>10}" for c in COEFF_ORDER)
@@ -140,57 +140,53 @@ def _print_report(r: dict) -> None:
                   + "  (Table 1 geometry gives the 'initial' column above: the paper's rig differs from its table)")
 
 
-def _plots(r: dict, out: Path) -> list[Path]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def campbell_from_report(r: dict):
+    """The :class:`bearing_id.plots.data.CampbellData` of an :func:`analyse` dict (what campbell.png draws)."""
+    from ..plots.data import CampbellData
     cb = r["campbell"]
-    rpm = np.array(cb["speeds_rpm"])
-    F = np.array(cb["frequency_hz"], dtype=float)
-    W = np.array(cb["whirl"], dtype=object)
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for k in range(F.shape[1]):
-        fw = W[:, k] == "forward"
-        ax.plot(rpm[fw], F[fw, k], "o", ms=3, color="C0", label="forward" if k == 0 else None)
-        ax.plot(rpm[~fw], F[~fw, k], "s", ms=3, color="C3", label="backward" if k == 0 else None)
-    ax.plot(rpm, rpm / 60, "k--", lw=1, label="1X")
-    for c in r["critical_speeds_rpm"]:
-        ax.axvline(c, color="0.6", lw=0.8)
-    if r["stability_threshold_rpm"] is not None:
-        ax.axvline(r["stability_threshold_rpm"], color="C1", lw=1.5, label="stability threshold")
-    ax.set_xlabel("rotor speed [rpm]")
-    ax.set_ylabel("damped natural frequency [Hz]")
-    ax.set_title(f"Campbell diagram — {r['rig']}")
-    ax.set_ylim(0, max(np.nanmax(F) * 1.05, rpm[-1] / 60 * 1.1))
-    ax.legend(loc="upper left")
-    fig.tight_layout()
-    p1 = out / "campbell.png"
-    fig.savefig(p1, dpi=110)
-    plt.close(fig)
+    rpm = np.array(cb["speeds_rpm"], float)
+    thr = r["stability_threshold_rpm"]
+    return CampbellData(speeds=rpm_to_rad_s(rpm), frequency=np.array(cb["frequency_hz"], float) * TWO_PI,
+                        log_dec=np.array(cb["log_dec"], float), damping_ratio=np.full(np.shape(cb["log_dec"]), np.nan),
+                        whirl=np.array(cb["whirl"], dtype=object),
+                        critical=rpm_to_rad_s(np.array(r["critical_speeds_rpm"], float)),
+                        critical_zeta=np.array(r["critical_damping_ratio"], float),
+                        threshold=(float(rpm_to_rad_s(thr)) if thr is not None else
+                                   (None if r.get("notes") else math.inf)),
+                        threshold_ratio=r.get("stability_whirl_ratio"), label="theory (nominal params)")
 
-    fig, axs = plt.subplots(1, 2, figsize=(11, 4.5))
+
+def _plots(r: dict, out: Path, rig=None) -> list[Path]:
+    """campbell.png, coefficients.png and (with ``rig``) mode_shapes.png at the critical speeds."""
+    from ..plots.campbell import campbell_figure, mode_shapes_figure
+    from ..plots.coefficients import theory_coefficients_figure
+    from ..plots.common import save_png
+    cd = campbell_from_report(r)
     rows = r["speeds"]
-    srpm = [row["speed_rpm"] for row in rows]
-    for node in rows[0]["bearings"]:
-        K = np.array([np.ravel(row["bearings"][node]["K"]) for row in rows])
-        C = np.array([np.ravel(row["bearings"][node]["C"]) for row in rows])
-        for j, c in enumerate(COEFF_ORDER):
-            ls = "-" if node == list(rows[0]["bearings"])[0] else "--"
-            axs[0].plot(srpm, K[:, j], ls, color=f"C{j}", marker="o", ms=3, label=f"K{c} node {node}")
-            axs[1].plot(srpm, C[:, j], ls, color=f"C{j}", marker="o", ms=3, label=f"C{c} node {node}")
-    axs[0].set_ylabel("stiffness [N/m]")
-    axs[1].set_ylabel("damping [N s/m]")
-    for a in axs:
-        a.set_xlabel("rotor speed [rpm]")
-        a.grid(alpha=0.3)
-        a.legend(fontsize=7, ncol=2)
-    fig.suptitle("bearing coefficients vs speed (theory, nominal params)")
-    fig.tight_layout()
-    p2 = out / "coefficients.png"
-    fig.savefig(p2, dpi=110)
-    plt.close(fig)
-    return [p1, p2]
+    paths = [save_png(campbell_figure(cd, measured_rpm=[row["speed_rpm"] for row in rows],
+                                      speeds_label="table speeds (--speeds)",
+                                      title=f"Campbell diagram - {r['rig']} (theory, nominal params)"),
+                      out / "campbell.png", dpi=110)]
+    nodes = list(rows[0]["bearings"])
+    coeffs = {int(n): (np.array([row["bearings"][n]["K"] for row in rows], float),
+                       np.array([row["bearings"][n]["C"] for row in rows], float)) for n in nodes}
+    names = {b.node: b.name for b in rig.bearings} if rig is not None else None
+    paths.append(save_png(theory_coefficients_figure([row["speed_rpm"] for row in rows], coeffs, names),
+                          out / "coefficients.png", dpi=110))
+    if rig is not None and cd.critical.size:
+        from .. import bearings
+        from ..plots.data import critical_mode_index, mode_shapes
+        from ..rotor.assembly import RotorModel
+        model = RotorModel.from_params(rig)
+        bfn = bearings.bearing_fn(rig)
+        sh = []
+        for w in cd.critical[:3]:
+            m = mode_shapes(model, bfn, w, 4)
+            sh.append((f"{w * 60 / TWO_PI:.0f} rpm (critical)", m, critical_mode_index(m, w)))
+        paths.append(save_png(mode_shapes_figure(sh, bearing_nodes=model.bearing_nodes,
+                                                 disc_nodes=[d.node for d in rig.discs]),
+                              out / "mode_shapes.png", dpi=110))
+    return paths
 
 
 def run(args) -> int:
@@ -203,7 +199,7 @@ def run(args) -> int:
     _print_report(r)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    paths = _plots(r, out)
+    paths = _plots(r, out, rig)
     (out / "model.json").write_text(json.dumps(r, indent=1, default=float) + "\n")
     print("\nwrote " + ", ".join(str(p) for p in paths + [out / "model.json"]))
     return 0
