@@ -1,4 +1,5 @@
-"""``bearing-id``: the offline command line (no ROS needed for model, simulate, identify, diagnose).
+"""
+``bearing-id``: the offline command line (no ROS needed for model, simulate, identify, diagnose).
 
 Each subcommand lives in ``bearing_id/commands/<name>.py`` and exposes ``add_parser(subparsers)`` and
 ``run(args) -> int``.  Exit codes: 0 success, 1 a result that must not be trusted (e.g. undetermined
@@ -14,26 +15,26 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+from pathlib import Path
 import sys
 import traceback
-from pathlib import Path
 
 from .params import ParamError
 
-COMMANDS = ("model", "simulate", "design", "identify", "diagnose", "report", "record", "play")
+COMMANDS = ('model', 'simulate', 'design', 'identify', 'diagnose', 'report', 'record', 'play')
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="bearing-id",
-        description="Identify journal-bearing stiffness and damping of a flexible rotor from shaft displacement "
-                    "(SI units inside; rpm and micrometres in printed tables).")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+        prog='bearing-id',
+        description='Identify journal-bearing stiffness and damping of a flexible rotor from shaft displacement '
+                    '(SI units inside; rpm and micrometres in printed tables).')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     for name in COMMANDS:
         try:
-            mod = importlib.import_module(f"bearing_id.commands.{name}")
+            mod = importlib.import_module(f'bearing_id.commands.{name}')
         except ModuleNotFoundError as exc:
-            if exc.name != f"bearing_id.commands.{name}":
+            if exc.name != f'bearing_id.commands.{name}':
                 raise
             continue
         p = mod.add_parser(sub)
@@ -43,11 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _say(command: str, text: str) -> None:
     """One paragraph on stderr (whitespace of a multi-line library message folded)."""
-    text = " ".join(str(text).split())
+    text = ' '.join(str(text).split())
     if len(text) > 2000:
-        text = text[:2000] + " ..."
+        text = text[:2000] + ' ...'
     try:
-        print(f"bearing-id {command}: {text}", file=sys.stderr)
+        print(f'bearing-id {command}: {text}', file=sys.stderr)
     except (BrokenPipeError, OSError):  # pragma: no cover - stderr gone
         pass
 
@@ -57,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     from .io.bags import BagError
     parser = build_parser()
     args = parser.parse_args(argv)
-    if not getattr(args, "_run", None):
+    if not getattr(args, '_run', None):
         parser.print_help()
         return 2
     cmd = args.command
@@ -65,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except ParamError as exc:
         from .commands.inputs import InputError
-        _say(cmd, exc if isinstance(exc, InputError) else f"parameter error: {exc}")
+        _say(cmd, exc if isinstance(exc, InputError) else f'parameter error: {exc}')
         return 2
     except (BagError, DaqError) as exc:
         _say(cmd, exc)
@@ -74,22 +75,22 @@ def main(argv: list[str] | None = None) -> int:
         _say(cmd, exc)
         return 2
     except MemoryError:
-        _say(cmd, "out of memory: the input is too large for this machine")
+        _say(cmd, 'out of memory: the input is too large for this machine')
         return 2
     except KeyboardInterrupt:
-        _say(cmd, "interrupted")
+        _say(cmd, 'interrupted')
         return 130
     except BrokenPipeError:             # `bearing-id ... | head`
         return 0
     except Exception as exc:            # a bug: say where, without a wall of traceback (unless asked)
-        if os.environ.get("BEARING_ID_TRACEBACK"):
+        if os.environ.get('BEARING_ID_TRACEBACK'):
             traceback.print_exc()
         tb = traceback.extract_tb(exc.__traceback__)
-        where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno} in {tb[-1].name}" if tb else ""
-        _say(cmd, f"internal error{where}: {type(exc).__name__}: {exc} -- this is a bug, not your input; please "
-                  f"report it with the command line (BEARING_ID_TRACEBACK=1 prints the traceback)")
+        where = f' at {Path(tb[-1].filename).name}:{tb[-1].lineno} in {tb[-1].name}' if tb else ''
+        _say(cmd, f'internal error{where}: {type(exc).__name__}: {exc} -- this is a bug, not your input; please '
+                  f'report it with the command line (BEARING_ID_TRACEBACK=1 prints the traceback)')
         return 3
 
 
-if __name__ == "__main__":  # pragma: no cover
+if __name__ == '__main__':  # pragma: no cover
     sys.exit(main())

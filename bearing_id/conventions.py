@@ -1,4 +1,5 @@
-"""The one place where bearing_id fixes its signs, axes, phases, node numbers and units.
+"""
+The one place where bearing_id fixes its signs, axes, phases, node numbers and units.
 
 Everything else imports from here; tests in ``test/test_conventions.py`` pin each rule.
 
@@ -54,8 +55,8 @@ import math
 import numpy as np
 
 DOF_PER_NODE = 4
-LOCAL_DOF = {"x": 0, "y": 1, "tx": 2, "ty": 3}
-COEFF_ORDER = ("xx", "xy", "yx", "yy")
+LOCAL_DOF = {'x': 0, 'y': 1, 'tx': 2, 'ty': 3}
+COEFF_ORDER = ('xx', 'xy', 'yx', 'yy')
 GRAVITY = 9.80665  # m/s^2, acts along -y
 
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
@@ -64,19 +65,19 @@ RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 def node_index(node: int, n_nodes: int | None = None) -> int:
     """1-based node number -> 0-based array index; raises ValueError on nonsense."""
     if isinstance(node, bool) or int(node) != node:
-        raise ValueError(f"node numbers are whole numbers, got {node!r}")
+        raise ValueError(f'node numbers are whole numbers, got {node!r}')
     node = int(node)
     if node < 1:
-        raise ValueError(f"node numbers are 1-based (first node is 1), got {node}")
+        raise ValueError(f'node numbers are 1-based (first node is 1), got {node}')
     if n_nodes is not None and node > n_nodes:
-        raise ValueError(f"node {node} does not exist: the model has nodes 1..{n_nodes}")
+        raise ValueError(f'node {node} does not exist: the model has nodes 1..{n_nodes}')
     return node - 1
 
 
 def dof_index(node: int, direction: str, n_nodes: int | None = None) -> int:
     """Global 0-based DOF index of ``direction`` ('x', 'y', 'tx', 'ty') at 1-based ``node``."""
     if direction not in LOCAL_DOF:
-        raise ValueError(f"direction must be one of {sorted(LOCAL_DOF)}, got {direction!r}")
+        raise ValueError(f'direction must be one of {sorted(LOCAL_DOF)}, got {direction!r}')
     return DOF_PER_NODE * node_index(node, n_nodes) + LOCAL_DOF[direction]
 
 
@@ -102,18 +103,19 @@ def unbalance_phasors(me: float, phase: float, speed: float) -> tuple[complex, c
 
 
 def force_phasors(magnitude: float, phase: float, direction: str) -> tuple[complex, complex]:
-    """Force phasors (Fx, Fy) [N] of a directional force of ``magnitude`` [N] and ``phase`` [rad].
+    """
+    Force phasors (Fx, Fy) [N] of a directional force of ``magnitude`` [N] and ``phase`` [rad].
 
     ``direction`` is 'x' or 'y' (a shaker along one axis) or 'forward'/'backward' (a rotating force).
     """
     f = magnitude * np.exp(1j * phase)
-    if direction == "x":
+    if direction == 'x':
         return complex(f), 0j
-    if direction == "y":
+    if direction == 'y':
         return 0j, complex(f)
-    if direction == "forward":
+    if direction == 'forward':
         return complex(f), complex(-1j * f)
-    if direction == "backward":
+    if direction == 'backward':
         return complex(f), complex(1j * f)
     raise ValueError(f"force direction must be 'x', 'y', 'forward' or 'backward', got {direction!r}")
 
@@ -129,11 +131,12 @@ def whirl_direction(X: complex, Y: complex) -> str:
     # z = x + j y = (X + jY)/2 e^{j phi} + conj((X - jY)/2) e^{-j phi}: the first term turns +x -> +y
     forward = abs(X + 1j * Y) / 2
     backward = abs(X - 1j * Y) / 2
-    return "forward" if forward >= backward else "backward"
+    return 'forward' if forward >= backward else 'backward'
 
 
 def orbit_semi_axes(X: complex, Y: complex) -> tuple[float, float]:
-    """Semi-major and semi-minor axes [same unit as X] of the elliptical orbit with phasors (X, Y).
+    """
+    Semi-major and semi-minor axes [same unit as X] of the elliptical orbit with phasors (X, Y).
 
     The orbit is the sum of a forward circle of radius |X + jY|/2 and a backward one of radius |X - jY|/2.
     """
@@ -147,7 +150,8 @@ _T_LIT = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
 def lit_to_xy(block_lit: np.ndarray) -> np.ndarray:
-    """Map a 2x2 coefficient block from the bearing-literature frame (X = load, Y = 90 deg ahead) to (x, y).
+    """
+    Map a 2x2 coefficient block from the bearing-literature frame (X = load, Y = 90 deg ahead) to (x, y).
 
     Force and displacement transform alike: f_lit = T f, q_lit = T q, so K_xy = T^T K_lit T.
     """

@@ -1,4 +1,5 @@
-"""Read a DAQ export (CSV or NPZ) into a :class:`bearing_id.rig.Recording` for the sensor_driver's ``file`` source.
+"""
+Read a DAQ export (CSV or NPZ) into a :class:`bearing_id.rig.Recording` for the sensor_driver's ``file`` source.
 
 NPZ: the self-describing format of :meth:`bearing_id.rig.Recording.save_npz` (``bearing-id simulate`` writes it).
 
@@ -26,7 +27,7 @@ import numpy as np
 from . import keyphasor as _kp
 from .params import Probe, Run
 
-UNIT_SCALE = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
+UNIT_SCALE = {'m': 1.0, 'mm': 1e-3, 'um': 1e-6, 'µm': 1e-6}
 
 
 class DaqError(ValueError):
@@ -38,8 +39,11 @@ class KeyphasorDaqError(DaqError, _kp.KeyphasorError):
 
 
 def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float, **kw) -> tuple[np.ndarray, np.ndarray]:
-    """Rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,):
-    :func:`bearing_id.keyphasor.angle_from_keyphasor` (same keywords), raising :class:`KeyphasorDaqError`."""
+    """
+    Return rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,).
+
+    Computed by :func:`bearing_id.keyphasor.angle_from_keyphasor` (same keywords), raising :class:`KeyphasorDaqError`.
+    """
     try:
         return _kp.angle_from_keyphasor(pulses, sample_rate, **kw)
     except _kp.KeyphasorError as exc:
@@ -48,12 +52,12 @@ def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float, **kw) -> tuple[
 
 def _parse_channels(text: str) -> tuple[Probe, ...]:
     out = []
-    for tok in filter(None, (s.strip() for s in text.split(","))):
-        if "@" not in tok:
+    for tok in filter(None, (s.strip() for s in text.split(','))):
+        if '@' not in tok:
             raise DaqError(f"channels: '{tok}' must be name@<node><x|y>, e.g. p6x@6x")
-        name, loc = tok.split("@", 1)
+        name, loc = tok.split('@', 1)
         node, direction = loc[:-1], loc[-1:]
-        if direction not in ("x", "y") or not node.isdigit() or int(node) < 1:
+        if direction not in ('x', 'y') or not node.isdigit() or int(node) < 1:
             raise DaqError(f"channels: '{tok}': location must be a 1-based node followed by x or y")
         out.append(Probe(name.strip(), int(node), direction))
     return tuple(out)
@@ -65,81 +69,82 @@ def read_csv(path: str | Path):
     path = Path(path)
     meta = {}
     header = None
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding='utf-8') as fh:
         for lineno, line in enumerate(fh, 1):
             s = line.strip()
             if not s:
                 continue
-            if s.startswith("#"):
-                if ":" in s:
-                    k, v = s[1:].split(":", 1)
-                    meta[k.strip().lower()] = v.split("  ")[0].strip()
+            if s.startswith('#'):
+                if ':' in s:
+                    k, v = s[1:].split(':', 1)
+                    meta[k.strip().lower()] = v.split('  ')[0].strip()
                 continue
-            header = [h.strip() for h in s.split(",")]
+            header = [h.strip() for h in s.split(',')]
             break
     if header is None:
-        raise DaqError(f"{path}: no header row")
-    if "sample_rate" not in meta:
+        raise DaqError(f'{path}: no header row')
+    if 'sample_rate' not in meta:
         raise DaqError(f"{path}: missing '# sample_rate: <Hz>' line")
     try:
-        fs = float(meta["sample_rate"])
+        fs = float(meta['sample_rate'])
     except ValueError:
         raise DaqError(f"{path}: sample_rate {meta['sample_rate']!r} is not a number [Hz]") from None
     if not fs > 0:
-        raise DaqError(f"{path}: sample_rate must be > 0 Hz")
-    units = meta.get("units", "m")
+        raise DaqError(f'{path}: sample_rate must be > 0 Hz')
+    units = meta.get('units', 'm')
     if units not in UNIT_SCALE:
-        raise DaqError(f"{path}: units {units!r} must be one of {sorted(UNIT_SCALE)}")
-    if "channels" not in meta:
+        raise DaqError(f'{path}: units {units!r} must be one of {sorted(UNIT_SCALE)}')
+    if 'channels' not in meta:
         raise DaqError(f"{path}: missing '# channels: name@<node><x|y>, ...' line")
-    probes = _parse_channels(meta["channels"])
+    probes = _parse_channels(meta['channels'])
     missing = [p.name for p in probes if p.name not in header]
     if missing:
-        raise DaqError(f"{path}: channel column(s) {missing} not in the header {header}")
+        raise DaqError(f'{path}: channel column(s) {missing} not in the header {header}')
     try:
-        data = np.loadtxt(path, delimiter=",", comments="#", skiprows=_header_row(path), ndmin=2)
+        data = np.loadtxt(path, delimiter=',', comments='#', skiprows=_header_row(path), ndmin=2)
     except ValueError as exc:
-        raise DaqError(f"{path}: unreadable numbers ({exc})") from None
+        raise DaqError(f'{path}: unreadable numbers ({exc})') from None
     if data.shape[1] != len(header):
-        raise DaqError(f"{path}: {data.shape[1]} columns but {len(header)} header names")
+        raise DaqError(f'{path}: {data.shape[1]} columns but {len(header)} header names')
     col = {h: data[:, i] for i, h in enumerate(header)}
     n = data.shape[0]
     kp_speed = None
-    if "angle" in col:
-        angle = col["angle"].astype(float)
-    elif "keyphasor" in col:
+    if 'angle' in col:
+        angle = col['angle'].astype(float)
+    elif 'keyphasor' in col:
         try:
-            angle, kp_speed = angle_from_keyphasor(col["keyphasor"], fs)
+            angle, kp_speed = angle_from_keyphasor(col['keyphasor'], fs)
         except KeyphasorDaqError as exc:
             raise KeyphasorDaqError(f"{path}: column 'keyphasor': {exc}") from None
     else:
         raise DaqError(f"{path}: need an 'angle' [rad] or a 'keyphasor' column")
-    if "speed" in col:
-        speed = col["speed"].astype(float)
-    elif "speed_rpm" in col:
-        speed = col["speed_rpm"] * (2 * math.pi / 60.0)
+    if 'speed' in col:
+        speed = col['speed'].astype(float)
+    elif 'speed_rpm' in col:
+        speed = col['speed_rpm'] * (2 * math.pi / 60.0)
     elif kp_speed is not None:
         speed = kp_speed
     else:
         speed = np.gradient(angle) * fs
     samples = np.column_stack([col[p.name] for p in probes]) * UNIT_SCALE[units]
-    t = col["t"] if "t" in col else np.arange(n) / fs
+    t = col['t'] if 't' in col else np.arange(n) / fs
     return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples,
-                     run=Run(meta.get("run", "?"), ()), rig_name=meta.get("rig", "daq"))
+                     run=Run(meta.get('run', '?'), ()), rig_name=meta.get('rig', 'daq'))
 
 
 def _header_row(path: Path) -> int:
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding='utf-8') as fh:
         for i, line in enumerate(fh):
             s = line.strip()
-            if s and not s.startswith("#"):
+            if s and not s.startswith('#'):
                 return i + 1
     return 0
 
 
-def write_csv(rec, path: str | Path, units: str = "m", keyphasor: bool = False, *,
+def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, *,
               pulse_width: float = _kp.DEFAULT_WIDTH, rise_time: float = 0.0) -> Path:
-    """Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads).
+    """
+    Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads).
 
     ``keyphasor``: write a once-per-revolution pulse column (0..1) instead of the angle, by the key-mark convention
     (:func:`bearing_id.keyphasor.pulse_from_angle`): high while angle mod 2 pi is in [0, ``pulse_width``) [rad],
@@ -147,21 +152,21 @@ def write_csv(rec, path: str | Path, units: str = "m", keyphasor: bool = False, 
     """
     path = Path(path)
     s = UNIT_SCALE[units]
-    ch = ", ".join(f"{p.name}@{p.node}{p.direction}" for p in rec.probes)
-    lines = [f"# sample_rate: {rec.sample_rate!r}", f"# units: {units}", f"# channels: {ch}",
-             f"# run: {rec.run.id}", f"# rig: {rec.rig_name}"]
+    ch = ', '.join(f'{p.name}@{p.node}{p.direction}' for p in rec.probes)
+    lines = [f'# sample_rate: {rec.sample_rate!r}', f'# units: {units}', f'# channels: {ch}',
+             f'# run: {rec.run.id}', f'# rig: {rec.rig_name}']
     if keyphasor:
         pulse = _kp.pulse_from_angle(rec.angle, rec.speed, width=pulse_width, rise_time=rise_time)
         cols = [rec.t, pulse, rec.speed]
-        names = ["t", "keyphasor", "speed"]
+        names = ['t', 'keyphasor', 'speed']
     else:
         cols = [rec.t, rec.angle, rec.speed]
-        names = ["t", "angle", "speed"]
+        names = ['t', 'angle', 'speed']
     cols += [rec.samples[:, j] / s for j in range(rec.samples.shape[1])]
     names += [p.name for p in rec.probes]
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(lines) + "\n" + ",".join(names) + "\n")
-        np.savetxt(fh, np.column_stack(cols), delimiter=",", fmt="%.12g")
+    with open(path, 'w', encoding='utf-8') as fh:
+        fh.write('\n'.join(lines) + '\n' + ','.join(names) + '\n')
+        np.savetxt(fh, np.column_stack(cols), delimiter=',', fmt='%.12g')
     return path
 
 
@@ -169,13 +174,13 @@ def read_daq(path: str | Path):
     """Read a DAQ export by extension (.csv or .npz) -> Recording; raises DaqError (a ValueError) with the reason."""
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"DAQ file {path} does not exist")
-    if path.suffix.lower() == ".npz":
+        raise FileNotFoundError(f'DAQ file {path} does not exist')
+    if path.suffix.lower() == '.npz':
         from .rig import load_npz
         try:
             return load_npz(path)
         except ValueError as exc:
             raise DaqError(str(exc)) from None
-    if path.suffix.lower() in (".csv", ".txt"):
+    if path.suffix.lower() in ('.csv', '.txt'):
         return read_csv(path)
-    raise DaqError(f"{path}: unknown DAQ format (use .csv or .npz)")
+    raise DaqError(f'{path}: unknown DAQ format (use .csv or .npz)')

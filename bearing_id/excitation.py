@@ -1,4 +1,5 @@
-"""Known excitation (unbalance masses, directional shakers) as force phasors on the FE degrees of freedom.
+"""
+Known excitation (unbalance masses, directional shakers) as force phasors on the FE degrees of freedom.
 
 Conventions (see :mod:`bearing_id.conventions`): f(t) = Re{F exp(j r phi(t))} with phi the keyphasor rotor angle and
 r the frequency ratio (excitation frequency / rotor speed).  An unbalance is always synchronous (r = 1) and its force
@@ -10,40 +11,45 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from .conventions import DOF_PER_NODE, dof_index, force_phasors, unbalance_phasors
+from .conventions import dof_index, DOF_PER_NODE, force_phasors, unbalance_phasors
 from .params import ExcitationEntry
 
 
 def harmonic_forces(entries: Iterable[ExcitationEntry], speed: float, n_nodes: int) -> dict[float, np.ndarray]:
-    """Force phasors per frequency ratio.
+    """
+    Force phasors per frequency ratio.
 
     Parameters
     ----------
-    entries : excitation entries (params.ExcitationEntry); node numbers 1-based.
-    speed : rotor speed [rad/s].
-    n_nodes : number of FE nodes (ndof = 4 n_nodes).
+    entries
+        excitation entries (params.ExcitationEntry); node numbers 1-based.
+    speed
+        rotor speed [rad/s].
+    n_nodes
+        number of FE nodes (ndof = 4 n_nodes).
 
     Returns
     -------
     dict mapping frequency ratio r -> complex force vector (4 n_nodes,) [N] at frequency r * speed [rad/s].
+
     """
     out: dict[float, np.ndarray] = {}
     for e in entries:
-        if e.kind == "unbalance":
+        if e.kind == 'unbalance':
             if e.frequency_ratio != 1.0:
-                raise ValueError("an unbalance is synchronous: frequency_ratio must be 1")
+                raise ValueError('an unbalance is synchronous: frequency_ratio must be 1')
             fx, fy = unbalance_phasors(e.magnitude, e.phase, speed)
-        elif e.kind == "force":
+        elif e.kind == 'force':
             fx, fy = force_phasors(e.magnitude, e.phase, e.direction)
         else:
-            raise ValueError(f"unknown excitation kind {e.kind!r}")
+            raise ValueError(f'unknown excitation kind {e.kind!r}')
         r = float(e.frequency_ratio)
         f = out.setdefault(r, np.zeros(DOF_PER_NODE * n_nodes, dtype=complex))
-        f[dof_index(e.node, "x", n_nodes)] += fx
-        f[dof_index(e.node, "y", n_nodes)] += fy
+        f[dof_index(e.node, 'x', n_nodes)] += fx
+        f[dof_index(e.node, 'y', n_nodes)] += fy
     return out
 
 
 def is_force_excited(entries: Iterable[ExcitationEntry]) -> bool:
-    """True when any entry is a directional (non-unbalance) force."""
-    return any(e.kind == "force" for e in entries)
+    """Return True when any entry is a directional (non-unbalance) force."""
+    return any(e.kind == 'force' for e in entries)

@@ -1,4 +1,5 @@
-"""Kalman filter on the FE rotor's state space (Kang et al. 2020, section 3.1, eqs 5-18), reference and fast paths.
+"""
+Kalman filter on the FE rotor's state space (Kang et al. 2020, section 3.1, eqs 5-18), reference and fast paths.
 
 Model (eqs 5-11)
     Continuous state x = [q; q'] (2 ndof), x' = A x + B f(t), measurement z_k = H x(t_k) + v_k (probe DOFs), with
@@ -44,7 +45,8 @@ CHUNK = 64          # samples per chunk of the vectorised LTI evaluation
 
 # ------------------------------------------------------------------------------------------------ discretisation
 def discretise(A, B, dt: float):
-    """Exact discretisation: (Phi, Gamma) with Phi = expm(A dt) and Gamma = int_0^dt expm(A s) ds B.
+    """
+    Exact discretisation: (Phi, Gamma) with Phi = expm(A dt) and Gamma = int_0^dt expm(A s) ds B.
 
     Gamma is the zero-order-hold input matrix (for inputs held constant over a step); the Kalman filter here does NOT
     use it for the sinusoidal excitation (see :func:`input_phasors`).
@@ -60,7 +62,8 @@ def discretise(A, B, dt: float):
 
 
 def input_phasors(A, B, forces: dict, speed: float) -> dict:
-    """State phasors of the particular solution: {r: Xp_r = (j r speed I - A)^-1 B F_r} (complex (n,)).
+    """
+    State phasors of the particular solution: {r: Xp_r = (j r speed I - A)^-1 B F_r} (complex (n,)).
 
     forces : {frequency ratio r: complex force phasor (n_inputs,)} [N]; speed [rad/s].
     """
@@ -91,14 +94,14 @@ def _as_cov(v, n, name) -> np.ndarray:
     a = np.asarray(v, dtype=float)
     if a.ndim == 0:
         if not a > 0:
-            raise ValueError(f"{name} must be > 0, got {float(a)}")
+            raise ValueError(f'{name} must be > 0, got {float(a)}')
         return float(a) * np.eye(n)
     if a.ndim == 1:
         if a.size != n or np.any(a <= 0):
-            raise ValueError(f"{name} as a vector must hold {n} positive variances")
+            raise ValueError(f'{name} as a vector must hold {n} positive variances')
         return np.diag(a)
     if a.shape != (n, n):
-        raise ValueError(f"{name} must be a scalar, ({n},) or ({n}, {n}); got shape {a.shape}")
+        raise ValueError(f'{name} must be a scalar, ({n},) or ({n}, {n}); got shape {a.shape}')
     return 0.5 * (a + a.T)
 
 
@@ -111,12 +114,12 @@ def riccati_residual(Phi, H, Q, R, P) -> np.ndarray:
 def _dare_sda(Phi, H, Q, R, max_iter=80):
     """Structure-preserving doubling (Chu, Fan & Lin 2005) on the dual problem; quadratic convergence."""
     n = Phi.shape[0]
-    I = np.eye(n)
+    Id = np.eye(n)
     Ak = Phi.T.copy()
     Gk = H.T @ np.linalg.solve(R, H)
     Hk = Q.copy()
     for _ in range(max_iter):
-        W = np.linalg.solve(I + Gk @ Hk, np.hstack([Ak, Gk]))
+        W = np.linalg.solve(Id + Gk @ Hk, np.hstack([Ak, Gk]))
         IA, IG = W[:, :n], W[:, n:]
         Hn = Hk + Ak.T @ Hk @ IA
         Gk = Gk + Ak @ IG @ Ak.T
@@ -146,8 +149,9 @@ def _dare_scipy(Phi, H, Q, R, newton_steps=3):
     return P
 
 
-def steady_state_gain(Phi, H, Q, R, method: str = "sda"):
-    """Steady-state prior covariance P, Kalman gain K = P H^T S^-1 and innovation covariance S = H P H^T + R.
+def steady_state_gain(Phi, H, Q, R, method: str = 'sda'):
+    """
+    Steady-state prior covariance P, Kalman gain K = P H^T S^-1 and innovation covariance S = H P H^T + R.
 
     P solves the filter DARE  P = Phi P Phi^T - Phi P H^T (H P H^T + R)^-1 H P Phi^T + Q (the dual of the control
     DARE with (Phi^T, H^T)).  ``method='sda'`` (default): structure-preserving doubling, about 10 ms for the 88-state
@@ -156,8 +160,8 @@ def steady_state_gain(Phi, H, Q, R, method: str = "sda"):
     filter that must equal the time-varying one to 1e-9).  Falls back to 'scipy' if doubling does not converge.
     Raises RuntimeError if the final relative residual exceeds 1e-10.
     """
-    P = _dare_sda(Phi, H, Q, R) if method == "sda" else None
-    if method not in ("sda", "scipy"):
+    P = _dare_sda(Phi, H, Q, R) if method == 'sda' else None
+    if method not in ('sda', 'scipy'):
         raise ValueError(f"method must be 'sda' or 'scipy', got {method!r}")
     if P is None:
         P = _dare_scipy(Phi, H, Q, R)
@@ -166,20 +170,22 @@ def steady_state_gain(Phi, H, Q, R, method: str = "sda"):
     K = np.linalg.solve(S, H @ P).T
     res = riccati_residual(Phi, H, Q, R, P)
     if np.max(np.abs(res)) > 1e-10 * max(np.max(np.abs(P)), np.max(np.abs(Q))):
-        raise RuntimeError(f"the discrete Riccati solution is inaccurate (residual {np.max(np.abs(res)):.3g} vs "
-                           f"max|P| {np.max(np.abs(P)):.3g}); check Q, R scaling and detectability")
+        raise RuntimeError(f'the discrete Riccati solution is inaccurate (residual {np.max(np.abs(res)):.3g} vs '
+                           f'max|P| {np.max(np.abs(P)):.3g}); check Q, R scaling and detectability')
     return P, K, S
 
 
 # ------------------------------------------------------------------------------------------------ model
 @dataclass
 class KalmanModel:
-    """A discretised model for the filter (build with :func:`kalman_model` or :func:`rotor_kalman_model`).
+    """
+    A discretised model for the filter (build with :func:`kalman_model` or :func:`rotor_kalman_model`).
 
     A (n, n), B (n, nu) continuous; H (m, n) measurement; E (k, n) output selection; Phi = expm(A dt); Q (n, n),
     R (m, m); dt [s]; speed [rad/s] the model's speed; Xp {ratio: complex (n,)} particular-solution state phasors;
     out_names (k,) names of the outputs; meas_names (m,) names of the measured channels.
     """
+
     A: np.ndarray
     B: np.ndarray
     H: np.ndarray
@@ -209,8 +215,12 @@ class KalmanModel:
             self._ss = steady_state_gain(self.Phi, self.H, self.Q, self.R)
         return self._ss
 
-    def with_forces(self, forces: dict, speed: float | None = None) -> "KalmanModel":
-        """Same model (matrices, gain) with new known excitation phasors at ``speed`` [rad/s] (default the model's)."""
+    def with_forces(self, forces: dict, speed: float | None = None) -> 'KalmanModel':
+        """
+        Return the same model (matrices, gain) with new known excitation phasors at ``speed`` [rad/s].
+
+        ``speed`` defaults to the model's.
+        """
         sp = self.speed if speed is None else float(speed)
         return KalmanModel(self.A, self.B, self.H, self.E, self.Phi, self.Q, self.R, self.dt, sp,
                            input_phasors(self.A, self.B, forces, sp), self.out_names, self.meas_names, self._ss,
@@ -232,7 +242,8 @@ class KalmanModel:
 
 def kalman_model(A, B, H, dt: float, *, Q=1e-16, R, forces=None, speed: float = 0.0, E=None, out_names=(),
                  meas_names=()) -> KalmanModel:
-    """Build a :class:`KalmanModel` from a continuous (A, B, H) system.
+    """
+    Build a :class:`KalmanModel` from a continuous (A, B, H) system.
 
     dt [s] sample interval; Q, R scalar (times identity), vector (diagonal) or matrix; forces {ratio: F (nu,)} known
     excitation phasors [N] at ``speed`` [rad/s]; E (k, n) output selection (default H).
@@ -242,27 +253,28 @@ def kalman_model(A, B, H, dt: float, *, Q=1e-16, R, forces=None, speed: float = 
     H = np.atleast_2d(np.asarray(H, dtype=float))
     n = A.shape[0]
     if A.shape != (n, n) or B.shape[0] != n or H.shape[1] != n:
-        raise ValueError(f"inconsistent shapes A {A.shape}, B {B.shape}, H {H.shape}")
+        raise ValueError(f'inconsistent shapes A {A.shape}, B {B.shape}, H {H.shape}')
     if not dt > 0:
-        raise ValueError(f"dt must be > 0 s, got {dt}")
+        raise ValueError(f'dt must be > 0 s, got {dt}')
     E = H.copy() if E is None else np.atleast_2d(np.asarray(E, dtype=float))
     Phi = sla.expm(A * dt)
-    return KalmanModel(A, B, H, E, Phi, _as_cov(Q, n, "Q"), _as_cov(R, H.shape[0], "R"), float(dt), float(speed),
+    return KalmanModel(A, B, H, E, Phi, _as_cov(Q, n, 'Q'), _as_cov(R, H.shape[0], 'R'), float(dt), float(speed),
                        input_phasors(A, B, forces or {}, speed), tuple(out_names), tuple(meas_names))
 
 
 def _dof_rows(items, n_nodes):
     rows, names = [], []
     for it in items:
-        node, direction = (it.node, it.direction) if hasattr(it, "node") else it
+        node, direction = (it.node, it.direction) if hasattr(it, 'node') else it
         rows.append(dof_index(node, direction, n_nodes))
-        names.append(getattr(it, "name", None) or f"n{node}{direction}")
+        names.append(getattr(it, 'name', None) or f'n{node}{direction}')
     return rows, names
 
 
 def rotor_kalman_model(rotor, speed: float, coeffs: dict, measured, sample_rate: float, *, forces=None,
                        outputs=None, Q=1e-16, R) -> KalmanModel:
-    """The paper's filter model of the FE rotor at ``speed`` [rad/s] with bearing ``coeffs`` {node: (K, C)}.
+    """
+    Build the paper's filter model of the FE rotor at ``speed`` [rad/s] with bearing ``coeffs`` {node: (K, C)}.
 
     measured : probes (objects with .node, .direction[, .name]) or (node, 'x'|'y') pairs, 1-based nodes.
     forces : {ratio: complex (ndof,)} known excitation phasors [N] (``excitation.harmonic_forces``).
@@ -275,7 +287,7 @@ def rotor_kalman_model(rotor, speed: float, coeffs: dict, measured, sample_rate:
     nn = rotor.n_nodes
     mrows, mnames = _dof_rows(measured, nn)
     if outputs is None:
-        outputs = [(b, d) for b in rotor.bearing_nodes for d in ("x", "y")]
+        outputs = [(b, d) for b in rotor.bearing_nodes for d in ('x', 'y')]
     orows, onames = _dof_rows(outputs, nn)
     n = A.shape[0]
     H = np.zeros((len(mrows), n))
@@ -289,12 +301,14 @@ def rotor_kalman_model(rotor, speed: float, coeffs: dict, measured, sample_rate:
 # ------------------------------------------------------------------------------------------------ results
 @dataclass
 class KFResult:
-    """Filter (or smoother) output.
+    """
+    Filter (or smoother) output.
 
     estimates (N, k) selected DOFs of x_hat(k|k) (smoother: x_hat(k|N)) [m]; innovations (N, m) [m]; S (m, m) steady
     or (N, m, m) per step [m^2]; nis (N,); nis_mean; nis_band (lo, hi) the 95 % chi-square band of the mean NIS of a
     consistent filter (dof = N m); states (N, n) full state if requested; out_names.
     """
+
     estimates: np.ndarray
     innovations: np.ndarray
     S: np.ndarray
@@ -318,7 +332,7 @@ def nis_band(n_steps: int, m: int, level: float = 0.95) -> tuple:
 
 
 def _result(est, nu, S, nis, states=None, out_names=()):
-    nm = float(np.mean(nis)) if nis.size else float("nan")
+    nm = float(np.mean(nis)) if nis.size else float('nan')
     return KFResult(est, nu, S, nis, nm, nis_band(max(nis.size, 1), nu.shape[1]), states, tuple(out_names))
 
 
@@ -330,20 +344,21 @@ def _check_inputs(km: KalmanModel, samples, angle):
         raise ValueError(f"samples must be (N, {km.m}) for this model's {km.m} measured channel(s), got {z.shape}")
     a = np.asarray(angle, dtype=float).reshape(-1)
     if a.size != z.shape[0]:
-        raise ValueError(f"angle has {a.size} values but samples have {z.shape[0]} rows")
+        raise ValueError(f'angle has {a.size} values but samples have {z.shape[0]} rows')
     bad = int(np.count_nonzero(~np.isfinite(z)))
     if bad:
-        raise ValueError(f"samples hold {bad} non-finite value(s) (NaN/inf); the Kalman filter needs complete "
-                         f"blocks: drop or repair the block")
+        raise ValueError(f'samples hold {bad} non-finite value(s) (NaN/inf); the Kalman filter needs complete '
+                         f'blocks: drop or repair the block')
     bad = int(np.count_nonzero(~np.isfinite(a)))
     if bad:
-        raise ValueError(f"angle holds {bad} non-finite value(s) (NaN/inf)")
+        raise ValueError(f'angle holds {bad} non-finite value(s) (NaN/inf)')
     return z, a
 
 
 # ------------------------------------------------------------------------------------------------ fast path
 class _ChunkedLTI:
-    """Vectorised evaluation of s_{k+1} = F s_k + G u_k, y_k = C s_k + D u_k over chunks of L samples.
+    """
+    Vectorised evaluation of s_{k+1} = F s_k + G u_k, y_k = C s_k + D u_k over chunks of L samples.
 
     Within a chunk starting at s_c: y_{c+i} = C F^i s_c + sum_{j<i} C F^(i-1-j) G u_{c+j} + D u_{c+i}; the chunk
     starts follow s_{c+L} = F^L s_c + [F^(L-1) G ... G] u_chunk.  Exact (no approximation), one matrix product for the
@@ -369,14 +384,14 @@ class _ChunkedLTI:
         self.W = ctr[::-1].transpose(1, 0, 2).reshape(n, L * m)          # [F^(L-1) G, ..., G]
         markov = np.zeros((L, p, m))
         markov[0] = D
-        markov[1:] = np.einsum("ipn,inm->ipm", obs[:L - 1], np.broadcast_to(G, (L - 1, n, m)))
-        i, j = np.meshgrid(np.arange(L), np.arange(L), indexing="ij")
+        markov[1:] = np.einsum('ipn,inm->ipm', obs[:L - 1], np.broadcast_to(G, (L - 1, n, m)))
+        i, j = np.meshgrid(np.arange(L), np.arange(L), indexing='ij')
         d = i - j
         T = np.where((d >= 0)[:, :, None, None], markov[np.clip(d, 0, L - 1)], 0.0)    # (L, L, p, m)
         self.T = T.transpose(0, 2, 1, 3).reshape(L * p, L * m)
 
     def run(self, U, s0):
-        """Outputs (N, p) and the state after the last sample for inputs U (N, m) from state s0 (n,)."""
+        """Return the outputs (N, p) and the state after the last sample for inputs U (N, m) from state s0 (n,)."""
         N = U.shape[0]
         L, m, p = self.L, self.m, self.p
         nc = -(-N // L)
@@ -402,7 +417,7 @@ class _ChunkedLTI:
 
 
 def _fast_operator(km: KalmanModel, L: int = CHUNK) -> _ChunkedLTI:
-    key = ("filter", L)
+    key = ('filter', L)
     op = km._chunked.get(key)
     if op is None:
         P, K, S = km.steady_state()
@@ -426,7 +441,8 @@ def _initial_deviation(km: KalmanModel, a0: float, x0):
 
 
 def fast_filter(km: KalmanModel, samples, angle, *, x0=None, return_states: bool = False) -> KFResult:
-    """Steady-state Kalman filter (gain from the DARE), vectorised.
+    """
+    Steady-state Kalman filter (gain from the DARE), vectorised.
 
     samples (N, m) [m] measured channels in the order of km.H; angle (N,) keyphasor angle [rad]; x0 (n,) initial
     prior state (default: the model's steady state x_p(t0), see module docstring).  Equal to :func:`reference_filter`
@@ -442,7 +458,7 @@ def fast_filter(km: KalmanModel, samples, angle, *, x0=None, return_states: bool
     nu = Y[:, :km.m]
     est = Y[:, km.m:] + yp
     Sinv = np.linalg.inv(S)
-    nis = np.einsum("ki,ij,kj->k", nu, Sinv, nu)
+    nis = np.einsum('ki,ij,kj->k', nu, Sinv, nu)
     states = _filtered_states(km, zt, e0, a) if return_states else None
     return _result(est, nu, S, nis, states, km.out_names)
 
@@ -469,7 +485,8 @@ def _filtered_states(km, zt, e0, a):
 
 # ------------------------------------------------------------------------------------------------ reference
 def reference_filter(km: KalmanModel, samples, angle, *, x0=None, P0=None) -> KFResult:
-    """The paper's time-varying filter (eqs 12-18) with filterpy's KalmanFilter, one predict/update per sample.
+    """
+    Run the paper's time-varying filter (eqs 12-18) with filterpy's KalmanFilter, one predict/update per sample.
 
     Prior at the first sample: x_hat(0|-1) = x0 (default x_p(t0)), P(0|-1) = P0 (default the steady-state P_ss).
     Input per step u_k = d_k = x_p(t_{k+1}) - Phi x_p(t_k) through filterpy's B = I.  Slow (reference only).
@@ -505,7 +522,8 @@ def reference_filter(km: KalmanModel, samples, angle, *, x0=None, P0=None) -> KF
 
 # ------------------------------------------------------------------------------------------------ smoother
 def rts_smoother(km: KalmanModel, samples, angle, *, x0=None, return_states: bool = False) -> KFResult:
-    """Rauch-Tung-Striebel smoother with the steady-state filter (offline).
+    """
+    Rauch-Tung-Striebel smoother with the steady-state filter (offline).
 
     x_hat(k|N) = x_hat(k|k) + Cs (x_hat(k+1|N) - x_hat(k+1|k)), Cs = P(k|k) Phi^T P(k+1|k)^-1 with the steady-state
     covariances; the known input cancels in the bracket, so the recursion runs on the deviation from x_p.
@@ -529,7 +547,7 @@ def rts_smoother(km: KalmanModel, samples, angle, *, x0=None, return_states: boo
     prior = np.vstack([e0[None, :], ef[:-1] @ km.Phi.T])
     nu = zt - prior @ km.H.T
     Sinv = np.linalg.inv(S)
-    nis = np.einsum("ki,ij,kj->k", nu, Sinv, nu)
+    nis = np.einsum('ki,ij,kj->k', nu, Sinv, nu)
     est = es @ km.E.T + yp
     states = None
     if return_states:
@@ -539,7 +557,8 @@ def rts_smoother(km: KalmanModel, samples, angle, *, x0=None, return_states: boo
 
 # ------------------------------------------------------------------------------------------------ streaming
 class StreamingKF:
-    """Block-by-block steady-state filter for a node: state carried across blocks, identical to one batch call.
+    """
+    Block-by-block steady-state filter for a node: state carried across blocks, identical to one batch call.
 
     Build one per speed band (``km`` from :func:`rotor_kalman_model` at the band's speed); ``band_tol_rel`` is the
     relative speed deviation the model is accepted for (a block outside raises ValueError: rebuild the model).
@@ -567,11 +586,11 @@ class StreamingKF:
         """(estimates (n, k) [m], innovations (n, m) [m], nis (n,)) for one block; samples (n, m), angle (n,)."""
         if not self.in_band(speed):
             raise ValueError(f"speed {speed:.4g} rad/s is outside this model's band ({self.km.speed:.4g} rad/s "
-                             f"+- {100 * self.band_tol_rel:.3g} %); rebuild the model for this speed")
+                             f'+- {100 * self.band_tol_rel:.3g} %); rebuild the model for this speed')
         km = self.km
         z, a = _check_inputs(km, samples, angle)
         zp, yp = km.particular(a)
         Y, self._e = self._op.run(z - zp, self._e)
         nu = Y[:, :km.m]
         self.n_samples += z.shape[0]
-        return Y[:, km.m:] + yp, nu, np.einsum("ki,ij,kj->k", nu, self._Sinv, nu)
+        return Y[:, km.m:] + yp, nu, np.einsum('ki,ij,kj->k', nu, self._Sinv, nu)

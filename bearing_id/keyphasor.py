@@ -1,4 +1,5 @@
-"""Key marks from a sampled once-per-revolution keyphasor pulse, and the rotor angle and speed rebuilt from them.
+"""
+Key marks from a sampled once-per-revolution keyphasor pulse, and the rotor angle and speed rebuilt from them.
 
 Convention (:data:`KEY_MARK_CONVENTION`)
     The rotor angle is 0 (mod 2 pi) at the instant the keyphasor pulse's rising edge crosses 50 % of the way from
@@ -46,15 +47,15 @@ numpy only, no ROS.  Times in samples (``index``) or seconds (``times``), angles
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 TWO_PI = 2.0 * math.pi
 
 KEY_MARK_CONVENTION = ("rotor angle = 0 (mod 2 pi) when the keyphasor pulse's rising edge crosses 50 % of its "
-                       "low-to-high swing; a square keyphasor pulse is high while the angle mod 2 pi is in [0, width)")
+                       'low-to-high swing; a square keyphasor pulse is high while the angle mod 2 pi is in [0, width)')
 DEFAULT_WIDTH = 0.2 * math.pi  # rad, pulse width written by :func:`pulse_from_angle`
 MAX_JUMP = 0.2             # relative change of the revolution duration between consecutive revolutions refused
 LEVEL_TOL = 0.1            # fraction of the swing: a sample closer than this to a level is 'on' that level
@@ -72,7 +73,8 @@ class KeyphasorError(ValueError):
 
 @dataclass(frozen=True)
 class KeyMarks:
-    """Key marks of a pulse train.
+    """
+    Key marks of a pulse train.
 
     index : (m,) sub-sample position of each mark [samples], 0 = the first sample (time index / sample_rate).
     sigma : (m,) 1-sigma of ``index`` [samples] (see the module docstring).
@@ -81,6 +83,7 @@ class KeyMarks:
     kind : 'sharp' or 'ramp' (how the edges were read).
     sample_rate : Hz.
     """
+
     index: np.ndarray
     sigma: np.ndarray
     locked: np.ndarray
@@ -102,9 +105,10 @@ class KeyMarks:
 
 
 # ------------------------------------------------------------------------------------------------ public API
-def key_marks(pulse, sample_rate: float, *, edge: str = "rising", max_jump: float = MAX_JUMP,
+def key_marks(pulse, sample_rate: float, *, edge: str = 'rising', max_jump: float = MAX_JUMP,
               synchronous: bool = True) -> KeyMarks:
-    """Key marks of a sampled once-per-revolution pulse ``pulse`` (N,) [any unit] at ``sample_rate`` [Hz].
+    """
+    Key marks of a sampled once-per-revolution pulse ``pulse`` (N,) [any unit] at ``sample_rate`` [Hz].
 
     ``edge``: 'rising' (the convention) or 'falling' (an inverted pulse).  ``max_jump``: largest relative change of
     the revolution duration between consecutive revolutions.  ``synchronous``: a periodic run of sharp edges puts
@@ -114,15 +118,15 @@ def key_marks(pulse, sample_rate: float, *, edge: str = "rising", max_jump: floa
     """
     fs = _check_rate(sample_rate)
     p = _check_pulse(pulse)
-    if edge not in ("rising", "falling"):
+    if edge not in ('rising', 'falling'):
         raise KeyphasorError(f"keyphasor: edge must be 'rising' or 'falling', got {edge!r}")
-    if edge == "falling":
+    if edge == 'falling':
         p = -p
     lo, hi, noise = _levels(p)
     k = _edges(p, lo, hi)
     if k.size < 2:
-        raise KeyphasorError(f"keyphasor: found {k.size} key mark(s) in {p.size} samples, need at least 2 "
-                             "(is the column a once-per-revolution pulse train, and the record >= 1 revolution?)")
+        raise KeyphasorError(f'keyphasor: found {k.size} key mark(s) in {p.size} samples, need at least 2 '
+                             '(is the column a once-per-revolution pulse train, and the record >= 1 revolution?)')
     _check_spacing(k.astype(float), max_jump, slack=1.0)
     before, after = p[k - 1], p[k]
     tol = LEVEL_TOL * (hi - lo)
@@ -131,13 +135,14 @@ def key_marks(pulse, sample_rate: float, *, edge: str = "rising", max_jump: floa
         mid = 0.5 * (lo + hi)
         index = k - (after - mid) / (after - before)
         sigma = np.where(resolved, math.sqrt(2.0) * noise / np.abs(after - before), SIGMA_UNIFORM_1)
-        return KeyMarks(index, sigma, np.zeros(k.size, bool), "ramp", fs)
+        return KeyMarks(index, sigma, np.zeros(k.size, bool), 'ramp', fs)
     index, sigma, locked = _sharp_marks(k, synchronous)
-    return KeyMarks(index, sigma, locked, "sharp", fs)
+    return KeyMarks(index, sigma, locked, 'sharp', fs)
 
 
 def angle_from_marks(mark_times, n_samples: int, sample_rate: float, *, max_jump: float = MAX_JUMP) -> np.ndarray:
-    """Rotor angle (n_samples,) [rad] at t = i / sample_rate from key-mark times (m,) [s] (0 = first sample).
+    """
+    Rotor angle (n_samples,) [rad] at t = i / sample_rate from key-mark times (m,) [s] (0 = first sample).
 
     2 pi per mark interval, linear between marks, extrapolated at both ends with the nearest revolution's speed;
     unwrapped, 0 at the first mark.
@@ -152,17 +157,21 @@ def angle_from_marks(mark_times, n_samples: int, sample_rate: float, *, max_jump
 
 
 def speed_from_marks(mark_times, n_samples: int, sample_rate: float, *, max_jump: float = MAX_JUMP) -> np.ndarray:
-    """Rotor speed (n_samples,) [rad/s]: each revolution's mean speed at its middle, linear between, constant
-    beyond the first and last middles."""
+    """
+    Return the rotor speed (n_samples,) [rad/s].
+
+    Each revolution's mean speed at its middle, linear between, constant beyond the first and last middles.
+    """
     e, n = _check_marks(mark_times, n_samples, sample_rate, max_jump)
     per_rev = TWO_PI * float(sample_rate) / np.diff(e)
     mids = 0.5 * (e[:-1] + e[1:])
     return np.interp(np.arange(n, dtype=float), mids, per_rev)
 
 
-def angle_from_keyphasor(pulses, sample_rate: float, *, edge: str = "rising", max_jump: float = MAX_JUMP,
+def angle_from_keyphasor(pulses, sample_rate: float, *, edge: str = 'rising', max_jump: float = MAX_JUMP,
                          synchronous: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,).
+    """
+    Rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,).
 
     The key marks (:func:`key_marks`, same keywords) are angle 2 pi m; :func:`angle_from_marks` and
     :func:`speed_from_marks`.
@@ -174,7 +183,8 @@ def angle_from_keyphasor(pulses, sample_rate: float, *, edge: str = "rising", ma
 
 
 def pulse_from_angle(angle, speed=None, *, width: float = DEFAULT_WIDTH, rise_time: float = 0.0) -> np.ndarray:
-    """The keyphasor pulse (N,) in [0, 1] of the convention for the rotor angle (N,) [rad] of each sample.
+    """
+    Return the keyphasor pulse (N,) in [0, 1] of the convention for the rotor angle (N,) [rad] of each sample.
 
     ``rise_time`` = 0: high (1.0) while angle mod 2 pi is in [0, width) (an angle within ``ON_MARK_REV`` revolution
     below a multiple of 2 pi, float rounding, counts as on the mark).  ``rise_time`` > 0 [s]: linear edges of that
@@ -182,7 +192,7 @@ def pulse_from_angle(angle, speed=None, *, width: float = DEFAULT_WIDTH, rise_ti
     """
     a = np.asarray(angle, dtype=float)
     if not 0.0 < width < math.pi:
-        raise ValueError(f"pulse width must be in (0, pi) rad, got {width}")
+        raise ValueError(f'pulse width must be in (0, pi) rad, got {width}')
     rev = a / TWO_PI
     f = rev - np.floor(rev + ON_MARK_REV)          # in [-ON_MARK_REV, 1): revolutions since the last mark
     w = width / TWO_PI
@@ -190,7 +200,7 @@ def pulse_from_angle(angle, speed=None, *, width: float = DEFAULT_WIDTH, rise_ti
         return (f < w).astype(float)
     s = np.broadcast_to(np.asarray(speed, dtype=float), a.shape)
     if not np.all(s > 0):
-        raise ValueError("pulse_from_angle: a finite rise_time needs a positive speed at every sample")
+        raise ValueError('pulse_from_angle: a finite rise_time needs a positive speed at every sample')
     d = np.where(f >= 0.5, f - 1.0, f) * TWO_PI / s  # s from the nearest mark (negative before it)
     level = np.minimum(0.5 + d / rise_time, 0.5 - (d - width / s) / rise_time)
     return np.clip(level, 0.0, 1.0)
@@ -200,19 +210,19 @@ def pulse_from_angle(angle, speed=None, *, width: float = DEFAULT_WIDTH, rise_ti
 def _check_rate(sample_rate) -> float:
     fs = float(sample_rate)
     if not (math.isfinite(fs) and fs > 0):
-        raise KeyphasorError(f"keyphasor: sample_rate must be a positive number [Hz], got {sample_rate!r}")
+        raise KeyphasorError(f'keyphasor: sample_rate must be a positive number [Hz], got {sample_rate!r}')
     return fs
 
 
 def _check_pulse(pulse) -> np.ndarray:
     p = np.asarray(pulse, dtype=float)
     if p.ndim != 1:
-        raise KeyphasorError(f"keyphasor: the pulse must be one column (N,), got shape {p.shape}")
+        raise KeyphasorError(f'keyphasor: the pulse must be one column (N,), got shape {p.shape}')
     bad = np.flatnonzero(~np.isfinite(p))
     if bad.size:
-        raise KeyphasorError(f"keyphasor: {bad.size} non-finite value(s) (NaN/inf), the first at sample {bad[0]}")
+        raise KeyphasorError(f'keyphasor: {bad.size} non-finite value(s) (NaN/inf), the first at sample {bad[0]}')
     if p.size == 0 or np.ptp(p) == 0:
-        raise KeyphasorError(f"keyphasor: the column is constant ({p.size} samples"
+        raise KeyphasorError(f'keyphasor: the column is constant ({p.size} samples'
                              f"{', all ' + format(p[0], 'g') if p.size else ''}): no pulses")
     return p
 
@@ -222,38 +232,42 @@ def _check_marks(mark_times, n_samples, sample_rate, max_jump) -> tuple[np.ndarr
     e = np.asarray(mark_times, dtype=float).reshape(-1) * fs
     n = int(n_samples)
     if n < 1:
-        raise KeyphasorError(f"keyphasor: n_samples must be >= 1, got {n_samples}")
+        raise KeyphasorError(f'keyphasor: n_samples must be >= 1, got {n_samples}')
     if e.size < 2:
-        raise KeyphasorError(f"keyphasor: {e.size} key mark(s), need at least 2")
+        raise KeyphasorError(f'keyphasor: {e.size} key mark(s), need at least 2')
     bad = np.flatnonzero(~np.isfinite(e))
     if bad.size:
-        raise KeyphasorError(f"keyphasor: key-mark time {bad[0]} is not finite")
+        raise KeyphasorError(f'keyphasor: key-mark time {bad[0]} is not finite')
     _check_spacing(e, max_jump, slack=0.0)
     return e, n
 
 
 def _check_spacing(e: np.ndarray, max_jump: float, slack: float) -> None:
-    """Marks (m,) [samples] must increase, and consecutive revolutions differ by <= max_jump (+ slack samples)."""
+    """Check that marks (m,) [samples] increase and consecutive revolutions differ by <= max_jump (+ slack samples)."""
     d = np.diff(e)
     bad = np.flatnonzero(d <= 0)
     if bad.size:
         i = bad[0]
-        raise KeyphasorError(f"keyphasor: key marks must increase; mark {i + 1} (sample {e[i + 1]:.1f}) is not "
-                             f"after mark {i} (sample {e[i]:.1f})")
+        raise KeyphasorError(f'keyphasor: key marks must increase; mark {i + 1} (sample {e[i + 1]:.1f}) is not '
+                             f'after mark {i} (sample {e[i]:.1f})')
     jump = np.flatnonzero(np.abs(d[1:] - d[:-1]) > max_jump * d[:-1] + slack)
     if jump.size:
         i = jump[0]
         raise KeyphasorError(
-            f"keyphasor: the revolution from sample {e[i + 1]:.0f} to {e[i + 2]:.0f} lasts {d[i + 1]:.1f} samples, "
-            f"the one before {d[i]:.1f} ({100 * (d[i + 1] / d[i] - 1):+.0f} %, limit {100 * max_jump:.0f} %): "
+            f'keyphasor: the revolution from sample {e[i + 1]:.0f} to {e[i + 2]:.0f} lasts {d[i + 1]:.1f} samples, '
+            f'the one before {d[i]:.1f} ({100 * (d[i + 1] / d[i] - 1):+.0f} %, limit {100 * max_jump:.0f} %): '
             f"a key-mark pulse {'missing' if d[i + 1] > d[i] else 'too many'} "
-            f"around samples {e[i + 1]:.0f}-{e[i + 2]:.0f}?")
+            f'around samples {e[i + 1]:.0f}-{e[i + 2]:.0f}?')
 
 
 # ------------------------------------------------------------------------------------------------ edges
 def _levels(p: np.ndarray) -> tuple[float, float, float]:
-    """Low and high level of the pulse (medians of the samples below / above the mid range) and the level noise
-    (1-sigma, pooled robust spread of the samples near each level)."""
+    """
+    Return the low and high level of the pulse and the level noise.
+
+    The levels are the medians of the samples below / above the mid range; the noise is a 1-sigma, the pooled robust
+    spread of the samples near each level.
+    """
     mid0 = 0.5 * (p.min() + p.max())
     low, high = p[p <= mid0], p[p > mid0]
     lo, hi = float(np.median(low)), float(np.median(high))
@@ -264,9 +278,13 @@ def _levels(p: np.ndarray) -> tuple[float, float, float]:
 
 
 def _edges(p: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """First sample at or above the mid level of each rising edge (int (m,)); an edge must go from below 25 % to
-    above 75 % of the swing, and the last crossing of the mid level before it reaches 75 % is taken.  A sample exactly
-    at the mid level is on the mark (a linear edge centred on a mark that falls on a sample)."""
+    """
+    Return the first sample at or above the mid level of each rising edge (int (m,)).
+
+    An edge must go from below 25 % to above 75 % of the swing, and the last crossing of the mid level before it reaches
+    75 % is taken.  A sample exactly at the mid level is on the mark (a linear edge centred on a mark that falls on a
+    sample).
+    """
     sw = hi - lo
     state = np.where(p < lo + HYSTERESIS * sw, -1, np.where(p > hi - HYSTERESIS * sw, 1, 0))
     nz = np.flatnonzero(state)
@@ -278,7 +296,7 @@ def _edges(p: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------------ sharp edges
 def _sharp_marks(k: np.ndarray, synchronous: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Marks, sigma, locked for first-high samples k (int (m,)): greedy constant-speed runs (module docstring)."""
+    """Find marks, sigma, locked for first-high samples k (int (m,)): greedy constant-speed runs (module docstring)."""
     index, sigma, locked = np.empty(k.size), np.empty(k.size), np.zeros(k.size, bool)
     s = 0
     while s < k.size:
@@ -308,8 +326,11 @@ def _feasible(k: np.ndarray) -> bool:
 
 
 def _hull_slopes(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Slopes dy/dx (reduced integer numerators, denominators; sorted by value, unique) of the edges of the convex
-    hull of the points (i, y_i), i = 0..L-1 (Andrew's monotone chain)."""
+    """
+    Return the slopes dy/dx of the edges of the convex hull of the points (i, y_i), i = 0..L-1.
+
+    Reduced integer numerators, denominators; sorted by value, unique (Andrew's monotone chain).
+    """
     lower: list[tuple[int, int]] = []
     upper: list[tuple[int, int]] = []
     for x, v in enumerate(y.tolist()):
@@ -336,10 +357,12 @@ def _width(y: np.ndarray, x: np.ndarray, b) -> np.ndarray:
 
 
 def _min_width(y: np.ndarray):
-    """(minimal vertical width, index of its slope, slopes (float), numerators, denominators) for points (i, y_i).
+    """
+    (minimal vertical width, index of its slope, slopes (float), numerators, denominators) for points (i, y_i).
 
     The width is convex and piecewise linear in the slope with its breakpoints at the hull-edge slopes: binary
-    search over them."""
+    search over them.
+    """
     num, den = _hull_slopes(y)
     slopes = num / den
     x = np.arange(y.size, dtype=float)
@@ -367,7 +390,7 @@ def _crossing(yf, x, slopes, best: int, side: int) -> float:
 
 
 def _run_marks(k: np.ndarray, synchronous: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Marks, sigma, locked of one constant-speed run of first-high samples k (int (L,))."""
+    """Return marks, sigma, locked of one constant-speed run of first-high samples k (int (L,))."""
     L = k.size
     if L <= 2:
         return k - 0.5, np.full(L, SIGMA_UNIFORM_1), np.zeros(L, bool)
@@ -385,10 +408,12 @@ def _run_marks(k: np.ndarray, synchronous: bool = True) -> tuple[np.ndarray, np.
 
 
 def _feasible_range(yf: np.ndarray, xf: np.ndarray, slopes: np.ndarray, best: int) -> tuple[np.ndarray, np.ndarray]:
-    """Earliest and latest position (L,) of each mark over all lines through every interval (y_i - 1, y_i].
+    """
+    Earliest and latest position (L,) of each mark over all lines through every interval (y_i - 1, y_i].
 
     The feasible lines (slope b, offset a) form a polygon between a_hi(b) = min(y - b x) and a_lo(b) =
-    max(y - b x) - 1, over the slopes where the vertical width is <= 1; a mark's extremes are at its vertices."""
+    max(y - b x) - 1, over the slopes where the vertical width is <= 1; a mark's extremes are at its vertices.
+    """
     b_lo, b_hi = _crossing(yf, xf, slopes, best, -1), _crossing(yf, xf, slopes, best, +1)
     cand = np.concatenate([[b_lo], slopes[(slopes > b_lo) & (slopes < b_hi)], [b_hi]])
     res = yf[None, :] - cand[:, None] * xf[None, :]

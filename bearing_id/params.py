@@ -1,4 +1,5 @@
-"""Load and validate the rig/model YAML (``params/rig.yaml``) into small frozen dataclasses.
+"""
+Load and validate the rig/model YAML (``params/rig.yaml``) into small frozen dataclasses.
 
 Every error names the offending field (``bearings[1].clearance``) and the expected unit and range, so that a
 malformed file fails at load time with a message a person can act on.  SI units throughout.
@@ -13,17 +14,17 @@ naming the field, never an AttributeError/TypeError/KeyError.
 from __future__ import annotations
 
 import dataclasses
-import math
-import reprlib
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
+import reprlib
 from typing import Any
 
 import yaml
 
 from .conventions import GRAVITY
 
-PACKAGE_PARAMS = Path(__file__).resolve().parent.parent / "params"
+PACKAGE_PARAMS = Path(__file__).resolve().parent.parent / 'params'
 
 
 class ParamError(ValueError):
@@ -101,7 +102,7 @@ class Bearing:
     clearance: float              # m, radial clearance c
     viscosity: float              # Pa s
     load: float | None            # N static load (None = from the rotor's weight, see rotor.static_bearing_loads)
-    model: str = "short"          # 'short' | 'finite'
+    model: str = 'short'          # 'short' | 'finite'
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,7 @@ class ExcitationEntry:
 
 @dataclass(frozen=True)
 class Run:
-    id: str
+    id: str  # noqa: A003  (the run id: public field used by the messages, params files and every caller)
     excitation: tuple             # of ExcitationEntry
 
 
@@ -165,7 +166,7 @@ class RigParams:
     modal_test: ModalTest | None = None
     extra: dict = field(default_factory=dict, compare=False)   # augmentations written by diagnose
 
-    def replace(self, **kw) -> "RigParams":
+    def replace(self, **kw) -> 'RigParams':
         return dataclasses.replace(self, **kw)
 
     def bearing_nodes(self) -> tuple:
@@ -179,14 +180,18 @@ YAML_MAX_NODES = 200_000            # nodes after expanding every alias (rig fil
 
 
 def _yaml_loader():
-    return getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    return getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 def check_yaml_events(text: str, what: str, *, max_depth: int = YAML_MAX_DEPTH,
                       max_nodes: int = YAML_MAX_NODES) -> None:
-    """Walk the parser's event stream (no objects are built) and refuse nesting deeper than ``max_depth`` or a
-    document whose aliases would expand to more than ``max_nodes`` nodes; raises ParamError (or yaml.YAMLError for a
-    syntax error).  Linear in the size of the text; a billion-laughs file is refused after a few hundred events."""
+    """
+    Walk the parser's event stream (no objects are built) and refuse too deep or too large a document.
+
+    Refuses nesting deeper than ``max_depth`` or a document whose aliases would expand to more than ``max_nodes`` nodes;
+    raises ParamError (or yaml.YAMLError for a syntax error).  Linear in the size of the text; a billion-laughs file is
+    refused after a few hundred events.
+    """
     depth = 0
     total = 0                           # nodes so far, every alias counted as the size of what it refers to
     open_anchors: list = []             # (anchor or None, total at its start), one per open collection
@@ -195,7 +200,7 @@ def check_yaml_events(text: str, what: str, *, max_depth: int = YAML_MAX_DEPTH,
         if isinstance(ev, yaml.AliasEvent):
             n = sizes.get(ev.anchor)
             if n is None:               # an alias to an anchor still open (recursive) or undefined
-                raise ParamError(f"{what}: alias *{ev.anchor} refers to an undefined or enclosing anchor")
+                raise ParamError(f'{what}: alias *{ev.anchor} refers to an undefined or enclosing anchor')
             total += n
         elif isinstance(ev, yaml.ScalarEvent):
             total += 1
@@ -205,8 +210,8 @@ def check_yaml_events(text: str, what: str, *, max_depth: int = YAML_MAX_DEPTH,
             depth += 1
             total += 1
             if depth > max_depth:
-                raise ParamError(f"{what}: nested deeper than {max_depth} levels (refused; a parameter file needs "
-                                 f"a handful)")
+                raise ParamError(f'{what}: nested deeper than {max_depth} levels (refused; a parameter file needs '
+                                 f'a handful)')
             open_anchors.append((ev.anchor, total - 1))
         elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
             depth -= 1
@@ -214,51 +219,54 @@ def check_yaml_events(text: str, what: str, *, max_depth: int = YAML_MAX_DEPTH,
             if anchor is not None:
                 sizes[anchor] = total - start
         if total > max_nodes:
-            raise ParamError(f"{what}: more than {max_nodes} values once its anchors/aliases are expanded (refused: "
+            raise ParamError(f'{what}: more than {max_nodes} values once its anchors/aliases are expanded (refused: '
                              f"an alias bomb such as 'billion laughs')")
 
 
 def load_yaml_bounded(path: str | Path, what: str | None = None, *, max_bytes: int = YAML_MAX_BYTES,
                       max_depth: int = YAML_MAX_DEPTH, max_nodes: int = YAML_MAX_NODES):
-    """``yaml.safe_load`` of a file with bounds: size <= ``max_bytes`` (checked before reading), nesting <=
-    ``max_depth``, nodes after alias expansion <= ``max_nodes`` (checked on the event stream before anything is
-    constructed).  Every failure -- unreadable, too big, not UTF-8, not YAML, over a bound -- is a ParamError naming
-    the file."""
+    """
+    Run ``yaml.safe_load`` on a file with bounds on its size, nesting and nodes.
+
+    Size <= ``max_bytes`` (checked before reading), nesting <= ``max_depth``, nodes after alias expansion <=
+    ``max_nodes`` (checked on the event stream before anything is constructed).  Every failure -- unreadable, too big,
+    not UTF-8, not YAML, over a bound -- is a ParamError naming the file.
+    """
     path = Path(path)
     what = what or str(path)
     try:
         size = path.stat().st_size
         if size > max_bytes:
-            raise ParamError(f"{what}: {size} bytes, more than the {max_bytes} a parameter file may have (refused "
-                             f"unread)")
-        with open(path, "rb") as fh:
+            raise ParamError(f'{what}: {size} bytes, more than the {max_bytes} a parameter file may have (refused '
+                             f'unread)')
+        with open(path, 'rb') as fh:
             raw = fh.read(max_bytes + 1)
     except OSError as exc:
-        raise ParamError(f"cannot read {what}: {exc}") from exc
+        raise ParamError(f'cannot read {what}: {exc}') from exc
     if len(raw) > max_bytes:            # grew since stat, or a device
-        raise ParamError(f"{what}: more than {max_bytes} bytes (refused)")
+        raise ParamError(f'{what}: more than {max_bytes} bytes (refused)')
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode('utf-8')
     except UnicodeDecodeError as exc:
-        raise ParamError(f"{what} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        raise ParamError(f'{what} is not UTF-8 text ({exc.reason} at byte {exc.start})') from None
     try:
         check_yaml_events(text, what, max_depth=max_depth, max_nodes=max_nodes)
         return yaml.load(text, Loader=_yaml_loader())   # noqa: S506 - a SafeLoader (C or Python)
     except yaml.YAMLError as exc:
-        text = " ".join(str(exc).replace('"<unicode string>"', path.name).split())
-        raise ParamError(f"{what} is not valid YAML: {text}") from None
+        text = ' '.join(str(exc).replace('"<unicode string>"', path.name).split())
+        raise ParamError(f'{what} is not valid YAML: {text}') from None
     except RecursionError:              # unreachable with the depth bound; kept as a last line
-        raise ParamError(f"{what}: nested too deeply") from None
+        raise ParamError(f'{what}: nested too deeply') from None
 
 
 # ---------------------------------------------------------------------------------------------- validation
 def _kind(v) -> str:
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
-        type(v), "a number" if isinstance(v, (int, float)) else type(v).__name__)
+    return {dict: 'a mapping', list: 'a list', str: 'a string', bool: 'a boolean', type(None): 'null'}.get(
+        type(v), 'a number' if isinstance(v, (int, float)) else type(v).__name__)
 
 
 def _short(v, n: int = 60) -> str:
-    """repr of a value for a message, cut to ``n`` characters (a hostile value may be huge)."""
+    """Return the repr of a value for a message, cut to ``n`` characters (a hostile value may be huge)."""
     r = reprlib.Repr()
     r.maxstring, r.maxother, r.maxlist, r.maxdict, r.maxlevel = n, n, 6, 6, 2
     return r.repr(v)
@@ -267,21 +275,21 @@ def _short(v, n: int = 60) -> str:
 def _map(v, where: str) -> dict:
     """``v`` itself must be a mapping (a section or one list item)."""
     if not isinstance(v, dict):
-        raise ParamError(f"{where} must be a mapping (key: value), got {_kind(v)} {_short(v)}")
+        raise ParamError(f'{where} must be a mapping (key: value), got {_kind(v)} {_short(v)}')
     return v
 
 
 def _list(v, where: str) -> list:
     if not isinstance(v, list):
-        raise ParamError(f"{where} must be a list, got {_kind(v)} {_short(v)}")
+        raise ParamError(f'{where} must be a list, got {_kind(v)} {_short(v)}')
     return v
 
 
-def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any = ..., allow_none=False):
+def _num(d: dict, key: str, where: str, lo=None, hi=None, unit='', default: Any = ..., allow_none=False):
     _map(d, where)
     if key not in d:
         if default is ...:
-            raise ParamError(f"{where}.{key} is missing ({unit})".replace(" ()", ""))
+            raise ParamError(f'{where}.{key} is missing ({unit})'.replace(' ()', ''))
         return default
     v = d[key]
     if v is None and allow_none:
@@ -290,17 +298,17 @@ def _num(d: dict, key: str, where: str, lo=None, hi=None, unit="", default: Any 
         try:
             v = float(v.strip())
         except ValueError:
-            raise ParamError(f"{where}.{key} must be a number [{unit}], got {_short(v)}") from None
+            raise ParamError(f'{where}.{key} must be a number [{unit}], got {_short(v)}') from None
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ParamError(f"{where}.{key} must be a number [{unit}], got {_kind(v)} {_short(v)}")
+        raise ParamError(f'{where}.{key} must be a number [{unit}], got {_kind(v)} {_short(v)}')
     try:
         v = float(v)
     except OverflowError:   # an integer beyond the float range
-        raise ParamError(f"{where}.{key} = {_short(v)} [{unit}] is out of range") from None
+        raise ParamError(f'{where}.{key} = {_short(v)} [{unit}] is out of range') from None
     if not math.isfinite(v):
-        raise ParamError(f"{where}.{key} must be finite [{unit}], got {v!r}")
+        raise ParamError(f'{where}.{key} must be finite [{unit}], got {v!r}')
     if lo is not None and v < lo or hi is not None and v > hi:
-        raise ParamError(f"{where}.{key} = {v!r} [{unit}] is outside the allowed range [{lo}, {hi}]")
+        raise ParamError(f'{where}.{key} = {v!r} [{unit}] is outside the allowed range [{lo}, {hi}]')
     return v
 
 
@@ -309,7 +317,7 @@ def _int(d, key, where, lo=None, hi=None, default: Any = ...):
     if v is None or v is ...:
         return v
     if float(v) != int(v):
-        raise ParamError(f"{where}.{key} must be a whole number, got {v!r}")
+        raise ParamError(f'{where}.{key} must be a whole number, got {v!r}')
     return int(v)
 
 
@@ -317,21 +325,21 @@ def _choice(d, key, where, choices, default: Any = ...):
     _map(d, where)
     if key not in d:
         if default is ...:
-            raise ParamError(f"{where}.{key} is missing (one of {choices})")
+            raise ParamError(f'{where}.{key} is missing (one of {choices})')
         return default
     v = d[key]
     if not isinstance(v, str) or v not in choices:
-        raise ParamError(f"{where}.{key} must be one of {choices}, got {_short(v)}")
+        raise ParamError(f'{where}.{key} must be one of {choices}, got {_short(v)}')
     return v
 
 
 def _text(d, key, where, default: str) -> str:
-    """A name: a string (a number is accepted and written as text)."""
+    """Read a name: a string (a number is accepted and written as text)."""
     v = _map(d, where).get(key, default)
     if v is None:
         return default
     if isinstance(v, bool) or not isinstance(v, (str, int, float)):
-        raise ParamError(f"{where}.{key} must be a name (text), got {_kind(v)} {_short(v)}")
+        raise ParamError(f'{where}.{key} must be a name (text), got {_kind(v)} {_short(v)}')
     return str(v)
 
 
@@ -340,17 +348,17 @@ def _section(d, key, where, kind=dict, optional=False):
     if key not in d or d[key] is None:
         if optional:
             return None
-        raise ParamError(f"{where}.{key} is missing")
+        raise ParamError(f'{where}.{key} is missing')
     v = d[key]
     if not isinstance(v, kind):
         raise ParamError(f"{where}.{key} must be {'a mapping' if kind is dict else 'a list'}, got {_kind(v)} "
-                         f"{_short(v)}")
+                         f'{_short(v)}')
     return v
 
 
-def _numbers(v, where: str, lo=None, hi=None, unit="-") -> tuple:
-    """A list of numbers (each checked like :func:`_num`)."""
-    return tuple(_num({"v": x}, "v", f"{where}[{i}]", lo, hi, unit) for i, x in enumerate(_list(v, where)))
+def _numbers(v, where: str, lo=None, hi=None, unit='-') -> tuple:
+    """Read a list of numbers (each checked like :func:`_num`)."""
+    return tuple(_num({'v': x}, 'v', f'{where}[{i}]', lo, hi, unit) for i, x in enumerate(_list(v, where)))
 
 
 def _node(d, key, where, n_nodes):
@@ -359,187 +367,194 @@ def _node(d, key, where, n_nodes):
 
 
 def parse_shaft(d: dict) -> Shaft:
-    w = "shaft"
+    w = 'shaft'
     _map(d, w)
-    length = _num(d, "length", w, 1e-3, 100, "m")
-    n_el = _int(d, "n_elements", w, 1, 500)
-    el = d.get("element_lengths")
+    length = _num(d, 'length', w, 1e-3, 100, 'm')
+    n_el = _int(d, 'n_elements', w, 1, 500)
+    el = d.get('element_lengths')
     if el is None:
         el = (length / n_el,) * n_el
     else:
         if not isinstance(el, list) or len(el) != n_el:
-            raise ParamError(f"{w}.element_lengths must be a list of {n_el} lengths [m] or null, got {_kind(el)} "
-                             f"{_short(el)}")
-        el = _numbers(el, f"{w}.element_lengths", 1e-5, 100, "m")
+            raise ParamError(f'{w}.element_lengths must be a list of {n_el} lengths [m] or null, got {_kind(el)} '
+                             f'{_short(el)}')
+        el = _numbers(el, f'{w}.element_lengths', 1e-5, 100, 'm')
         if abs(sum(el) - length) > 1e-9 * max(1.0, length):
-            raise ParamError(f"{w}.element_lengths sum to {sum(el)!r} m, not shaft.length = {length!r} m")
+            raise ParamError(f'{w}.element_lengths sum to {sum(el)!r} m, not shaft.length = {length!r} m')
     return Shaft(
         length=length,
-        diameter=_num(d, "diameter", w, 1e-4, 10, "m"),
-        inner_diameter=_num(d, "inner_diameter", w, 0, 10, "m", default=0.0),
+        diameter=_num(d, 'diameter', w, 1e-4, 10, 'm'),
+        inner_diameter=_num(d, 'inner_diameter', w, 0, 10, 'm', default=0.0),
         n_elements=n_el,
         element_lengths=tuple(el),
-        density=_num(d, "density", w, 100, 30000, "kg/m^3"),
-        youngs_modulus=_num(d, "youngs_modulus", w, 1e6, 1e13, "Pa"),
-        poisson_ratio=_num(d, "poisson_ratio", w, 0, 0.5, "-"),
-        damping_alpha=_num(d, "damping_alpha", w, 0, 1e4, "1/s", default=0.0),
-        damping_beta=_num(d, "damping_beta", w, 0, 1, "s", default=0.0),
+        density=_num(d, 'density', w, 100, 30000, 'kg/m^3'),
+        youngs_modulus=_num(d, 'youngs_modulus', w, 1e6, 1e13, 'Pa'),
+        poisson_ratio=_num(d, 'poisson_ratio', w, 0, 0.5, '-'),
+        damping_alpha=_num(d, 'damping_alpha', w, 0, 1e4, '1/s', default=0.0),
+        damping_beta=_num(d, 'damping_beta', w, 0, 1, 's', default=0.0),
     )
 
 
 def parse_excitation(d: dict, where: str, n_nodes: int) -> ExcitationEntry:
     _map(d, where)
-    kind = _choice(d, "kind", where, ("unbalance", "force"))
-    direction = _choice(d, "direction", where, ("forward", "x", "y") if kind == "force" else ("forward",),
-                        default="forward" if kind == "unbalance" else ...)
-    if "phase" in d and "phase_deg" in d:
-        raise ParamError(f"{where}: give phase [rad] or phase_deg [deg], not both")
-    phase = _num(d, "phase", where, -1e3, 1e3, "rad", default=None)
+    kind = _choice(d, 'kind', where, ('unbalance', 'force'))
+    direction = _choice(d, 'direction', where, ('forward', 'x', 'y') if kind == 'force' else ('forward',),
+                        default='forward' if kind == 'unbalance' else ...)
+    if 'phase' in d and 'phase_deg' in d:
+        raise ParamError(f'{where}: give phase [rad] or phase_deg [deg], not both')
+    phase = _num(d, 'phase', where, -1e3, 1e3, 'rad', default=None)
     if phase is None:
-        phase = math.radians(_num(d, "phase_deg", where, -1e5, 1e5, "deg", default=0.0))
+        phase = math.radians(_num(d, 'phase_deg', where, -1e5, 1e5, 'deg', default=0.0))
     return ExcitationEntry(
         kind=kind,
-        node=_node(d, "node", where, n_nodes),
-        magnitude=_num(d, "magnitude", where, 0, 1e6, "kg m" if kind == "unbalance" else "N"),
+        node=_node(d, 'node', where, n_nodes),
+        magnitude=_num(d, 'magnitude', where, 0, 1e6, 'kg m' if kind == 'unbalance' else 'N'),
         phase=phase,
         direction=direction,
-        frequency_ratio=_num(d, "frequency_ratio", where, 1e-3, 20, "-", default=1.0),
+        frequency_ratio=_num(d, 'frequency_ratio', where, 1e-3, 20, '-', default=1.0),
     )
 
 
 def parse_rig(d: dict) -> RigParams:
-    """Validate a rig mapping (as loaded from YAML) into :class:`RigParams`; every problem is a ParamError naming
-    the field."""
+    """
+    Validate a rig mapping (as loaded from YAML) into :class:`RigParams`.
+
+    Every problem is a ParamError naming the field.
+    """
     if not isinstance(d, dict):
-        raise ParamError(f"the rig file must be a YAML mapping (name:, shaft:, bearings:, ...), got {_kind(d)}")
+        raise ParamError(f'the rig file must be a YAML mapping (name:, shaft:, bearings:, ...), got {_kind(d)}')
     try:
         return _parse_rig(d)
     except ParamError:
         raise
     except (TypeError, AttributeError, KeyError, IndexError, ValueError, ArithmeticError) as exc:
         # every field is checked above; this is the last line for a shape nobody foresaw
-        raise ParamError(f"malformed rig file ({type(exc).__name__}: {_short(str(exc), 200)})") from None
+        raise ParamError(f'malformed rig file ({type(exc).__name__}: {_short(str(exc), 200)})') from None
 
 
 def _parse_rig(d: dict) -> RigParams:
-    shaft = parse_shaft(_section(d, "shaft", "rig"))
+    shaft = parse_shaft(_section(d, 'shaft', 'rig'))
     nn = shaft.n_nodes
     discs = []
-    for i, dd in enumerate(_section(d, "discs", "rig", list, optional=True) or []):
-        w = f"discs[{i}]"
+    for i, dd in enumerate(_section(d, 'discs', 'rig', list, optional=True) or []):
+        w = f'discs[{i}]'
         _map(dd, w)
-        od = _num(dd, "outer_diameter", w, 1e-4, 10, "m")
-        idd = _num(dd, "inner_diameter", w, 0, od, "m", default=shaft.diameter)
-        discs.append(Disc(node=_node(dd, "node", w, nn), outer_diameter=od, inner_diameter=idd,
-                          thickness=_num(dd, "thickness", w, 1e-5, 10, "m"),
-                          density=_num(dd, "density", w, 100, 30000, "kg/m^3", default=shaft.density),
-                          mass_factor=_num(dd, "mass_factor", w, 0.01, 100, "-", default=1.0)))
+        od = _num(dd, 'outer_diameter', w, 1e-4, 10, 'm')
+        idd = _num(dd, 'inner_diameter', w, 0, od, 'm', default=shaft.diameter)
+        discs.append(Disc(node=_node(dd, 'node', w, nn), outer_diameter=od, inner_diameter=idd,
+                          thickness=_num(dd, 'thickness', w, 1e-5, 10, 'm'),
+                          density=_num(dd, 'density', w, 100, 30000, 'kg/m^3', default=shaft.density),
+                          mass_factor=_num(dd, 'mass_factor', w, 0.01, 100, '-', default=1.0)))
     bearings = []
-    for i, bd in enumerate(_section(d, "bearings", "rig", list)):
-        w = f"bearings[{i}]"
+    for i, bd in enumerate(_section(d, 'bearings', 'rig', list)):
+        w = f'bearings[{i}]'
         _map(bd, w)
         bearings.append(Bearing(
-            name=_text(bd, "name", w, f"bearing{i + 1}"), node=_node(bd, "node", w, nn),
-            diameter=_num(bd, "diameter", w, 1e-4, 10, "m"), length=_num(bd, "length", w, 1e-5, 10, "m"),
-            clearance=_num(bd, "clearance", w, 1e-7, 1e-2, "m"),
-            viscosity=_num(bd, "viscosity", w, 1e-5, 10, "Pa s"),
-            load=_num(bd, "load", w, 0, 1e7, "N", default=None, allow_none=True),
-            model=_choice(bd, "model", w, ("short", "finite"), default="short")))
+            name=_text(bd, 'name', w, f'bearing{i + 1}'), node=_node(bd, 'node', w, nn),
+            diameter=_num(bd, 'diameter', w, 1e-4, 10, 'm'), length=_num(bd, 'length', w, 1e-5, 10, 'm'),
+            clearance=_num(bd, 'clearance', w, 1e-7, 1e-2, 'm'),
+            viscosity=_num(bd, 'viscosity', w, 1e-5, 10, 'Pa s'),
+            load=_num(bd, 'load', w, 0, 1e7, 'N', default=None, allow_none=True),
+            model=_choice(bd, 'model', w, ('short', 'finite'), default='short')))
     if not bearings:
-        raise ParamError("rig.bearings is empty (a rotor needs its bearings)")
+        raise ParamError('rig.bearings is empty (a rotor needs its bearings)')
     if len({b.node for b in bearings}) != len(bearings):
-        raise ParamError("bearings: two bearings on one node")
+        raise ParamError('bearings: two bearings on one node')
     probes = []
-    for i, pd in enumerate(_section(d, "probes", "rig", list, optional=True) or []):
-        w = f"probes[{i}]"
+    for i, pd in enumerate(_section(d, 'probes', 'rig', list, optional=True) or []):
+        w = f'probes[{i}]'
         _map(pd, w)
-        probes.append(Probe(name=_text(pd, "name", w, f"probe{i}"), node=_node(pd, "node", w, nn),
-                            direction=_choice(pd, "direction", w, ("x", "y"))))
+        probes.append(Probe(name=_text(pd, 'name', w, f'probe{i}'), node=_node(pd, 'node', w, nn),
+                            direction=_choice(pd, 'direction', w, ('x', 'y'))))
     sim = None
-    sd = _section(d, "simulation", "rig", optional=True)
+    sd = _section(d, 'simulation', 'rig', optional=True)
     if sd is not None:
-        w = "simulation"
-        td = _section(sd, "truth", w)
+        w = 'simulation'
+        td = _section(sd, 'truth', w)
         nb = len(bearings)
 
         def per_bearing(key):
             v = td.get(key, [1.0] * nb)
             if not isinstance(v, list) or len(v) != nb:
-                raise ParamError(f"simulation.truth.{key} must be a list with one factor per bearing ({nb}), got "
-                                 f"{_kind(v)} {_short(v)}")
-            return _numbers(v, f"simulation.truth.{key}", 0.05, 20)
+                raise ParamError(f'simulation.truth.{key} must be a list with one factor per bearing ({nb}), got '
+                                 f'{_kind(v)} {_short(v)}')
+            return _numbers(v, f'simulation.truth.{key}', 0.05, 20)
 
-        truth = Truth(bearing_model=_choice(td, "bearing_model", f"{w}.truth", ("short", "finite"), default="short"),
-                      viscosity_factor=per_bearing("viscosity_factor"),
-                      clearance_factor=per_bearing("clearance_factor"))
+        truth = Truth(bearing_model=_choice(td, 'bearing_model', f'{w}.truth', ('short', 'finite'), default='short'),
+                      viscosity_factor=per_bearing('viscosity_factor'),
+                      clearance_factor=per_bearing('clearance_factor'))
         runs = []
-        for j, rd in enumerate(_section(sd, "runs", w, list)):
-            wr = f"{w}.runs[{j}]"
+        for j, rd in enumerate(_section(sd, 'runs', w, list)):
+            wr = f'{w}.runs[{j}]'
             _map(rd, wr)
-            ex = tuple(parse_excitation(e, f"{wr}.excitation[{k}]", nn)
-                       for k, e in enumerate(_section(rd, "excitation", wr, list)))
-            runs.append(Run(id=_text(rd, "id", wr, chr(ord("A") + j % 26)), excitation=ex))
-        speeds = _numbers(_section(sd, "speeds_rpm", w, list), f"{w}.speeds_rpm", 0, 1e6, "rpm")
+            ex = tuple(parse_excitation(e, f'{wr}.excitation[{k}]', nn)
+                       for k, e in enumerate(_section(rd, 'excitation', wr, list)))
+            runs.append(Run(id=_text(rd, 'id', wr, chr(ord('A') + j % 26)), excitation=ex))
+        speeds = _numbers(_section(sd, 'speeds_rpm', w, list), f'{w}.speeds_rpm', 0, 1e6, 'rpm')
         sim = Simulation(
-            sample_rate=_num(sd, "sample_rate", w, 10, 1e7, "Hz"),
-            block_size=_int(sd, "block_size", w, 16, 1 << 20, default=1024),
+            sample_rate=_num(sd, 'sample_rate', w, 10, 1e7, 'Hz'),
+            block_size=_int(sd, 'block_size', w, 16, 1 << 20, default=1024),
             speeds_rpm=speeds,
-            dwell=_num(sd, "dwell", w, 1e-3, 1e5, "s"),
-            ramp=_num(sd, "ramp", w, 0, 1e4, "s", default=0.0),
-            noise=_num(sd, "noise", w, 0, 1, "-", default=0.0),
-            seed=_int(sd, "seed", w, 0, 2**31, default=0),
+            dwell=_num(sd, 'dwell', w, 1e-3, 1e5, 's'),
+            ramp=_num(sd, 'ramp', w, 0, 1e4, 's', default=0.0),
+            noise=_num(sd, 'noise', w, 0, 1, '-', default=0.0),
+            seed=_int(sd, 'seed', w, 0, 2**31, default=0),
             truth=truth, runs=tuple(runs))
     mt = None
-    md = _section(d, "modal_test", "rig", optional=True)
+    md = _section(d, 'modal_test', 'rig', optional=True)
     if md is not None:
-        w = "modal_test"
+        w = 'modal_test'
 
         def hz(key):
             v = md.get(key)
-            return () if v is None else _numbers(v, f"{w}.{key}", 0, 1e7, "Hz")
+            return () if v is None else _numbers(v, f'{w}.{key}', 0, 1e7, 'Hz')
 
-        mt = ModalTest(measured_hz=hz("measured_hz"), paper_initial_hz=hz("paper_initial_hz"),
-                       paper_updated_hz=hz("paper_updated_hz"))
-    extra = d.get("extra")
+        mt = ModalTest(measured_hz=hz('measured_hz'), paper_initial_hz=hz('paper_initial_hz'),
+                       paper_updated_hz=hz('paper_updated_hz'))
+    extra = d.get('extra')
     if extra is not None and not isinstance(extra, dict):
-        raise ParamError(f"rig.extra must be a mapping, got {_kind(extra)} {_short(extra)}")
-    return RigParams(name=_text(d, "name", "rig", "rig"), shaft=shaft, discs=tuple(discs), bearings=tuple(bearings),
+        raise ParamError(f'rig.extra must be a mapping, got {_kind(extra)} {_short(extra)}')
+    return RigParams(name=_text(d, 'name', 'rig', 'rig'), shaft=shaft, discs=tuple(discs), bearings=tuple(bearings),
                      probes=tuple(probes), simulation=sim, modal_test=mt, extra=dict(extra or {}))
 
 
 def load_rig(path: str | Path | None = None) -> RigParams:
-    """Load a rig YAML file; ``None`` loads the packaged default ``params/rig.yaml``.  Bounded reading
-    (:func:`load_yaml_bounded`); every problem is a ParamError naming the file and the field."""
+    """
+    Load a rig YAML file; ``None`` loads the packaged default ``params/rig.yaml``.
+
+    Bounded reading (:func:`load_yaml_bounded`); every problem is a ParamError naming the file and the field.
+    """
     path = Path(path) if path is not None else default_rig_path()
     if path.is_dir():
-        raise ParamError(f"cannot read parameter file {path}: it is a directory")
-    data = load_yaml_bounded(path, f"parameter file {path}")
+        raise ParamError(f'cannot read parameter file {path}: it is a directory')
+    data = load_yaml_bounded(path, f'parameter file {path}')
     try:
         return parse_rig(data)
     except ParamError as exc:
-        raise ParamError(f"{path}: {exc}") from exc
+        raise ParamError(f'{path}: {exc}') from exc
 
 
 def default_rig_path() -> Path:
-    """The packaged rig file: the source tree's params/, else the installed share/bearing_id/params/.
+    """
+    Return the packaged rig file: the source tree's params/, else the installed share/bearing_id/params/.
 
     Installed by colcon the module sits at <prefix>/lib/pythonX.Y/site-packages/bearing_id/ and the data at
     <prefix>/share/bearing_id/params/ (ament_index is asked first when it is importable).
     """
-    cand = [PACKAGE_PARAMS / "rig.yaml"]
+    cand = [PACKAGE_PARAMS / 'rig.yaml']
     try:
         from ament_index_python.packages import get_package_share_directory
-        cand.append(Path(get_package_share_directory("bearing_id")) / "params" / "rig.yaml")
+        cand.append(Path(get_package_share_directory('bearing_id')) / 'params' / 'rig.yaml')
     except Exception:  # no ament index (plain pip / source tree) or package not registered
         pass
     here = Path(__file__).resolve()
-    cand += [p / "share" / "bearing_id" / "params" / "rig.yaml" for p in here.parents[1:6]]
+    cand += [p / 'share' / 'bearing_id' / 'params' / 'rig.yaml' for p in here.parents[1:6]]
     for c in cand:
         if c.exists():
             return c
-    raise ParamError("no default params/rig.yaml found; pass --params")
+    raise ParamError('no default params/rig.yaml found; pass --params')
 
 
-__all__ = ["ParamError", "Shaft", "Disc", "Bearing", "Probe", "ExcitationEntry", "Run", "Truth", "Simulation",
-           "ModalTest", "RigParams", "parse_rig", "load_rig", "default_rig_path", "load_yaml_bounded",
-           "check_yaml_events", "GRAVITY"]
+__all__ = ['ParamError', 'Shaft', 'Disc', 'Bearing', 'Probe', 'ExcitationEntry', 'Run', 'Truth', 'Simulation',
+           'ModalTest', 'RigParams', 'parse_rig', 'load_rig', 'default_rig_path', 'load_yaml_bounded',
+           'check_yaml_events', 'GRAVITY']

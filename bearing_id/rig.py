@@ -1,4 +1,5 @@
-"""The simulated test rig: what a DAQ on the paper's machine would record, from a truth model that differs from theory.
+"""
+The simulated test rig: what a DAQ on the paper's machine would record, from a truth model that differs from theory.
 
 Physics of the simulation
     At each constant-speed segment the truth system  M q'' + (C + Cb + Omega G) q' + (K + Kb) q = f(t)  is linear and
@@ -24,8 +25,8 @@ Validity
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
 
 import numpy as np
@@ -42,13 +43,15 @@ DEFAULT_RAMP_STEP = 0.01    # s, constant-speed step length used to approximate 
 @dataclass(frozen=True)
 class Segment:
     """One constant-speed piece of a schedule: ``speed`` [rad/s] for ``duration`` [s]."""
+
     speed: float
     duration: float
     steady: bool = True      # False for the short steps that approximate a ramp
 
 
 def step_schedule(speeds_rpm, dwell: float, ramp: float = 0.0) -> list[Segment]:
-    """Dwell at each speed [rpm] for ``dwell`` [s], moving between speeds by linear ramps of ``ramp`` [s].
+    """
+    Dwell at each speed [rpm] for ``dwell`` [s], moving between speeds by linear ramps of ``ramp`` [s].
 
     ``ramp = 0`` gives instant steps (which ring lightly damped modes well into the next dwell).
     """
@@ -71,7 +74,8 @@ def ramp_schedule(rpm0: float, rpm1: float, duration: float, step: float = DEFAU
 # ------------------------------------------------------------------------------------------------- recording
 @dataclass
 class Recording:
-    """A DAQ-like record of one excitation run.
+    """
+    A DAQ-like record of one excitation run.
 
     Attributes
     ----------
@@ -87,7 +91,9 @@ class Recording:
     rig_name : str.
     gaps : sample indices at which the record resumes after lost data (a bag with a missing block); no steady window
         spans a gap.
+
     """
+
     sample_rate: float
     t: np.ndarray
     speed: np.ndarray
@@ -97,7 +103,7 @@ class Recording:
     run: Run
     segments: list = field(default_factory=list)
     truth: dict = field(default_factory=dict)
-    rig_name: str = "rig"
+    rig_name: str = 'rig'
     gaps: tuple = ()
 
     @property
@@ -108,17 +114,17 @@ class Recording:
         """Write the recording as a self-describing .npz (the DAQ/offline exchange format; SI units)."""
         path = Path(path)
         ex = self.run.excitation
-        truth_speeds, truth_nodes, truth_K, truth_C = _truth_arrays(self.truth.get("coefficients", {}))
+        truth_speeds, truth_nodes, truth_K, truth_C = _truth_arrays(self.truth.get('coefficients', {}))
         np.savez_compressed(
-            path, format="bearing_id.recording.v1", sample_rate=self.sample_rate, t=self.t, speed=self.speed,
+            path, format='bearing_id.recording.v1', sample_rate=self.sample_rate, t=self.t, speed=self.speed,
             angle=self.angle, samples=self.samples,
             channels=np.array([p.name for p in self.probes]), nodes=np.array([p.node for p in self.probes]),
             directions=np.array([p.direction for p in self.probes]),
             run_id=self.run.id,
-            ex_kind=np.array([e.kind for e in ex], dtype="U16"), ex_node=np.array([e.node for e in ex], dtype=int),
+            ex_kind=np.array([e.kind for e in ex], dtype='U16'), ex_node=np.array([e.node for e in ex], dtype=int),
             ex_magnitude=np.array([e.magnitude for e in ex], dtype=float),
             ex_phase=np.array([e.phase for e in ex], dtype=float),
-            ex_direction=np.array([e.direction for e in ex], dtype="U16"),
+            ex_direction=np.array([e.direction for e in ex], dtype='U16'),
             ex_frequency_ratio=np.array([e.frequency_ratio for e in ex], dtype=float),
             segments=np.array([(a, b, s, st) for a, b, s, st in self.segments], dtype=float).reshape(-1, 4),
             truth_speeds=truth_speeds, truth_nodes=truth_nodes, truth_K=truth_K, truth_C=truth_C,
@@ -140,22 +146,25 @@ def _truth_arrays(coeffs: dict):
 # and sizes are checked against each other and against the zip member before any array is read.
 NPZ_BOMB_RATIO = 200                 # uncompressed / compressed: float data compresses ~1-3x, zeros ~1000x
 NPZ_BOMB_MIN_BYTES = 64 << 20        # ... a member is judged by that ratio only above this size
-NPZ_REQUIRED = ("sample_rate", "speed", "angle", "samples", "channels", "nodes", "directions")
-NPZ_EXCITATION = ("ex_kind", "ex_node", "ex_magnitude", "ex_phase", "ex_direction", "ex_frequency_ratio")
+NPZ_REQUIRED = ('sample_rate', 'speed', 'angle', 'samples', 'channels', 'nodes', 'directions')
+NPZ_EXCITATION = ('ex_kind', 'ex_node', 'ex_magnitude', 'ex_phase', 'ex_direction', 'ex_frequency_ratio')
 
 
 def _npz_memory_budget() -> int:
-    """Bytes the arrays of one .npz may declare in total: half the physical memory (at least 1 GiB), or
-    ``BEARING_ID_NPZ_MAX_BYTES``."""
+    """
+    Return the bytes the arrays of one .npz may declare in total.
+
+    Half the physical memory (at least 1 GiB), or ``BEARING_ID_NPZ_MAX_BYTES``.
+    """
     import os
-    env = os.environ.get("BEARING_ID_NPZ_MAX_BYTES")
+    env = os.environ.get('BEARING_ID_NPZ_MAX_BYTES')
     if env:
         try:
             return int(float(env))
         except ValueError:
             pass
     try:
-        return max(1 << 30, os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+        return max(1 << 30, os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES') // 2)
     except (ValueError, OSError, AttributeError):
         return 8 << 30
 
@@ -169,14 +178,14 @@ def _npz_headers(zf, path: Path) -> dict:
     disk = path.stat().st_size
     for info in zf.infolist():
         name = info.filename
-        if not name.endswith(".npy"):
+        if not name.endswith('.npy'):
             continue            # np.savez writes only .npy members; anything else is ignored
         key = name[:-4]
         if info.flag_bits & 0x1:
-            raise ValueError(f"{path}: member {name} is encrypted")
+            raise ValueError(f'{path}: member {name} is encrypted')
         if info.compress_size > disk:
-            raise ValueError(f"{path}: member {name} claims {info.compress_size} stored bytes in a file of {disk} "
-                             f"(corrupt or crafted zip directory; refused unread)")
+            raise ValueError(f'{path}: member {name} claims {info.compress_size} stored bytes in a file of {disk} '
+                             f'(corrupt or crafted zip directory; refused unread)')
         try:
             with zf.open(info) as fh:
                 version = fmt.read_magic(fh)
@@ -185,32 +194,32 @@ def _npz_headers(zf, path: Path) -> dict:
                 elif version in ((2, 0), (3, 0)):
                     shape, _fortran, dtype = fmt.read_array_header_2_0(fh)
                 else:
-                    raise ValueError(f"unsupported .npy version {version}")
+                    raise ValueError(f'unsupported .npy version {version}')
                 header_len = fh.tell()
         except (zipfile.BadZipFile, EOFError, OSError, ValueError, NotImplementedError, RuntimeError,
                 SyntaxError, TypeError) as exc:
-            raise ValueError(f"{path}: member {name} has no readable array header ({type(exc).__name__}: {exc})") \
+            raise ValueError(f'{path}: member {name} has no readable array header ({type(exc).__name__}: {exc})') \
                 from None
         except Exception as exc:  # zlib.error and the like
-            raise ValueError(f"{path}: member {name} is corrupt ({type(exc).__name__}: {exc})") from None
+            raise ValueError(f'{path}: member {name} is corrupt ({type(exc).__name__}: {exc})') from None
         if dtype.hasobject:
-            raise ValueError(f"{path}: {key} holds Python objects (pickled data is never loaded)")
+            raise ValueError(f'{path}: {key} holds Python objects (pickled data is never loaded)')
         count = 1
         for s in shape:
             count *= int(s)
         nbytes = count * dtype.itemsize
         if info.file_size != header_len + nbytes:
-            raise ValueError(f"{path}: {key} declares shape {shape} of {dtype} ({nbytes} bytes) but its zip member "
-                             f"holds {info.file_size - header_len} bytes of data (corrupt or crafted; refused unread)")
+            raise ValueError(f'{path}: {key} declares shape {shape} of {dtype} ({nbytes} bytes) but its zip member '
+                             f'holds {info.file_size - header_len} bytes of data (corrupt or crafted; refused unread)')
         if nbytes > NPZ_BOMB_MIN_BYTES and info.file_size > NPZ_BOMB_RATIO * max(info.compress_size, 1):
-            raise ValueError(f"{path}: {key} would expand {info.compress_size} compressed bytes to {nbytes} "
-                             f"(ratio > {NPZ_BOMB_RATIO}: a zip bomb, refused unread)")
+            raise ValueError(f'{path}: {key} would expand {info.compress_size} compressed bytes to {nbytes} '
+                             f'(ratio > {NPZ_BOMB_RATIO}: a zip bomb, refused unread)')
         total += nbytes
         out[key] = (info, tuple(int(s) for s in shape), dtype)
     budget = _npz_memory_budget()
     if total > budget:
-        raise ValueError(f"{path}: its arrays declare {total} bytes, more than the {budget} this machine allows "
-                         f"(BEARING_ID_NPZ_MAX_BYTES) -- refused unread")
+        raise ValueError(f'{path}: its arrays declare {total} bytes, more than the {budget} this machine allows '
+                         f'(BEARING_ID_NPZ_MAX_BYTES) -- refused unread')
     return out
 
 
@@ -218,120 +227,125 @@ def _npz_check_layout(h: dict, path: Path) -> None:
     """Shapes and dtypes of a recording, from the headers alone (see :meth:`Recording.save_npz`)."""
     def kind(key, kinds, what):
         if key in h and h[key][2].kind not in kinds:
-            raise ValueError(f"{path}: {key} must be {what}, has dtype {h[key][2]}")
+            raise ValueError(f'{path}: {key} must be {what}, has dtype {h[key][2]}')
 
     def shape(key):
         return h[key][1]
 
     missing = [k for k in NPZ_REQUIRED if k not in h]
     if missing:
-        raise ValueError(f"{path}: not a bearing_id recording: lacks {missing} (has {sorted(h)[:12]})")
-    num, text, whole = "fiu", "US", "iuf"
-    for k in ("samples", "angle", "speed", "t", "sample_rate", "segments", "truth_speeds", "truth_K", "truth_C",
-              "ex_magnitude", "ex_phase", "ex_frequency_ratio"):
-        kind(k, num, "real numbers")
-    for k in ("nodes", "ex_node", "truth_nodes"):
-        kind(k, whole, "node numbers")
-    for k in ("channels", "directions", "ex_kind", "ex_direction", "run_id", "rig_name", "format"):
-        kind(k, text, "text")
-    s = shape("samples")
+        raise ValueError(f'{path}: not a bearing_id recording: lacks {missing} (has {sorted(h)[:12]})')
+    num, text, whole = 'fiu', 'US', 'iuf'
+    for k in ('samples', 'angle', 'speed', 't', 'sample_rate', 'segments', 'truth_speeds', 'truth_K', 'truth_C',
+              'ex_magnitude', 'ex_phase', 'ex_frequency_ratio'):
+        kind(k, num, 'real numbers')
+    for k in ('nodes', 'ex_node', 'truth_nodes'):
+        kind(k, whole, 'node numbers')
+    for k in ('channels', 'directions', 'ex_kind', 'ex_direction', 'run_id', 'rig_name', 'format'):
+        kind(k, text, 'text')
+    s = shape('samples')
     if len(s) != 2 or s[0] < 2 or s[1] < 1:
-        raise ValueError(f"{path}: samples must be (N >= 2 samples, n_channels >= 1), has shape {s}")
+        raise ValueError(f'{path}: samples must be (N >= 2 samples, n_channels >= 1), has shape {s}')
     n, nch = s
-    for k in ("angle", "speed", "t"):
+    for k in ('angle', 'speed', 't'):
         if k in h and shape(k) != (n,):
-            raise ValueError(f"{path}: {k} has shape {shape(k)} but samples has {n} rows: one {k} per sample needed")
-    for k in ("channels", "nodes", "directions"):
+            raise ValueError(f'{path}: {k} has shape {shape(k)} but samples has {n} rows: one {k} per sample needed')
+    for k in ('channels', 'nodes', 'directions'):
         if shape(k) != (nch,):
-            raise ValueError(f"{path}: {k} has shape {shape(k)} but samples has {nch} column(s): one per channel")
-    if shape("sample_rate") not in ((), (1,)):
+            raise ValueError(f'{path}: {k} has shape {shape(k)} but samples has {nch} column(s): one per channel')
+    if shape('sample_rate') not in ((), (1,)):
         raise ValueError(f"{path}: sample_rate must be one number, has shape {shape('sample_rate')}")
-    for k in ("run_id", "rig_name", "format"):
+    for k in ('run_id', 'rig_name', 'format'):
         if k in h and shape(k) not in ((), (1,)):
-            raise ValueError(f"{path}: {k} must be one string, has shape {shape(k)}")
+            raise ValueError(f'{path}: {k} must be one string, has shape {shape(k)}')
     present = [k for k in NPZ_EXCITATION if k in h]
     if present:
         if len(present) != len(NPZ_EXCITATION):
-            raise ValueError(f"{path}: excitation entries incomplete: has {present}, lacks "
-                             f"{[k for k in NPZ_EXCITATION if k not in h]}")
+            raise ValueError(f'{path}: excitation entries incomplete: has {present}, lacks '
+                             f'{[k for k in NPZ_EXCITATION if k not in h]}')
         shapes = {shape(k) for k in NPZ_EXCITATION}
         if len(shapes) != 1 or len(next(iter(shapes))) != 1:
-            raise ValueError(f"{path}: the ex_* arrays must be 1-D of one length, have shapes "
-                             f"{[shape(k) for k in NPZ_EXCITATION]}")
-    if "segments" in h and (len(shape("segments")) != 2 or shape("segments")[1] != 4):
+            raise ValueError(f'{path}: the ex_* arrays must be 1-D of one length, have shapes '
+                             f'{[shape(k) for k in NPZ_EXCITATION]}')
+    if 'segments' in h and (len(shape('segments')) != 2 or shape('segments')[1] != 4):
         raise ValueError(f"{path}: segments must be (k, 4), has shape {shape('segments')}")
-    truth = [k for k in ("truth_speeds", "truth_nodes", "truth_K", "truth_C") if k in h]
+    truth = [k for k in ('truth_speeds', 'truth_nodes', 'truth_K', 'truth_C') if k in h]
     if truth:
         if len(truth) != 4:
-            raise ValueError(f"{path}: truth arrays incomplete (has {truth})")
-        ns, nn = shape("truth_speeds"), shape("truth_nodes")
-        if len(ns) != 1 or len(nn) != 1 or ns[0] and (shape("truth_K") != (ns[0], nn[0], 2, 2)
-                                                     or shape("truth_C") != (ns[0], nn[0], 2, 2)):
-            raise ValueError(f"{path}: truth_K/truth_C must be (speeds, nodes, 2, 2) = ({ns}, {nn}, 2, 2), have "
+            raise ValueError(f'{path}: truth arrays incomplete (has {truth})')
+        ns, nn = shape('truth_speeds'), shape('truth_nodes')
+        if len(ns) != 1 or len(nn) != 1 or ns[0] and (shape('truth_K') != (ns[0], nn[0], 2, 2)
+                                                      or shape('truth_C') != (ns[0], nn[0], 2, 2)):
+            raise ValueError(f'{path}: truth_K/truth_C must be (speeds, nodes, 2, 2) = ({ns}, {nn}, 2, 2), have '
                              f"{shape('truth_K')}, {shape('truth_C')}")
-    if "gaps" in h and len(shape("gaps")) != 1:
+    if 'gaps' in h and len(shape('gaps')) != 1:
         raise ValueError(f"{path}: gaps must be 1-D, has shape {shape('gaps')}")
 
 
 def _nonfinite(a) -> str:
     bad = ~np.isfinite(a)
     if not bad.any():
-        return ""
+        return ''
     idx = np.argwhere(bad)[0]
-    return f"{int(bad.sum())} of {a.size} values are NaN/inf (first at index {tuple(int(i) for i in idx)})"
+    return f'{int(bad.sum())} of {a.size} values are NaN/inf (first at index {tuple(int(i) for i in idx)})'
 
 
-def check_recording(rec: "Recording", where: str = "recording") -> "Recording":
-    """Refuse a Recording the offline pipeline cannot use (ValueError naming what): sizes that disagree, a sample
-    rate that is not > 0, NaN/inf in samples/angle/speed/t, a displacement beyond
+def check_recording(rec: 'Recording', where: str = 'recording') -> 'Recording':
+    """
+    Refuse a Recording the offline pipeline cannot use (ValueError naming what); returns ``rec``.
+
+    Refused: sizes that disagree, a sample rate that is not > 0, NaN/inf in samples/angle/speed/t, a displacement beyond
     :data:`bearing_id.io.messages.MAX_PLAUSIBLE_DISPLACEMENT` (not metres, or damaged data), probe nodes < 1 or
-    directions other than x/y, excitation entries of unknown kind.  Returns ``rec``."""
+    directions other than x/y, excitation entries of unknown kind.
+    """
     fs = rec.sample_rate
     if not (isinstance(fs, (int, float, np.floating, np.integer)) and math.isfinite(float(fs)) and fs > 0):
-        raise ValueError(f"{where}: sample_rate must be a number > 0 Hz, got {fs!r}")
+        raise ValueError(f'{where}: sample_rate must be a number > 0 Hz, got {fs!r}')
     x = np.asarray(rec.samples)
     if x.ndim != 2 or x.shape[0] < 2 or x.shape[1] < 1:
-        raise ValueError(f"{where}: samples must be (N >= 2, n_channels >= 1), has shape {x.shape}")
+        raise ValueError(f'{where}: samples must be (N >= 2, n_channels >= 1), has shape {x.shape}')
     if x.shape[1] != len(rec.probes):
-        raise ValueError(f"{where}: {x.shape[1]} sample column(s) but {len(rec.probes)} channel(s)")
-    for name in ("angle", "speed", "t"):
+        raise ValueError(f'{where}: {x.shape[1]} sample column(s) but {len(rec.probes)} channel(s)')
+    for name in ('angle', 'speed', 't'):
         a = np.asarray(getattr(rec, name))
         if a.shape != (x.shape[0],):
-            raise ValueError(f"{where}: {name} has shape {a.shape}, samples has {x.shape[0]} rows")
-    for name in ("samples", "angle", "speed", "t"):
+            raise ValueError(f'{where}: {name} has shape {a.shape}, samples has {x.shape[0]} rows')
+    for name in ('samples', 'angle', 'speed', 't'):
         problem = _nonfinite(np.asarray(getattr(rec, name), dtype=float))
         if problem:
-            raise ValueError(f"{where}: {name}: {problem}; remove or repair those samples")
+            raise ValueError(f'{where}: {name}: {problem}; remove or repair those samples')
     from .io.messages import MAX_PLAUSIBLE_DISPLACEMENT as limit
     peak = float(np.max(np.abs(x)))
     if peak > limit:
         i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
-        raise ValueError(f"{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m a shaft "
-                         f"displacement can be: not metres (mm or um?) or damaged data")
+        raise ValueError(f'{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m a shaft '
+                         f'displacement can be: not metres (mm or um?) or damaged data')
     for p in rec.probes:
-        if p.direction not in ("x", "y") or int(p.node) < 1:
-            raise ValueError(f"{where}: channel {p.name!r}: node {p.node} direction {p.direction!r} (need a 1-based "
-                             f"node and x or y)")
+        if p.direction not in ('x', 'y') or int(p.node) < 1:
+            raise ValueError(f'{where}: channel {p.name!r}: node {p.node} direction {p.direction!r} (need a 1-based '
+                             f'node and x or y)')
     for e in rec.run.excitation:
-        if e.kind not in ("unbalance", "force") or e.direction not in ("forward", "x", "y") or e.node < 1 \
+        if e.kind not in ('unbalance', 'force') or e.direction not in ('forward', 'x', 'y') or e.node < 1 \
                 or not all(math.isfinite(v) for v in (e.magnitude, e.phase, e.frequency_ratio)):
-            raise ValueError(f"{where}: run {rec.run.id}: invalid excitation entry {e}")
+            raise ValueError(f'{where}: run {rec.run.id}: invalid excitation entry {e}')
     return rec
 
 
 def load_npz(path: str | Path) -> Recording:
-    """Read a recording written by :meth:`Recording.save_npz`; raises ValueError naming what is wrong.
+    """
+    Read a recording written by :meth:`Recording.save_npz`; raises ValueError naming what is wrong.
 
     Hostile files are refused before anything large is read: the zip directory and every member's .npy header are
     checked first (declared size = the member's size, no zip bomb, total within memory, no pickled objects), then the
     shapes against each other (samples rows = angle = speed = t, channel metadata = sample columns, excitation and
-    truth arrays consistent), then the values (:func:`check_recording`)."""
+    truth arrays consistent), then the values (:func:`check_recording`).
+    """
     import zipfile
     path = Path(path)
     try:
         zf = zipfile.ZipFile(path)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise ValueError(f"{path}: not a readable .npz recording (not a zip archive: {exc})") from None
+        raise ValueError(f'{path}: not a readable .npz recording (not a zip archive: {exc})') from None
     with zf:
         h = _npz_headers(zf, path)
         _npz_check_layout(h, path)
@@ -342,46 +356,46 @@ def load_npz(path: str | Path) -> Recording:
                 with zf.open(info) as fh:
                     return np.lib.format.read_array(fh, allow_pickle=False)
             except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, ValueError on a damaged member
-                raise ValueError(f"{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})") from None
+                raise ValueError(f'{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})') from None
 
         def text(key, default):
             return str(get(key).reshape(-1)[0]) if key in h else default
 
-        samples = np.asarray(get("samples"), dtype=float)
+        samples = np.asarray(get('samples'), dtype=float)
         n = samples.shape[0]
-        fs = float(get("sample_rate").reshape(-1)[0])
-        nodes = get("nodes")
+        fs = float(get('sample_rate').reshape(-1)[0])
+        nodes = get('nodes')
         if not np.all(np.isfinite(nodes)) or np.any(nodes != np.round(nodes)) or np.any(nodes < 1):
-            raise ValueError(f"{path}: nodes must be 1-based whole numbers, got {nodes.tolist()[:8]}")
-        probes = tuple(Probe(str(c), int(nd), str(r)) for c, nd, r in zip(get("channels"), nodes, get("directions")))
+            raise ValueError(f'{path}: nodes must be 1-based whole numbers, got {nodes.tolist()[:8]}')
+        probes = tuple(Probe(str(c), int(nd), str(r)) for c, nd, r in zip(get('channels'), nodes, get('directions')))
         ex = []
-        if "ex_kind" in h:
+        if 'ex_kind' in h:
             cols = [get(k) for k in NPZ_EXCITATION]
             if not np.all(np.isfinite(cols[1])):
-                raise ValueError(f"{path}: ex_node must be node numbers")
+                raise ValueError(f'{path}: ex_node must be node numbers')
             for k, nd, m, p, r, f in zip(*cols):
                 ex.append(ExcitationEntry(str(k), int(nd), float(m), float(p), str(r), float(f)))
         truth = {}
-        if "truth_speeds" in h and h["truth_speeds"][1][0]:
-            ts, tn, tK, tC = (get(k) for k in ("truth_speeds", "truth_nodes", "truth_K", "truth_C"))
-            truth["coefficients"] = {float(s): {int(nd): (tK[i, j], tC[i, j]) for j, nd in enumerate(tn)}
+        if 'truth_speeds' in h and h['truth_speeds'][1][0]:
+            ts, tn, tK, tC = (get(k) for k in ('truth_speeds', 'truth_nodes', 'truth_K', 'truth_C'))
+            truth['coefficients'] = {float(s): {int(nd): (tK[i, j], tC[i, j]) for j, nd in enumerate(tn)}
                                      for i, s in enumerate(ts)}
         segs = []
-        if "segments" in h:
-            for a, b, s, st in get("segments"):
+        if 'segments' in h:
+            for a, b, s, st in get('segments'):
                 if not (math.isfinite(a) and math.isfinite(b) and 0 <= a <= b <= n):
-                    raise ValueError(f"{path}: segment ({a}, {b}) is outside the {n} samples")
+                    raise ValueError(f'{path}: segment ({a}, {b}) is outside the {n} samples')
                 segs.append((int(a), int(b), float(s), bool(st)))
         extra = {}
-        if "gaps" in h and "gaps" in {f.name for f in dataclasses.fields(Recording)}:
-            g = get("gaps")
+        if 'gaps' in h and 'gaps' in {f.name for f in dataclasses.fields(Recording)}:
+            g = get('gaps')
             if not np.all(np.isfinite(g)) or np.any((g < 0) | (g > n)):
-                raise ValueError(f"{path}: gaps must be sample indices in [0, {n}]")
-            extra["gaps"] = tuple(int(i) for i in g)
-        rec = Recording(sample_rate=fs, t=np.asarray(get("t"), dtype=float) if "t" in h else np.arange(n) / fs,
-                        speed=np.asarray(get("speed"), dtype=float), angle=np.asarray(get("angle"), dtype=float),
-                        probes=probes, samples=samples, run=Run(text("run_id", "?"), tuple(ex)),
-                        segments=segs, truth=truth, rig_name=text("rig_name", "rig"), **extra)
+                raise ValueError(f'{path}: gaps must be sample indices in [0, {n}]')
+            extra['gaps'] = tuple(int(i) for i in g)
+        rec = Recording(sample_rate=fs, t=np.asarray(get('t'), dtype=float) if 't' in h else np.arange(n) / fs,
+                        speed=np.asarray(get('speed'), dtype=float), angle=np.asarray(get('angle'), dtype=float),
+                        probes=probes, samples=samples, run=Run(text('run_id', '?'), tuple(ex)),
+                        segments=segs, truth=truth, rig_name=text('rig_name', 'rig'), **extra)
     return check_recording(rec, str(path))
 
 
@@ -401,14 +415,15 @@ def nominal_bearing_fn(rig: RigParams):
 
 
 def system_matrices(model, speed: float, coeffs: dict, effects=()):
-    """Truth (M, C, K) at ``speed`` [rad/s]: rotor + bearings (+ gyroscopics in C), then each effect's changes.
+    """
+    Truth (M, C, K) at ``speed`` [rad/s]: rotor + bearings (+ gyroscopics in C), then each effect's changes.
 
     Effects may append DOFs; the first ``model.ndof`` DOFs stay the rotor's.  Returned arrays are fresh copies.
     """
     from .rotor.assembly import system_matrices as rotor_system
     M, C, K = (a.copy() for a in rotor_system(model, speed, coeffs))
     for e in effects:
-        if hasattr(e, "modify_system"):
+        if hasattr(e, 'modify_system'):
             M, C, K = e.modify_system(M, C, K, speed, model)
     return M, C, K
 
@@ -421,7 +436,7 @@ def _segment_forces(entries, effects, speed, n_nodes, ndof):
         g[:f.size] = f
         out[r] = g
     for e in effects:
-        if hasattr(e, "forces"):
+        if hasattr(e, 'forces'):
             for r, f in e.forces(speed, ndof).items():
                 g = out.setdefault(float(r), np.zeros(ndof, dtype=complex))
                 g[:len(f)] += f
@@ -441,23 +456,36 @@ def steady_state_response(model, speed, coeffs, entries, effects=()):
 # ------------------------------------------------------------------------------------------------- simulation
 def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
              bearing_fn=None, effects=(), sample_rate=None, model=None) -> Recording:
-    """Simulate one excitation run over a speed ``schedule``.
+    """
+    Simulate one excitation run over a speed ``schedule``.
 
     Parameters
     ----------
-    rig : the rig parameters (geometry, probes, simulation defaults).
-    run : the known excitation (unbalance masses and/or shaker forces).
-    schedule : list of :class:`Segment` (constant speed pieces).
-    probes : channels to record (default ``rig.probes``).
-    noise : std as a fraction of each channel's RMS per segment (default ``rig.simulation.noise``).
-    seed : noise seed (default ``rig.simulation.seed`` combined with the run id).
-    bearing_fn : speed -> {node: (K, C)} of the real bearings (default :func:`truth_bearing_fn`).
-    effects : truth effects (see docs/ARCHITECTURE.md) hidden from the nominal model.
-    sample_rate : Hz (default ``rig.simulation.sample_rate``).
+    rig
+        the rig parameters (geometry, probes, simulation defaults).
+    run
+        the known excitation (unbalance masses and/or shaker forces).
+    schedule
+        list of :class:`Segment` (constant speed pieces).
+    probes
+        channels to record (default ``rig.probes``).
+    noise
+        std as a fraction of each channel's RMS per segment (default ``rig.simulation.noise``).
+    seed
+        noise seed (default ``rig.simulation.seed`` combined with the run id).
+    bearing_fn
+        speed -> {node: (K, C)} of the real bearings (default :func:`truth_bearing_fn`).
+    effects
+        truth effects (see docs/ARCHITECTURE.md) hidden from the nominal model.
+    sample_rate
+        Hz (default ``rig.simulation.sample_rate``).
+    model
+        the rig's FE rotor model, if already built (default: built from ``rig``).
 
     Returns
     -------
     Recording with samples (N, nch) in metres.
+
     """
     from .rotor.assembly import RotorModel
 
@@ -466,9 +494,9 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
     probes = tuple(probes if probes is not None else rig.probes)
     fs = float(sample_rate or sim.sample_rate)
     noise = sim.noise if noise is None else float(noise)
-    desc = "truth bearings: " + ("custom bearing_fn" if bearing_fn is not None else
-                                 f"{sim.truth.bearing_model} model, viscosity x{sim.truth.viscosity_factor}, "
-                                 f"clearance x{sim.truth.clearance_factor}")
+    desc = 'truth bearings: ' + ('custom bearing_fn' if bearing_fn is not None else
+                                 f'{sim.truth.bearing_model} model, viscosity x{sim.truth.viscosity_factor}, '
+                                 f'clearance x{sim.truth.clearance_factor}')
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     if seed is None:
         seed = (sim.seed * 1000003 + sum(map(ord, run.id))) % (2**32)
@@ -539,15 +567,15 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
 
     samples = clean.copy()
     for e in effects:
-        if hasattr(e, "measure"):
+        if hasattr(e, 'measure'):
             samples = e.measure(samples, angle, speed, probes)
     if noise > 0:
         for a, b, _, _ in segments:
             rms = np.sqrt(np.mean(samples[a:b] ** 2, axis=0))
             samples[a:b] += rng.standard_normal((b - a, len(probes))) * (noise * rms)
     return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples, run=run,
-                     segments=segments, truth={"coefficients": truth_coeffs, "description": desc,
-                                               "effects": [type(e).__name__ for e in effects]},
+                     segments=segments, truth={'coefficients': truth_coeffs, 'description': desc,
+                                               'effects': [type(e).__name__ for e in effects]},
                      rig_name=rig.name)
 
 
@@ -558,8 +586,11 @@ def _state_matrix(M, C, K):
 
 
 def simulate_run(rig: RigParams, run: Run, speeds_rpm=None, dwell=None, ramp=None, **kw) -> Recording:
-    """Step through ``speeds_rpm`` (default ``rig.simulation.speeds_rpm``) dwelling ``dwell`` s at each, with
-    ``ramp`` s linear speed ramps between dwells (defaults from ``rig.simulation``)."""
+    """
+    Step through ``speeds_rpm`` (default ``rig.simulation.speeds_rpm``) dwelling ``dwell`` s at each.
+
+    With ``ramp`` s linear speed ramps between dwells (defaults from ``rig.simulation``).
+    """
     sim = rig.simulation
     sched = step_schedule(speeds_rpm if speeds_rpm is not None else sim.speeds_rpm,
                           dwell if dwell is not None else sim.dwell,
@@ -574,7 +605,8 @@ def simulate_plan(rig: RigParams, runs=None, **kw) -> list[Recording]:
 
 # ------------------------------------------------------------------------------------------------- scenarios
 def scenario(name: str) -> list[Run]:
-    """Named excitation plans.
+    """
+    Named excitation plans.
 
     * ``paper_table3``: the paper's simulation, 4 g x 63 mm at node 8, 90 deg (orbits reach the clearance near 1800 rpm
       on this rig: trips the validity warnings on purpose).
@@ -582,18 +614,18 @@ def scenario(name: str) -> list[Run]:
     * ``force``: a directional shaker (2 N, synchronous) in x, then in y, at each disc (nodes 4 and 8): 4 runs.
     """
     def ub(node, grams, deg):
-        return ExcitationEntry("unbalance", node, grams * 1e-3 * 0.063, math.radians(deg), "forward", 1.0)
+        return ExcitationEntry('unbalance', node, grams * 1e-3 * 0.063, math.radians(deg), 'forward', 1.0)
 
     def sh(node, direction, amp=2.0):
-        return ExcitationEntry("force", node, amp, 0.0, direction, 1.0)
+        return ExcitationEntry('force', node, amp, 0.0, direction, 1.0)
 
-    if name == "paper_table3":
-        return [Run("T3", (ub(8, 4.0, 90.0),))]
-    if name == "paper_table4":
-        return [Run("T4", (ub(4, 2.5, 0.0), ub(8, 5.0, 90.0)))]
-    if name == "force":
-        return [Run(f"F{n}{d}", (sh(n, d),)) for n in (4, 8) for d in ("x", "y")]
-    raise ValueError(f"unknown scenario {name!r}: paper_table3, paper_table4, force")
+    if name == 'paper_table3':
+        return [Run('T3', (ub(8, 4.0, 90.0),))]
+    if name == 'paper_table4':
+        return [Run('T4', (ub(4, 2.5, 0.0), ub(8, 5.0, 90.0)))]
+    if name == 'force':
+        return [Run(f'F{n}{d}', (sh(n, d),)) for n in (4, 8) for d in ('x', 'y')]
+    raise ValueError(f'unknown scenario {name!r}: paper_table3, paper_table4, force')
 
 
 # ------------------------------------------------------------------------------------------------- validity
@@ -608,7 +640,8 @@ class ValidityIssue:
 
 
 def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=None, model=None) -> list[ValidityIssue]:
-    """Flag speeds where the linear bearing model is not to be trusted.
+    """
+    Flag speeds where the linear bearing model is not to be trusted.
 
     Orbit: the 1X orbit's semi-major axis at a bearing node > ORBIT_LIMIT x radial clearance (true clearance when the
     truth factors are used).  Stability: speed >= ``threshold`` [rad/s] (pass the stability threshold; None skips).
@@ -626,17 +659,17 @@ def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=N
             if q is None:
                 continue
             for b, cf in zip(rig.bearings, cfac):
-                ix = dof_index(b.node, "x", model.n_nodes)
+                ix = dof_index(b.node, 'x', model.n_nodes)
                 major, _ = orbit_semi_axes(q[ix], q[ix + 1])
                 lim = ORBIT_LIMIT * b.clearance * cf
                 if major > lim:
-                    out.append(ValidityIssue("orbit", float(W), f"run {run.id}, {b.name} (node {b.node})", major, lim,
-                                             f"orbit {major * 1e6:.1f} um > {ORBIT_LIMIT:.0%} of clearance "
-                                             f"({b.clearance * cf * 1e6:.1f} um) at {W * 60 / (2 * math.pi):.0f} rpm"))
+                    out.append(ValidityIssue('orbit', float(W), f'run {run.id}, {b.name} (node {b.node})', major, lim,
+                                             f'orbit {major * 1e6:.1f} um > {ORBIT_LIMIT:.0%} of clearance '
+                                             f'({b.clearance * cf * 1e6:.1f} um) at {W * 60 / (2 * math.pi):.0f} rpm'))
         if threshold is not None and W >= threshold:
-            out.append(ValidityIssue("stability", float(W), "rotor-bearing system", W, threshold,
-                                     f"{W * 60 / (2 * math.pi):.0f} rpm is at or above the stability threshold "
-                                     f"{threshold * 60 / (2 * math.pi):.0f} rpm (oil whip)"))
+            out.append(ValidityIssue('stability', float(W), 'rotor-bearing system', W, threshold,
+                                     f'{W * 60 / (2 * math.pi):.0f} rpm is at or above the stability threshold '
+                                     f'{threshold * 60 / (2 * math.pi):.0f} rpm (oil whip)'))
     return out
 
 

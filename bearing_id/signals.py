@@ -1,4 +1,5 @@
-"""Harmonic vectors (1X, nX, sub-synchronous) from a displacement stream with a keyphasor, steady windows, slow roll.
+"""
+Harmonic vectors (1X, nX, sub-synchronous) from a displacement stream with a keyphasor, steady windows, slow roll.
 
 Phasor rule (:mod:`bearing_id.conventions`): the order-k component of a channel is ``Re{X_k exp(j k phi)}`` with phi
 the keyphasor rotor angle [rad]; a fit returns ``x(t) = offset + sum_k Re{X_k exp(j k phi(t))} + residual``.
@@ -29,8 +30,9 @@ Transient-aware fit (``transients=N`` > 0)
       beside each component already kept (two modes closer than the resolution, e.g. forward and backward whirl).
     * A component is kept only if it reduces the residual significantly on all samples (BIC:
       n ln(RSS_before / RSS_after) > (2 + 2 nch) ln n, n = samples x channels) and every kept decay rate is
-      s > TRANSIENT_DECAY_SIGMA x its 1-sigma and s > TRANSIENT_MIN_DECAY / T (T the window length).  A significant but steady component (s ~ 0: a sub-synchronous whirl,
-      an unfitted harmonic) is not a transient: it is skipped (use ``subsync`` / ``orders`` for those).
+      s > TRANSIENT_DECAY_SIGMA x its 1-sigma and s > TRANSIENT_MIN_DECAY / T (T the window length).  A significant
+      but steady component (s ~ 0: a sub-synchronous whirl, an unfitted harmonic) is not a transient: it is skipped
+      (use ``subsync`` / ``orders`` for those).
     * The std of X comes from the joint fit: sigma_c^2 diag(D^T D)^-1 (D = harmonics + kept components) plus the
       propagated uncertainty of (s, w) (D^+ dmodel/dp cov_p ...), so a transient nearly collinear with 1X inflates
       the std honestly.
@@ -41,8 +43,8 @@ Units: samples in metres (any unit works: X, offset and std come back in the sam
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -59,35 +61,35 @@ def _as_2d(samples) -> np.ndarray:
     if x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2:
-        raise ValueError(f"samples must be (N, nch), got shape {x.shape}")
+        raise ValueError(f'samples must be (N, nch), got shape {x.shape}')
     return x
 
 
 def _check_angle(angle, n) -> np.ndarray:
     a = np.asarray(angle, dtype=float).reshape(-1)
     if a.size != n:
-        raise ValueError(f"angle has {a.size} values but samples have {n} rows")
+        raise ValueError(f'angle has {a.size} values but samples have {n} rows')
     bad = int(np.count_nonzero(~np.isfinite(a)))
     if bad:
-        raise ValueError(f"angle holds {bad} non-finite value(s) (NaN/inf); the keyphasor angle must be complete")
+        raise ValueError(f'angle holds {bad} non-finite value(s) (NaN/inf); the keyphasor angle must be complete')
     d = np.diff(a)
     if np.any(d < 0):
         a = np.unwrap(a)           # a wrapped (0..2 pi) keyphasor angle: unwrap it
         if np.any(np.diff(a) < 0):
-            raise ValueError("angle must increase with time (the shaft turns one way; unwrapped angle expected)")
+            raise ValueError('angle must increase with time (the shaft turns one way; unwrapped angle expected)')
     return a
 
 
-def finite_rows(samples, nonfinite: str = "raise") -> np.ndarray:
+def finite_rows(samples, nonfinite: str = 'raise') -> np.ndarray:
     """Boolean mask (N,) of sample rows with every channel finite; raises on NaN/inf if ``nonfinite='raise'``."""
     x = _as_2d(samples)
     ok = np.all(np.isfinite(x), axis=1)
     nbad = int(np.count_nonzero(~np.isfinite(x)))
     if nbad:
-        if nonfinite == "raise":
-            raise ValueError(f"samples hold {nbad} non-finite value(s) (NaN/inf) in {int(np.count_nonzero(~ok))} "
+        if nonfinite == 'raise':
+            raise ValueError(f'samples hold {nbad} non-finite value(s) (NaN/inf) in {int(np.count_nonzero(~ok))} '
                              f"row(s); clean them or pass nonfinite='drop'")
-        if nonfinite != "drop":
+        if nonfinite != 'drop':
             raise ValueError(f"nonfinite must be 'raise' or 'drop', got {nonfinite!r}")
     return ok
 
@@ -95,7 +97,8 @@ def finite_rows(samples, nonfinite: str = "raise") -> np.ndarray:
 # ------------------------------------------------------------------------------------------------ harmonic fit
 @dataclass(frozen=True)
 class HarmonicFit:
-    """Least-squares harmonic vectors of one window.
+    """
+    Least-squares harmonic vectors of one window.
 
     Attributes
     ----------
@@ -115,7 +118,9 @@ class HarmonicFit:
     transient_rejected : candidate components tried and rejected (not significant or not decaying).
 
     ``X, std = fit`` unpacks as in docs/ARCHITECTURE.md.
+
     """
+
     X: np.ndarray
     std: np.ndarray
     std_re: np.ndarray
@@ -136,7 +141,8 @@ class HarmonicFit:
     transient_rejected: int = 0
 
     def transient_part(self, t) -> np.ndarray:
-        """The fitted decaying components at times ``t`` (M,) [s] (same clock as the fit's ``t``): (M, nch).
+        """
+        Return the fitted decaying components at times ``t`` (M,) [s] (same clock as the fit's ``t``): (M, nch).
 
         x_tr(t) = sum_m Re{transient_X[m] exp(transient_rates[m] (t - transient_t0))}; zeros when none was kept.
         """
@@ -156,12 +162,13 @@ class HarmonicFit:
 
     @property
     def phase(self) -> np.ndarray:
-        """arg X [rad] (n_orders, nch)."""
+        """Phase arg X [rad] (n_orders, nch)."""
         return np.angle(self.X)
 
 
 def whole_revolutions(angle) -> tuple[int, int, int]:
-    """(i0, i1, n_rev): the longest prefix of ``angle`` [rad, unwrapped] spanning a whole number of revolutions.
+    """
+    (i0, i1, n_rev): the longest prefix of ``angle`` [rad, unwrapped] spanning a whole number of revolutions.
 
     Samples i0..i1-1 satisfy angle - angle[i0] < 2 pi n_rev, so the window covers n_rev full turns (to one sample).
     """
@@ -171,56 +178,67 @@ def whole_revolutions(angle) -> tuple[int, int, int]:
     step = span / max(a.size - 1, 1)
     n_rev = int(math.floor((span + step) / TWO_PI + 1e-9))
     if n_rev < 1:
-        raise ValueError(f"the window covers {span / TWO_PI:.3f} revolution(s); at least one whole revolution "
-                         f"is needed")
-    i1 = int(np.searchsorted(a - a[0], TWO_PI * n_rev - 0.5 * step, side="left"))
+        raise ValueError(f'the window covers {span / TWO_PI:.3f} revolution(s); at least one whole revolution '
+                         f'is needed')
+    i1 = int(np.searchsorted(a - a[0], TWO_PI * n_rev - 0.5 * step, side='left'))
     return 0, max(i1, 1), n_rev
 
 
 def harmonic_vectors(samples, angle, orders=(1,), *, subsync=None, whole_revs: bool = True,
-                     nonfinite: str = "raise", transients: int = 0, t=None, sample_rate=None) -> HarmonicFit:
-    """Harmonic vectors of ``samples`` (N, nch) [m] against the keyphasor ``angle`` (N,) [rad].
+                     nonfinite: str = 'raise', transients: int = 0, t=None, sample_rate=None) -> HarmonicFit:
+    """
+    Harmonic vectors of ``samples`` (N, nch) [m] against the keyphasor ``angle`` (N,) [rad].
 
     Parameters
     ----------
-    samples : (N, nch) or (N,) displacement [m].
-    angle : (N,) keyphasor rotor angle [rad], unwrapped (a wrapped 0..2 pi angle is unwrapped here).
-    orders : harmonic orders k (1 = 1X, 2 = 2X, ...); non-integer values are allowed but not orthogonal.
-    subsync : None, a ratio or a sequence of ratios (frequency / speed, e.g. 0.45) fitted in the same regression
+    samples
+        (N, nch) or (N,) displacement [m].
+    angle
+        (N,) keyphasor rotor angle [rad], unwrapped (a wrapped 0..2 pi angle is unwrapped here).
+    orders
+        harmonic orders k (1 = 1X, 2 = 2X, ...); non-integer values are allowed but not orthogonal.
+    subsync
+        None, a ratio or a sequence of ratios (frequency / speed, e.g. 0.45) fitted in the same regression
         (so that a known sub-synchronous whirl does not leak into the nX vectors); returned as ``X_sub``.
-    whole_revs : trim the window to a whole number of revolutions (default True).
-    nonfinite : 'raise' (default) or 'drop' NaN/inf sample rows (see module docstring).
-    transients : at most this many exponentially decaying sinusoids fitted jointly with the harmonics (0 = the
+    whole_revs
+        trim the window to a whole number of revolutions (default True).
+    nonfinite
+        'raise' (default) or 'drop' NaN/inf sample rows (see module docstring).
+    transients
+        at most this many exponentially decaying sinusoids fitted jointly with the harmonics (0 = the
         plain fit); see "Transient-aware fit" in the module docstring.  Needs ``t`` or ``sample_rate``.
-    t : (N,) sample times [s] (only used with ``transients``); default ``arange(N) / sample_rate``.
-    sample_rate : Hz (used when ``t`` is not given).
+    t
+        (N,) sample times [s] (only used with ``transients``); default ``arange(N) / sample_rate``.
+    sample_rate
+        Hz (used when ``t`` is not given).
 
     Returns
     -------
     HarmonicFit (X complex (n_orders, nch) with x = offset + sum_k Re{X_k e^{j k angle}}, 1-sigma std, offset,
     residual RMS, the kept decaying components, ...).
+
     """
     x = _as_2d(samples)
     a = _check_angle(angle, x.shape[0])
     orders = tuple(float(k) if not float(k).is_integer() else int(k) for k in np.atleast_1d(orders))
     if len(orders) == 0:
-        raise ValueError("orders must hold at least one harmonic order")
+        raise ValueError('orders must hold at least one harmonic order')
     if any(k <= 0 for k in orders):
-        raise ValueError(f"harmonic orders must be positive, got {orders}")
+        raise ValueError(f'harmonic orders must be positive, got {orders}')
     sub = () if subsync is None else tuple(float(r) for r in np.atleast_1d(subsync))
     transients = int(transients)
     if transients < 0:
-        raise ValueError(f"transients must be >= 0, got {transients}")
+        raise ValueError(f'transients must be >= 0, got {transients}')
     tt = None
     if transients:
         if t is not None:
             tt = np.asarray(t, dtype=float).reshape(-1)
             if tt.size != x.shape[0]:
-                raise ValueError(f"t has {tt.size} values but samples have {x.shape[0]} rows")
+                raise ValueError(f't has {tt.size} values but samples have {x.shape[0]} rows')
         elif sample_rate is not None and float(sample_rate) > 0:
             tt = np.arange(x.shape[0]) / float(sample_rate)
         else:
-            raise ValueError("a transient-aware fit (transients > 0) needs the sample times t or the sample_rate")
+            raise ValueError('a transient-aware fit (transients > 0) needs the sample times t or the sample_rate')
     if whole_revs:
         i0, i1, n_rev = whole_revolutions(a)
     else:
@@ -236,7 +254,7 @@ def harmonic_vectors(samples, angle, orders=(1,), *, subsync=None, whole_revs: b
     nr = ratios.size
     npar = 1 + 2 * nr
     if x.shape[0] <= npar:
-        raise ValueError(f"{x.shape[0]} samples cannot determine {npar} parameters")
+        raise ValueError(f'{x.shape[0]} samples cannot determine {npar} parameters')
     ph = np.outer(a, ratios)                       # (N, nr), absolute keyphasor angle
     D = np.empty((x.shape[0], npar))
     D[:, 0] = 1.0
@@ -256,10 +274,10 @@ def harmonic_vectors(samples, angle, orders=(1,), *, subsync=None, whole_revs: b
         t0 = float(tt[0])
         speed_hz = abs(a[-1] - a[0]) / TWO_PI / max(tt[-1] - tt[0], 1e-300)
         tr = _transient_fit(x, D, tt - t0, speed_hz, ratios, transients)
-        n_rej = tr["rejected"]
-        if tr["rates"].size:
-            lam, A_tr = tr["rates"], tr["A"]
-            coef, resid, var_all = tr["coef"], tr["resid"], tr["var"]
+        n_rej = tr['rejected']
+        if tr['rates'].size:
+            lam, A_tr = tr['rates'], tr['A']
+            coef, resid, var_all = tr['coef'], tr['resid'], tr['var']
     c, s = coef[1:npar:2], coef[2:npar:2]                # x = c cos + s sin = Re{(c - j s) e^{j phi}}
     Xall = c - 1j * s
     var_c, var_s = var_all[1:npar:2], var_all[2:npar:2]
@@ -290,7 +308,8 @@ def _decay_columns(tt, p):
 
 
 class _VarPro:
-    """Variable projection for x = D0 b + E(p) c + noise, channels sharing p = [s_1, w_1, s_2, w_2, ...].
+    """
+    Variable projection for x = D0 b + E(p) c + noise, channels sharing p = [s_1, w_1, s_2, w_2, ...].
 
     ``xw`` (N, nch) is the channel-weighted data; D0 (N, L0) the fixed (harmonic) regressors.  The residual of a
     given p is the part of xw outside span(D0, E(p)); its Jacobian is Kaufman's (the marginal one of p).
@@ -338,14 +357,18 @@ class _VarPro:
         return out
 
     def solve(self, p0, max_nfev=40, xtol=1e-8):
-        sol = least_squares(lambda p: self.evaluate(p, False)[0], p0, jac=lambda p: self.evaluate(p)[1], method="lm",
-                            x_scale="jac", xtol=xtol, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+        sol = least_squares(lambda p: self.evaluate(p, False)[0], p0, jac=lambda p: self.evaluate(p)[1], method='lm',
+                            x_scale='jac', xtol=xtol, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
         return sol.x
 
 
 def _decays(p, J, rss, dof, T):
-    """All decay rates s = p[0::2] > TRANSIENT_DECAY_SIGMA x their 1-sigma (Kaufman Jacobian J) and
-    > TRANSIENT_MIN_DECAY / T (the component fades by at least that fraction of an e-fold over the window T [s])."""
+    """
+    Return True when all decay rates s = p[0::2] are significant and fast enough.
+
+    Each > TRANSIENT_DECAY_SIGMA x its 1-sigma (Kaufman Jacobian J) and > TRANSIENT_MIN_DECAY / T (the component fades
+    by at least that fraction of an e-fold over the window T [s]).
+    """
     cov = np.linalg.pinv(J.T @ J) * (rss / max(dof, 1))
     s_std = np.sqrt(np.clip(np.diag(cov)[0::2], 0, None))
     sd = p[0::2]
@@ -380,7 +403,8 @@ def _peak_candidate(r, tt, speed_hz, ratios, excluded, fmax):
 
 
 def _transient_fit(x, D, tt, speed_hz, ratios, max_n):
-    """Greedy joint fit of harmonics + up to ``max_n`` decaying sinusoids (see the module docstring).
+    """
+    Greedy joint fit of harmonics + up to ``max_n`` decaying sinusoids (see the module docstring).
 
     Returns dict with rates (m,) complex, A (m, nch), and, when m > 0, coef (L0, nch), resid (N, nch), var (L0, nch)
     of the harmonic regressors from the joint fit's covariance (including the uncertainty of the decay rates and
@@ -388,7 +412,7 @@ def _transient_fit(x, D, tt, speed_hz, ratios, max_n):
     """
     N, nch = x.shape
     L0 = D.shape[1]
-    out = {"rates": np.zeros(0, dtype=complex), "rejected": 0}
+    out = {'rates': np.zeros(0, dtype=complex), 'rejected': 0}
     coef0, *_ = np.linalg.lstsq(D, x, rcond=None)
     r0 = x - D @ coef0
     sig0 = np.sqrt(np.sum(r0 ** 2, axis=0) / (N - L0))
@@ -451,7 +475,7 @@ def _transient_fit(x, D, tt, speed_hz, ratios, max_n):
             break
         if not decays:                                       # a steady (non-synchronous) component: skip it
             excluded.append(fk)
-            out["rejected"] += 1
+            out['rejected'] += 1
             continue
         p, rss_f = p_try, rss_try
         r_c = coarse.evaluate(p, False)[0]
@@ -486,7 +510,7 @@ def _transient_fit(x, D, tt, speed_hz, ratios, max_n):
     # d coef_c / dp = -D^+ G_c : (L, m2) per channel;  var = sigma_c^2 diag(D^T D)^-1 + diag(B cov_p B^T)
     Gst = np.stack(G, axis=-1)                                 # (N, nch, m2)
     B = -solve_triangular(Rf, Qf.T @ Gst.reshape(N, -1)).reshape(L, nch, m2)
-    var = np.diag(cov_unit)[:, None] * sigma2[None, :] + np.einsum("lcj,jk,lck->lc", B, cov_p, B)
+    var = np.diag(cov_unit)[:, None] * sigma2[None, :] + np.einsum('lcj,jk,lck->lc', B, cov_p, B)
     A = coef[L0::2] - 1j * coef[L0 + 1::2]                      # Re{A z} = a Re z + b Im z
     out.update(rates=-p[0::2] + 1j * p[1::2], A=A, coef=coef[:L0], resid=resid, var=var[:L0], cov_p=cov_p)
     return out
@@ -494,7 +518,8 @@ def _transient_fit(x, D, tt, speed_hz, ratios, max_n):
 
 # ------------------------------------------------------------------------------------------------ steady windows
 def speed_from_angle(angle, sample_rate: float) -> np.ndarray:
-    """Per-sample rotor speed [rad/s], shape (N,), from the per-sample keyphasor angle [rad] (N,).
+    """
+    Per-sample rotor speed [rad/s], shape (N,), from the per-sample keyphasor angle [rad] (N,).
 
     Forward difference: speed[i] = (angle[i+1] - angle[i]) * sample_rate, the last sample repeating the one before
     (NaN for a single sample).  On a constant-speed step of the simulated rig this is the step's speed exactly; on an
@@ -510,7 +535,8 @@ def speed_from_angle(angle, sample_rate: float) -> np.ndarray:
 
 
 class SteadyWindowTracker:
-    """The steady-window rule, fed one chunk of per-sample speeds at a time.
+    """
+    The steady-window rule, fed one chunk of per-sample speeds at a time.
 
     A window is a maximal run of finite speeds in which max(speed) - min(speed) <= tol_rel * |mean speed of the run
     so far| (greedy from its first sample; the sample that breaks the rule starts the next window; a non-finite
@@ -522,7 +548,7 @@ class SteadyWindowTracker:
 
     def __init__(self, tol_rel: float = 0.005):
         if not tol_rel > 0:
-            raise ValueError(f"tol_rel must be > 0, got {tol_rel}")
+            raise ValueError(f'tol_rel must be > 0, got {tol_rel}')
         self.tol_rel = float(tol_rel)
         self.n = 0              # samples fed so far
         self.i0 = None          # start of the open window (absolute index) or None
@@ -531,7 +557,7 @@ class SteadyWindowTracker:
 
     @property
     def open_length(self) -> int:
-        """Samples in the open window (0 when none is open)."""
+        """Return the number of samples in the open window (0 when none is open)."""
         return self._count if self.i0 is not None else 0
 
     def feed(self, speed) -> list[tuple[int, int]]:
@@ -574,7 +600,8 @@ class SteadyWindowTracker:
 
 
 def steady_windows(t, speed, tol_rel: float = 0.005, min_duration: float = 0.5) -> list[tuple[int, int]]:
-    """Sample ranges (i0, i1) (half open) where the speed is constant within ``tol_rel``.
+    """
+    Sample ranges (i0, i1) (half open) where the speed is constant within ``tol_rel``.
 
     The rule of :class:`SteadyWindowTracker` applied to the whole record; windows shorter than ``min_duration`` [s]
     are dropped (duration = number of samples x the mean sample interval of the window).
@@ -584,7 +611,7 @@ def steady_windows(t, speed, tol_rel: float = 0.005, min_duration: float = 0.5) 
     t = np.asarray(t, dtype=float).reshape(-1)
     w = np.asarray(speed, dtype=float).reshape(-1)
     if t.size != w.size:
-        raise ValueError(f"t has {t.size} values but speed has {w.size}")
+        raise ValueError(f't has {t.size} values but speed has {w.size}')
     tr = SteadyWindowTracker(tol_rel)
     out = []
     for i0, i1 in tr.feed(w) + tr.close():
@@ -600,8 +627,9 @@ def slow_roll_compensate(X, X_slow_roll):
 
 
 def slow_roll_vector(samples, angle, t, speed, max_speed: float, orders=(1,), *, tol_rel: float = 0.005,
-                     min_duration: float = 0.5, nonfinite: str = "raise") -> HarmonicFit:
-    """Slow-roll (runout) vectors: harmonic vectors over the steady windows with |speed| <= ``max_speed``.
+                     min_duration: float = 0.5, nonfinite: str = 'raise') -> HarmonicFit:
+    """
+    Slow-roll (runout) vectors: harmonic vectors over the steady windows with |speed| <= ``max_speed``.
 
     Each steady window below ``max_speed`` [same unit as speed] is fitted on its own; the windows are combined with
     inverse-variance weights (X and std per order and channel).  The result is subtracted from running-speed vectors
@@ -614,7 +642,7 @@ def slow_roll_vector(samples, angle, t, speed, max_speed: float, orders=(1,), *,
         if np.nanmax(np.abs(w[i0:i1])) <= max_speed:
             fits.append(harmonic_vectors(x[i0:i1], np.asarray(angle)[i0:i1], orders, nonfinite=nonfinite))
     if not fits:
-        raise ValueError(f"no steady window at or below {max_speed} (speed unit) to estimate the slow roll from")
+        raise ValueError(f'no steady window at or below {max_speed} (speed unit) to estimate the slow roll from')
     if len(fits) == 1:
         return fits[0]
     wts = np.array([1.0 / np.maximum(f.std, 1e-300) ** 2 for f in fits])
@@ -632,13 +660,15 @@ def slow_roll_vector(samples, angle, t, speed, max_speed: float, orders=(1,), *,
 # ------------------------------------------------------------------------------------------------ sub-synchronous
 @dataclass(frozen=True)
 class SubsyncComponent:
-    """The strongest sub-synchronous component of a window.
+    """
+    The strongest sub-synchronous component of a window.
 
     ratio : frequency / mean running speed.  frequency : Hz.  X : complex (nch,) phasors at that frequency,
     x = Re{X exp(j 2 pi f (t - t0))} (phase relative to the window start, not to the keyphasor: the component is not
     locked to the rotor).  amplitude : |X| (nch,).  whirl : 'forward' / 'backward' from the (x, y) pair, or None.
     snr : peak amplitude / median amplitude of the residual spectrum in the searched band (amplitude ratio).
     """
+
     ratio: float
     frequency: float
     X: np.ndarray
@@ -655,7 +685,8 @@ def _fit_sinusoid(x, tt, f):
 
 def subsynchronous(samples, angle, sample_rate: float, *, ratio_range=(0.05, 0.95), sync_orders=(1, 2, 3),
                    xy=(0, 1)) -> SubsyncComponent:
-    """Strongest sub-synchronous component of ``samples`` (N, nch) [m] with keyphasor ``angle`` (N,) [rad].
+    """
+    Strongest sub-synchronous component of ``samples`` (N, nch) [m] with keyphasor ``angle`` (N,) [rad].
 
     Method: the synchronous orders ``sync_orders`` are fitted and removed (:func:`harmonic_vectors`), the residual is
     Hann-windowed and Fourier transformed, the channel-summed power peak with frequency ratio inside ``ratio_range``
@@ -665,13 +696,13 @@ def subsynchronous(samples, angle, sample_rate: float, *, ratio_range=(0.05, 0.9
     """
     x = _as_2d(samples)
     a = _check_angle(angle, x.shape[0])
-    finite_rows(x, "raise")
+    finite_rows(x, 'raise')
     fs = float(sample_rate)
     n = x.shape[0]
     tt = np.arange(n) / fs
     speed_hz = (a[-1] - a[0]) / TWO_PI / (tt[-1] if n > 1 else 1.0)
     if speed_hz <= 0:
-        raise ValueError("the rotor does not turn in this window")
+        raise ValueError('the rotor does not turn in this window')
     fit = harmonic_vectors(x, a, sync_orders, whole_revs=False)
     ph = np.outer(a, np.asarray(fit.orders, dtype=float))
     resid = x - fit.offset - np.real(np.exp(1j * ph) @ fit.X)
@@ -680,7 +711,7 @@ def subsynchronous(samples, angle, sample_rate: float, *, ratio_range=(0.05, 0.9
     freqs = np.fft.rfftfreq(n, 1 / fs)
     band = (freqs >= ratio_range[0] * speed_hz) & (freqs <= ratio_range[1] * speed_hz)
     if np.count_nonzero(band) < 3:
-        raise ValueError("the window is too short to resolve sub-synchronous frequencies; use more revolutions")
+        raise ValueError('the window is too short to resolve sub-synchronous frequencies; use more revolutions')
     power = np.sum(spec**2, axis=1)
     idx = np.nonzero(band)[0]
     k = idx[int(np.argmax(power[idx]))]

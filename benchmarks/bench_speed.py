@@ -1,4 +1,5 @@
-"""Speed benchmark of the Kalman-filter estimation step (issue 4 item 6): the paper's job on the simulated rig.
+"""
+Speed benchmark of the Kalman-filter estimation step (issue 4 item 6): the paper's job on the simulated rig.
 
 Job (Kang et al. 2020, 4.4 s in the paper): two unbalance runs (A and B of params/rig.yaml), 20,480 samples each at
 10,240 Hz from the midspan probe pair (node 6, x and y), the FE model at one speed with the theoretical (nominal)
@@ -15,20 +16,21 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_speed.py [--rpm 1500] [--re
 """
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")       # before numpy: threaded BLAS slows these small loops
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("MKL_NUM_THREADS", "1")
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')       # before numpy: threaded BLAS slows these small loops
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+os.environ.setdefault('MKL_NUM_THREADS', '1')
 
-import argparse  # noqa: E402
+import argparse  # noqa: E402, I100  (after the thread settings above)
+from pathlib import Path  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bearing_id import kalman, rig as rigmod  # noqa: E402
+from bearing_id import kalman  # noqa: E402, I100  (after the sys.path insert above)
+from bearing_id import rig as rigmod  # noqa: E402
 from bearing_id.conventions import rpm_to_rad_s  # noqa: E402
 from bearing_id.excitation import harmonic_forces  # noqa: E402
 from bearing_id.params import load_rig  # noqa: E402
@@ -75,11 +77,11 @@ def best_of(fn, repeats):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--rpm", type=float, default=1500.0, help="rotor speed [rpm] (default 1500)")
-    ap.add_argument("--q", type=float, default=1e-16, help="process noise Q = q I (paper: 1e-16 ... 1e-18)")
-    ap.add_argument("--repeats", type=int, default=5, help="repeats of the fast path (best is reported)")
-    ap.add_argument("--ref-repeats", type=int, default=1, help="repeats of the filterpy reference loop")
+    ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
+    ap.add_argument('--rpm', type=float, default=1500.0, help='rotor speed [rpm] (default 1500)')
+    ap.add_argument('--q', type=float, default=1e-16, help='process noise Q = q I (paper: 1e-16 ... 1e-18)')
+    ap.add_argument('--repeats', type=int, default=5, help='repeats of the fast path (best is reported)')
+    ap.add_argument('--ref-repeats', type=int, default=1, help='repeats of the filterpy reference loop')
     args = ap.parse_args(argv)
 
     rig = load_rig()
@@ -117,23 +119,23 @@ def main(argv=None):
 
     n = kms[0].n
     print(f"# Speed benchmark: paper's KF job at {args.rpm:.0f} rpm, Q = {args.q:g} I, {n} states, "
-          f"2 runs x {N_SAMPLES} samples at {SAMPLE_RATE:.0f} Hz, probes node 6 x/y, 4 bearing-node outputs")
+          f'2 runs x {N_SAMPLES} samples at {SAMPLE_RATE:.0f} Hz, probes node 6 x/y, 4 bearing-node outputs')
     print(f"# OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}, numpy {np.__version__}")
     print()
-    print("| quantity | measured | target |")
-    print("|---|---|---|")
-    print(f"| fast path, model build + both runs [s] | {t_fast:.4f} | <= 0.05 |")
-    print(f"| fast path, filtering only, both runs [s] | {t_filter:.4f} | |")
-    print(f"| filterpy reference loop, both runs [s] | {t_ref:.2f} | (paper: 4.4) |")
-    print(f"| speed-up (reference / fast incl. build) | {t_ref / t_fast:.0f}x | >= 100x |")
-    print(f"| max relative difference fast vs reference | {diff:.1e} | <= 1e-9 |")
-    print(f"| streaming, time per {BLOCK}-sample block [ms] | {1e3 * t_block:.3f} | |")
-    print(f"| streaming real-time factor (one core) | {rtf:.0f} | >= 50 |")
+    print('| quantity | measured | target |')
+    print('|---|---|---|')
+    print(f'| fast path, model build + both runs [s] | {t_fast:.4f} | <= 0.05 |')
+    print(f'| fast path, filtering only, both runs [s] | {t_filter:.4f} | |')
+    print(f'| filterpy reference loop, both runs [s] | {t_ref:.2f} | (paper: 4.4) |')
+    print(f'| speed-up (reference / fast incl. build) | {t_ref / t_fast:.0f}x | >= 100x |')
+    print(f'| max relative difference fast vs reference | {diff:.1e} | <= 1e-9 |')
+    print(f'| streaming, time per {BLOCK}-sample block [ms] | {1e3 * t_block:.3f} | |')
+    print(f'| streaming real-time factor (one core) | {rtf:.0f} | >= 50 |')
     ok = t_fast <= 0.05 and t_ref / t_fast >= 100 and rtf >= 50 and diff <= 1e-9
     print()
-    print("all targets met" if ok else "TARGET MISSED")
+    print('all targets met' if ok else 'TARGET MISSED')
     return 0 if ok else 1
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

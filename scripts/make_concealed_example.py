@@ -1,4 +1,5 @@
-"""Make the README's worked example: recordings of the default rig with two effects the nominal model lacks.
+"""
+Make the README's worked example: recordings of the default rig with two effects the nominal model lacks.
 
 Hidden in the truth (simulator side, bearing_id.truth_effects): a flexible pedestal under bearing 2 (node 10),
 vertical, k = 2.5e5 N/m, c = 40 N s/m; and 3 um of electrical runout at 120 deg on probe p6y.  Everything else is the
@@ -9,24 +10,24 @@ default simulated rig of params/rig.yaml (bearings 25 % off theory, 1 % noise, 6
         --report out/example/report --identify physical
 """
 import math
-import sys
 from pathlib import Path
+import sys
 
 from bearing_id import rig as rigmod
 from bearing_id import truth_effects as te
 from bearing_id.params import load_rig
 
 
-def main(out="out/example"):
+def main(out='out/example'):
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rig = load_rig()
     effects = [te.SupportFlexibility(10, k=(None, 2.5e5), c=(0.0, 40.0)),
-               te.ProbeRunout("p6y", 3e-6, math.radians(120.0))]
+               te.ProbeRunout('p6y', 3e-6, math.radians(120.0))]
     for run in rig.simulation.runs:
         rec = rigmod.simulate_run(rig, run, effects=effects)
-        print("wrote", rec.save_npz(out / f"run_{run.id}.npz"))
+        print('wrote', rec.save_npz(out / f'run_{run.id}.npz'))
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     main(*sys.argv[1:])

@@ -1,31 +1,34 @@
-"""Bag-driven end-to-end: bags/ replayed by `bearing-id play` -> kf_estimator + identifier (separate processes,
-localhost-only DDS, own domain id, kill timeouts) -> `bearing-id record` of the outputs -> the published coefficients
-equal the offline `bearing-id identify` on the same bag (1e-6 relative) and match the simulator's truth: every
-coefficient within 3 of its stated 1-sigma (not only node == CLI, which would hide a defect both share)."""
+"""
+Bag-driven end-to-end: the nodes on a replayed bag equal the offline CLI and match the simulator's truth.
+
+bags/ replayed by `bearing-id play` -> kf_estimator + identifier (separate processes, localhost-only DDS, own domain id,
+kill timeouts) -> `bearing-id record` of the outputs -> the published coefficients equal the offline `bearing-id
+identify` on the same bag (1e-6 relative) and match the simulator's truth: every coefficient within 3 of its stated
+1-sigma (not only node == CLI, which would hide a defect both share).
+"""
 from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
+import time
 
 import numpy as np
 import pytest
-
 import rosutil
 
 REPO = Path(__file__).resolve().parents[1]
-BAGS = REPO / "bags"
+BAGS = REPO / 'bags'
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def _node(name, params, env, timeout=120.0):
-    cmd = [rosutil.script(name), "--ros-args"]
+    cmd = [rosutil.script(name), '--ros-args']
     for k, v in params.items():
         if isinstance(v, list):
-            v = "[" + ",".join(str(x) for x in v) + "]"
-        cmd += ["-p", f"{k}:={v}"]
+            v = '[' + ','.join(str(x) for x in v) + ']'
+        cmd += ['-p', f'{k}:={v}']
     return rosutil.RosProcess(cmd, env=env, hard_timeout=timeout)
 
 
@@ -33,9 +36,9 @@ def _coefficients_from_bag(path):
     """Latest BearingCoefficients per speed from a recorded bag (rosbags only, no rclpy in this process)."""
     from bearing_id.io import bags, messages
     out = {}
-    for _, _, _, msg in bags.read_bag(path, ["/bearing_id/coefficients"]):
+    for _, _, _, msg in bags.read_bag(path, ['/bearing_id/coefficients']):
         d = messages.coefficients_from_msg(msg)
-        out[round(d["speed"], 6)] = d
+        out[round(d['speed'], 6)] = d
     return out
 
 
@@ -44,8 +47,8 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0) -> 
     from bearing_id.record import Record
     t_end = time.monotonic() + timeout
     while time.monotonic() < t_end:
-        if (record_dir / "record.jsonl").exists():
-            speeds = {round(e["result"]["speed_rad_s"], 6) for e in Record(record_dir, fsync=False).entries("result")}
+        if (record_dir / 'record.jsonl').exists():
+            speeds = {round(e['result']['speed_rad_s'], 6) for e in Record(record_dir, fsync=False).entries('result')}
             if len(speeds) >= n_speeds:
                 return True
         time.sleep(0.25)
@@ -55,18 +58,18 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0) -> 
 def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Path, rate: float = 4.0):
     """Play ``bag`` into kf_estimator + identifier, record their outputs; returns (coefficients, recorder output)."""
     env = rosutil.ros_env()
-    out_bag = tmp_path / "outputs"
-    record_dir = tmp_path / "record"
+    out_bag = tmp_path / 'outputs'
+    record_dir = tmp_path / 'record'
     procs = []
     try:
-        procs.append(_node("kf_estimator", {"prebuild_speeds_rpm": [float(s) for s in speeds_rpm]}, env))
-        procs.append(_node("identifier", {"method": method, "record_dir": str(record_dir), "runs": runs}, env))
-        rec = rosutil.RosProcess([rosutil.script("bearing-id"), "record", str(out_bag), "--topics",
-                                  "/bearing_id/coefficients", "/bearing_id/bearing_displacement"],
+        procs.append(_node('kf_estimator', {'prebuild_speeds_rpm': [float(s) for s in speeds_rpm]}, env))
+        procs.append(_node('identifier', {'method': method, 'record_dir': str(record_dir), 'runs': runs}, env))
+        rec = rosutil.RosProcess([rosutil.script('bearing-id'), 'record', str(out_bag), '--topics',
+                                  '/bearing_id/coefficients', '/bearing_id/bearing_displacement'],
                                  env=env, hard_timeout=150)
         procs.append(rec)
-        play = rosutil.run([rosutil.script("bearing-id"), "play", str(bag), "--rate", str(rate), "--wait-for", "2",
-                            "--timeout", "60"], timeout=150, env=env)
+        play = rosutil.run([rosutil.script('bearing-id'), 'play', str(bag), '--rate', str(rate), '--wait-for', '2',
+                            '--timeout', '60'], timeout=150, env=env)
         assert play.returncode == 0, play.stdout + play.stderr
         assert wait_for_results(record_dir, len(speeds_rpm)), procs[1].output()
         time.sleep(1.5)                      # the last batch of coefficients reaches the recorder
@@ -83,73 +86,76 @@ def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Pat
 
 
 def offline(bag: Path, method: str, tmp_path: Path) -> list[dict]:
-    js = tmp_path / "offline.json"
-    r = rosutil.run([rosutil.script("bearing-id"), "identify", str(bag), "--method", method, "--json", str(js)],
+    js = tmp_path / 'offline.json'
+    r = rosutil.run([rosutil.script('bearing-id'), 'identify', str(bag), '--method', method, '--json', str(js)],
                     timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
-    return json.loads(js.read_text())["results"]
+    return json.loads(js.read_text())['results']
 
 
 def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
-    bag = BAGS / "unbalance_ab_sweep"
+    bag = BAGS / 'unbalance_ab_sweep'
     speeds = [600.0, 900.0, 1200.0, 1500.0, 1800.0, 2100.0, 2400.0, 2700.0, 3000.0]
-    live, rec_out = replay_through_nodes(bag, "physical", speeds, ["A", "B"], tmp_path)
-    ref = offline(bag, "physical", tmp_path)
+    live, rec_out = replay_through_nodes(bag, 'physical', speeds, ['A', 'B'], tmp_path)
+    ref = offline(bag, 'physical', tmp_path)
     assert len(ref) == len(speeds)
-    assert sorted(round(r["speed_rad_s"], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
+    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
     from bearing_id.params import load_rig
     from bearing_id.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     for r in ref:
-        d = live[round(r["speed_rad_s"], 6)]
-        assert d["method"] == "physical"
-        for i, b in enumerate(r["bearings"]):
-            for sym in ("K", "C"):
+        d = live[round(r['speed_rad_s'], 6)]
+        assert d['method'] == 'physical'
+        for i, b in enumerate(r['bearings']):
+            for sym in ('K', 'C'):
                 off = np.array(b[sym], dtype=float)
                 np.testing.assert_allclose(d[sym][i], off, rtol=1e-6, atol=0)
-                std = np.array([[np.nan if v is None else v for v in row] for row in b[f"{sym}_std"]])
-                np.testing.assert_allclose(d[f"{sym}_std"][i], std, rtol=1e-6)
+                std = np.array([[np.nan if v is None else v for v in row] for row in b[f'{sym}_std']])
+                np.testing.assert_allclose(d[f'{sym}_std'][i], std, rtol=1e-6)
     # the truth, as well as the offline method gets it: paper eq. 38 error per group, both routes; the physical
     # method's targets from one probe (issue 4): <= 2 % stiffness, <= 3 % damping
     from bearing_id.identify import eq38_error
     speeds_rad = sorted(live)
-    live_coeffs = [live[s]["coeffs"] for s in speeds_rad]
+    live_coeffs = [live[s]['coeffs'] for s in speeds_rad]
     truths = [truth(s) for s in speeds_rad]
     e_live = eq38_error(live_coeffs, truths)
-    assert e_live["K"] <= 2.0 and e_live["C"] <= 3.0, e_live
+    assert e_live['K'] <= 2.0 and e_live['C'] <= 3.0, e_live
     # and every published coefficient within 3 of its stated 1-sigma of the truth (the std is honest)
     for s, t in zip(speeds_rad, truths):
         d = live[s]
-        for i, node in enumerate(d["nodes"]):
-            for j, sym in enumerate(("K", "C")):
+        for i, node in enumerate(d['nodes']):
+            for j, sym in enumerate(('K', 'C')):
                 err = np.abs(np.asarray(d[sym][i]) - t[node][j])
-                assert np.all(err <= 3.0 * np.asarray(d[f"{sym}_std"][i])), (s, node, sym, err, d[f"{sym}_std"][i])
-    assert all(math.isfinite(d["condition"]) and d["rank"] == d["unknowns"] for d in live.values())
+                assert np.all(err <= 3.0 * np.asarray(d[f'{sym}_std'][i])), (s, node, sym, err, d[f'{sym}_std'][i])
+    assert all(math.isfinite(d['condition']) and d['rank'] == d['unknowns'] for d in live.values())
 
 
 def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_path):
-    """The directional-force plan (4 runs) with the direct fit: node == CLI to 1e-6, and the truth within the stated
-    1-sigma (a statistical check of the std the product prints: normalised error RMS below 2, no error beyond 4.5
-    sigma over the 64 determined coefficients)."""
-    bag = BAGS / "force_plan"
+    """
+    The directional-force plan (4 runs) with the direct fit: node == CLI to 1e-6, truth within the stated 1-sigma.
+
+    A statistical check of the std the product prints: normalised error RMS below 2, no error beyond 4.5 sigma over the
+    64 determined coefficients.
+    """
+    bag = BAGS / 'force_plan'
     speeds = [1200.0, 2400.0]
-    live, rec_out = replay_through_nodes(bag, "direct", speeds, ["F4x", "F4y", "F8x", "F8y"], tmp_path)
-    ref = offline(bag, "direct", tmp_path)
-    assert sorted(round(r["speed_rad_s"], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
+    live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path)
+    ref = offline(bag, 'direct', tmp_path)
+    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
     from bearing_id.params import load_rig
     from bearing_id.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     z = []
     for r in ref:
-        w = round(r["speed_rad_s"], 6)
+        w = round(r['speed_rad_s'], 6)
         d = live[w]
-        t = truth(r["speed_rad_s"])
-        for i, b in enumerate(r["bearings"]):
-            for j, sym in enumerate(("K", "C")):
+        t = truth(r['speed_rad_s'])
+        for i, b in enumerate(r['bearings']):
+            for j, sym in enumerate(('K', 'C')):
                 np.testing.assert_allclose(d[sym][i], np.array(b[sym], dtype=float), rtol=1e-6, atol=0)
-                std = np.asarray(d[f"{sym}_std"][i], dtype=float)
-                assert np.all(np.isfinite(std)), "a published force-plan coefficient lacks its 1-sigma"
-                true = t[d["nodes"][i]][j]
+                std = np.asarray(d[f'{sym}_std'][i], dtype=float)
+                assert np.all(np.isfinite(std)), 'a published force-plan coefficient lacks its 1-sigma'
+                true = t[d['nodes'][i]][j]
                 z += list(((np.asarray(d[sym][i]) - true) / std).ravel())
     z = np.array(z)
     assert len(z) == 2 * 2 * 2 * 4

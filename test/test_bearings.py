@@ -1,17 +1,17 @@
-"""Short-bearing (Ocvirk) theory, the bearings API and the stability threshold.
+"""
+Short-bearing (Ocvirk) theory, the bearings API and the stability threshold.
 
 References are independent of the closed forms under test: direct quadrature of the short-bearing pressure
 (static force and its central differences in our frame), similarity laws, rotor statics, eigenvalues.
 """
 import math
 
-import numpy as np
-import pytest
-
 from bearing_id import bearings
 from bearing_id.bearings import short
 from bearing_id.conventions import GRAVITY, rpm_to_rad_s, whirl_direction
 from bearing_id.params import load_rig
+import numpy as np
+import pytest
 
 D = L = 0.01265
 C_RAD = 50e-6
@@ -19,12 +19,12 @@ MU = 0.03
 W = 9.7
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def rig():
     return load_rig()
 
 
-@pytest.mark.parametrize("rpm", [300, 600, 1800, 3000, 10000])
+@pytest.mark.parametrize('rpm', [300, 600, 1800, 3000, 10000])
 def test_short_equilibrium_force_matches_pressure_quadrature(rpm):
     """The closed-form eccentricity/attitude put the journal where the integrated pi-film pressure carries W (+y)."""
     s = short.ocvirk(D, L, C_RAD, MU, W, rpm_to_rad_s(rpm))
@@ -35,7 +35,7 @@ def test_short_equilibrium_force_matches_pressure_quadrature(rpm):
     assert math.isclose(math.hypot(x, y), s.eccentricity * C_RAD, rel_tol=1e-12)
 
 
-@pytest.mark.parametrize("rpm", [600, 1800, 3000])
+@pytest.mark.parametrize('rpm', [600, 1800, 3000])
 def test_short_coefficients_equal_derivatives_of_quadrature_force_in_our_frame(rpm):
     """K = -dF/dq and C = -dF/dq' by central differences of the quadrature force, in (x, y): tests lit_to_xy too."""
     w = rpm_to_rad_s(rpm)
@@ -62,17 +62,17 @@ def test_short_cross_coupling_drives_forward_whirl():
     K, C = s.K, s.C
     assert K[0, 1] - K[1, 0] > 0
     t = np.linspace(0, 2 * np.pi, 2001)[:-1]
-    for sense, sign in (("forward", +1), ("backward", -1)):
+    for sense, sign in (('forward', +1), ('backward', -1)):
         q = np.array([np.cos(t), sign * np.sin(t)])
         dq = np.array([-np.sin(t), sign * np.cos(t)])
         work = np.mean(np.sum(-(K @ q) * dq, axis=0))
-        assert (work > 0) if sense == "forward" else (work < 0)
+        assert (work > 0) if sense == 'forward' else (work < 0)
     assert np.allclose(C, C.T) and np.all(np.linalg.eigvalsh(C) > 0)   # short-bearing damping: symmetric, dissipative
     assert K[0, 0] > 0 and K[1, 1] > 0
 
 
 def test_short_load_equation_limits_and_inverse():
-    """brentq inverse of pi S (L/D)^2 = f(eps) across 10 decades, and the attitude-angle limits."""
+    """Check the brentq inverse of pi S (L/D)^2 = f(eps) across 10 decades, and the attitude-angle limits."""
     for eps in (1e-4, 0.05, 0.3, 0.5, 0.8, 0.95, 0.999):
         S = float(short.short_load_parameter(eps)) / (math.pi * 0.5**2)
         assert math.isclose(short.short_eccentricity(S, 0.5), eps, rel_tol=1e-10)
@@ -84,7 +84,7 @@ def test_similarity_law_viscosity_and_speed(rig):
     """Coefficients depend on mu and speed only through S: K(2 mu, w) = K(mu, 2 w); C w is a function of S."""
     b = rig.bearings[0]
     w = rpm_to_rad_s(1200)
-    for model in ("short", "finite"):
+    for model in ('short', 'finite'):
         K1, C1 = bearings.coefficients(b, w, W, viscosity=2 * MU, model=model)
         K2, C2 = bearings.coefficients(b, 2 * w, W, viscosity=MU, model=model)
         assert np.allclose(K1, K2, rtol=1e-7, atol=1e-9 * np.abs(K1).max())
@@ -93,11 +93,11 @@ def test_similarity_law_viscosity_and_speed(rig):
 
 def test_speed_must_be_positive(rig):
     b = rig.bearings[0]
-    for bad in (0.0, -10.0, float("nan")):
-        with pytest.raises(ValueError, match="speed"):
+    for bad in (0.0, -10.0, float('nan')):
+        with pytest.raises(ValueError, match='speed'):
             bearings.coefficients(b, bad, W)
     fn = bearings.bearing_fn(rig)
-    with pytest.raises(ValueError, match="zero speed"):
+    with pytest.raises(ValueError, match='zero speed'):
         fn(0.0)
 
 
@@ -106,7 +106,7 @@ def test_default_loads_are_the_rotor_weight_share(rig):
     from bearing_id.rotor.assembly import RotorModel
     fn = bearings.bearing_fn(rig)
     model = RotorModel.from_params(rig)
-    total = model.total_mass() * GRAVITY if hasattr(model, "total_mass") else None
+    total = model.total_mass() * GRAVITY if hasattr(model, 'total_mass') else None
     shaft_mass = rig.shaft.mass + sum(d.mass for d in rig.discs)
     assert math.isclose(sum(fn.loads.values()), shaft_mass * GRAVITY, rel_tol=1e-9)
     if total is not None:
@@ -126,7 +126,7 @@ def test_bearing_fn_factors_override_and_cache(rig):
     assert np.array_equal(K, Kr) and np.array_equal(C, Cr)
     K2, _ = tru(w)[b2.node]
     assert not np.allclose(K, K2)                                    # per-bearing factor applied to bearing 1 only
-    with pytest.raises(ValueError, match="viscosity_factor"):
+    with pytest.raises(ValueError, match='viscosity_factor'):
         bearings.bearing_fn(rig, viscosity_factor=[1.0, 1.0, 1.0])
     sol = nom.solutions(w)[b1.node]
     assert 0 < sol.eccentricity < 1 and sol.sommerfeld > 0
@@ -137,7 +137,7 @@ def test_stability_threshold_short_rig(rig):
     from bearing_id.bearings import stability
     from bearing_id.rotor.assembly import RotorModel, state_space
     model = RotorModel.from_params(rig)
-    fn = bearings.bearing_fn(rig, model="short")
+    fn = bearings.bearing_fn(rig, model='short')
     th = stability.threshold_speed(model, fn, rpm_to_rad_s(10000))
     rpm = th * 60 / (2 * math.pi)
     assert 3600 < rpm < 4000, rpm
@@ -151,5 +151,5 @@ def test_stability_threshold_short_rig(rig):
     if lam[k].imag < 0:
         V[:, k] = np.conj(V[:, k])
     i = 4 * (6 - 1)
-    assert whirl_direction(V[i, k], V[i + 1, k]) == "forward"
+    assert whirl_direction(V[i, k], V[i + 1, k]) == 'forward'
     assert stability.threshold_speed(model, fn, rpm_to_rad_s(3000)) == math.inf

@@ -1,21 +1,24 @@
-"""Finite-length Reynolds bearing: perturbation vs central differences, converged equilibrium independent of the
-start, the short-bearing limit, the equilibrium-locus consistency, and Someya's databook table (L/D = 1)."""
+"""
+Finite-length Reynolds bearing.
+
+Perturbation vs central differences, converged equilibrium independent of the start, the short-bearing limit, the
+equilibrium-locus consistency, and Someya's databook table (L/D = 1).
+"""
 import json
 import math
-import time
 from pathlib import Path
-
-import numpy as np
-import pytest
+import time
 
 from bearing_id.bearings import finite, short
 from bearing_id.conventions import lit_to_xy
+import numpy as np
+import pytest
 
 D = 0.01
 C_RAD = 1e-5
 MU = 0.01
 W = 100.0
-TABLES = json.loads((Path(__file__).parent / "data" / "bearing_tables.json").read_text())
+TABLES = json.loads((Path(__file__).parent / 'data' / 'bearing_tables.json').read_text())
 
 
 def speed_for(S, L):
@@ -28,7 +31,7 @@ def to_lit(B):
     return lit_to_xy(lit_to_xy(lit_to_xy(B)))
 
 
-@pytest.mark.parametrize("grooves", [(), ((math.pi / 2, math.radians(20)), (-math.pi / 2, math.radians(20)))])
+@pytest.mark.parametrize('grooves', [(), ((math.pi / 2, math.radians(20)), (-math.pi / 2, math.radians(20)))])
 def test_perturbation_equals_central_differences(grooves):
     """Route 1 (linearised Reynolds) = route 2 (central differences of the nonlinear cavitating film force)."""
     L = D
@@ -65,12 +68,12 @@ def test_equilibrium_converged_independent_of_start():
         assert np.allclose(s.C, sols[0].C, rtol=1e-7, atol=0)
 
 
-@pytest.mark.parametrize("model", ["short", "finite"])
+@pytest.mark.parametrize('model', ['short', 'finite'])
 def test_stiffness_reproduces_equilibrium_locus(model):
     """-K dq = dW: the journal displacement between the equilibria at W and W (1 + 1e-4), times K, is the load step."""
     L = 0.5 * D
     w = speed_for(0.2, L)
-    fn = short.ocvirk if model == "short" else (lambda *a: finite.reynolds(*a, 96, 12))
+    fn = short.ocvirk if model == 'short' else (lambda *a: finite.reynolds(*a, 96, 12))
     s0 = fn(D, L, C_RAD, MU, W, w)
     s1 = fn(D, L, C_RAD, MU, W * (1 + 1e-4), w)
     dq = np.subtract(s1.journal_position, s0.journal_position)
@@ -79,8 +82,12 @@ def test_stiffness_reproduces_equilibrium_locus(model):
 
 
 def test_short_bearing_limit_as_L_over_D_shrinks():
-    """At fixed short-bearing eccentricity, L/D = 0.25: |d eps| <= 0.02, |d phi| <= 1 deg, K and C within 3 % of
-    their largest entry; L/D = 0.125 cuts the eccentricity gap by >= 3x (O((L/D)^2) end-leakage correction)."""
+    """
+    At fixed short-bearing eccentricity, the finite bearing tends to the short one as L/D shrinks.
+
+    L/D = 0.25: |d eps| <= 0.02, |d phi| <= 1 deg, K and C within 3 % of their largest entry; L/D = 0.125 cuts the
+    eccentricity gap by >= 3x (O((L/D)^2) end-leakage correction).
+    """
     for eps in (0.3, 0.5, 0.7):
         gaps = []
         for LD in (0.25, 0.125):
@@ -101,31 +108,31 @@ def test_short_bearing_limit_as_L_over_D_shrinks():
 # Stated tolerances against Someya's table (L/D = 1, two axial grooves, ASSUMED 10 deg wide at ambient pressure):
 # eccentricity and attitude angle tight; damping within 16 %; the stiffness terms looser (the table's direct
 # stiffnesses are 6-30 % above ours, most at low eccentricity, while ours pass the locus check above).
-TOL = {"E": 0.005, "Phi_deg": 1.5, "Kxx": 0.32, "Kxy": 0.12, "Kyy": 0.26, "Bxx": 0.08, "Bxy": 0.16, "Byx": 0.16,
-       "Byy": 0.16}
+TOL = {'E': 0.005, 'Phi_deg': 1.5, 'Kxx': 0.32, 'Kxy': 0.12, 'Kyy': 0.26, 'Bxx': 0.08, 'Bxy': 0.16, 'Byx': 0.16,
+       'Byy': 0.16}
 
 
 def test_matches_someya_table_L_over_D_1():
-    tab = TABLES["someya_two_axial_groove_LD1"]
-    cols = tab["columns"]
+    tab = TABLES['someya_two_axial_groove_LD1']
+    cols = tab['columns']
     grooves = ((math.pi / 2, math.radians(10)), (-math.pi / 2, math.radians(10)))
     n_checked = 0
-    for row in tab["rows"]:
+    for row in tab['rows']:
         r = dict(zip(cols, row))
-        if not 0.3 <= r["E"] <= 0.9:
+        if not 0.3 <= r['E'] <= 0.9:
             continue
-        w = speed_for(r["S"], D)
+        w = speed_for(r['S'], D)
         s = finite.reynolds(D, D, C_RAD, MU, W, w, 180, 16, grooves=grooves)
         k = to_lit(s.K) * C_RAD / W
         b = to_lit(s.C) * C_RAD * w / W
-        ours = {"E": s.eccentricity, "Phi_deg": math.degrees(s.attitude_angle), "Kxx": k[0, 0], "Kxy": k[0, 1],
-                "Kyx": k[1, 0], "Kyy": k[1, 1], "Bxx": b[0, 0], "Bxy": b[0, 1], "Byx": b[1, 0], "Byy": b[1, 1]}
-        assert abs(ours["E"] - r["E"]) <= TOL["E"], (r, ours)
-        assert abs(ours["Phi_deg"] - r["Phi_deg"]) <= TOL["Phi_deg"], (r, ours)
-        for key in ("Kxx", "Kxy", "Kyy", "Bxx", "Bxy", "Byx", "Byy"):
+        ours = {'E': s.eccentricity, 'Phi_deg': math.degrees(s.attitude_angle), 'Kxx': k[0, 0], 'Kxy': k[0, 1],
+                'Kyx': k[1, 0], 'Kyy': k[1, 1], 'Bxx': b[0, 0], 'Bxy': b[0, 1], 'Byx': b[1, 0], 'Byy': b[1, 1]}
+        assert abs(ours['E'] - r['E']) <= TOL['E'], (r, ours)
+        assert abs(ours['Phi_deg'] - r['Phi_deg']) <= TOL['Phi_deg'], (r, ours)
+        for key in ('Kxx', 'Kxy', 'Kyy', 'Bxx', 'Bxy', 'Byx', 'Byy'):
             assert abs(ours[key] / r[key] - 1) <= TOL[key], (key, r, ours)
         # Kyx crosses zero near E = 0.7: compare against the row's largest stiffness
-        assert abs(ours["Kyx"] - r["Kyx"]) <= 0.25 * max(abs(r[c]) for c in ("Kxx", "Kxy", "Kyy")), (r, ours)
+        assert abs(ours['Kyx'] - r['Kyx']) <= 0.25 * max(abs(r[c]) for c in ('Kxx', 'Kxy', 'Kyy')), (r, ours)
         n_checked += 1
     assert n_checked == 7
 

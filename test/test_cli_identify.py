@@ -1,65 +1,64 @@
 """`bearing-id identify` end to end on simulated .npz recordings: refusal (exit 1) and flagged output (exit 0)."""
 import json
 
-import numpy as np
-import pytest
-
 from bearing_id import rig as rigmod
 from bearing_id.cli import main
 from bearing_id.params import load_rig
+import numpy as np
+import pytest
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def npz_runs(tmp_path_factory):
-    d = tmp_path_factory.mktemp("ident")
+    d = tmp_path_factory.mktemp('ident')
     rig = load_rig()
     paths = []
     for run in rig.simulation.runs:       # unbalance A and B, node-6 probes: undetermined by design (rank 8 of 16)
         rec = rigmod.simulate_run(rig, run, speeds_rpm=[1200, 1800], dwell=0.6, noise=0.01)
-        paths.append(str(rec.save_npz(d / f"run_{run.id}.npz")))
+        paths.append(str(rec.save_npz(d / f'run_{run.id}.npz')))
     return d, paths
 
 
 def test_undetermined_plan_exits_1_and_prints_no_numbers(npz_runs, capsys):
     d, paths = npz_runs
-    out_json = d / "r.json"
-    code = main(["identify", *paths, "--method", "paper", "--json", str(out_json)])
+    out_json = d / 'r.json'
+    code = main(['identify', *paths, '--method', 'paper', '--json', str(out_json)])
     cap = capsys.readouterr()
     assert code == 1
-    assert "UNDETERMINED" in cap.err and "rpm" in cap.err
-    assert "undetermined" in cap.out and "(prior)" not in cap.out
-    assert "N/m" in cap.out and "N s/m" in cap.out
-    res = json.loads(out_json.read_text())["results"]
-    assert [round(r["speed_rpm"]) for r in res] == [1200, 1800]
+    assert 'UNDETERMINED' in cap.err and 'rpm' in cap.err
+    assert 'undetermined' in cap.out and '(prior)' not in cap.out
+    assert 'N/m' in cap.out and 'N s/m' in cap.out
+    res = json.loads(out_json.read_text())['results']
+    assert [round(r['speed_rpm']) for r in res] == [1200, 1800]
     for r in res:
-        assert r["unknowns"] == 16 and r["rank"] <= 8 and r["method"] == "paper"
+        assert r['unknowns'] == 16 and r['rank'] <= 8 and r['method'] == 'paper'
         # the paper method's honesty figures: how much of the answer is the KF's theory, per coefficient and overall
-        assert 0.0 <= r["theory_fraction"] and any("theory fraction" in n for n in r["notes"])
-        for b in r["bearings"]:
-            for sym in ("K", "C"):
-                sens = np.array(b["theory_sensitivity"][sym])
+        assert 0.0 <= r['theory_fraction'] and any('theory fraction' in n for n in r['notes'])
+        for b in r['bearings']:
+            for sym in ('K', 'C'):
+                sens = np.array(b['theory_sensitivity'][sym])
                 assert sens.shape == (2, 2) and np.all(np.isfinite(sens))
                 # a coefficient that follows the theory (d identified / d theory > 0.5) is never 'determined'
-                assert not np.any(np.array(b["determined"][sym]) & (sens > 0.5))
-            for sym in ("K", "C"):
-                for row, okr in zip(b[sym], b["determined"][sym]):
+                assert not np.any(np.array(b['determined'][sym]) & (sens > 0.5))
+            for sym in ('K', 'C'):
+                for row, okr in zip(b[sym], b['determined'][sym]):
                     for v, ok in zip(row, okr):
                         assert (v is None) == (not ok)      # undetermined values are not published as numbers
 
 
 def test_allow_undetermined_prints_flagged_values_and_exits_0(npz_runs, capsys):
     d, paths = npz_runs
-    code = main(["identify", *paths, "--method", "paper", "--allow-undetermined", "--plot", str(d / "c.png")])
+    code = main(['identify', *paths, '--method', 'paper', '--allow-undetermined', '--plot', str(d / 'c.png')])
     cap = capsys.readouterr()
     assert code == 0
-    flagged = [ln for ln in cap.out.splitlines() if ln.rstrip().endswith("(prior)")]
+    flagged = [ln for ln in cap.out.splitlines() if ln.rstrip().endswith('(prior)')]
     assert len(flagged) >= 16                          # >= 8 per speed, 2 speeds
     assert all(np.isfinite(float(ln.split()[2])) for ln in flagged)
-    assert (d / "c.png").stat().st_size > 1000
+    assert (d / 'c.png').stat().st_size > 1000
     # the paper's Figs 5-6: KF bearing-node amplitude/phase vs speed, with the truth (the recordings carry it)
-    png = d / "c_bearing_vectors.png"
+    png = d / 'c_bearing_vectors.png'
     assert png.stat().st_size > 1000
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert str(png) in cap.out
 
 
@@ -67,22 +66,22 @@ def test_bearing_vectors_plot_draws_estimate_and_truth(tmp_path):
     # plots.plot_bearing_vectors with runs x speeds x bearings x (x, y): one estimated and one true line per run in
     # every amplitude/phase panel; amplitudes in um, phases in degrees (checked on the drawn data).
     import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    matplotlib.use('Agg')
     from bearing_id import plots
+    import matplotlib.pyplot as plt
     speeds = np.array([100.0, 200.0, 300.0])
     est = np.zeros((2, 3, 2, 2), complex)
     est[...] = 2e-6 * np.exp(1j * np.pi / 6)
     captured = {}
     orig = plt.close
-    plt.close = lambda fig=None: captured.setdefault("fig", fig)
+    plt.close = lambda fig=None: captured.setdefault('fig', fig)
     try:
-        p = plots.plot_bearing_vectors(speeds, est, tmp_path / "bv.png", true=1.1 * est, nodes=(2, 10),
-                                       run_labels=["A", "B"])
+        p = plots.plot_bearing_vectors(speeds, est, tmp_path / 'bv.png', true=1.1 * est, nodes=(2, 10),
+                                       run_labels=['A', 'B'])
     finally:
         plt.close = orig
     assert p.stat().st_size > 1000
-    ax_amp, ax_ph = captured["fig"].axes[0], captured["fig"].axes[4]
+    ax_amp, ax_ph = captured['fig'].axes[0], captured['fig'].axes[4]
     assert len(ax_amp.lines) == 4                                 # 2 runs x (estimated, true)
     np.testing.assert_allclose(ax_amp.lines[0].get_ydata(), 2.0)  # 2e-6 m = 2 um
     np.testing.assert_allclose(ax_amp.lines[1].get_ydata(), 2.2)
@@ -91,9 +90,9 @@ def test_bearing_vectors_plot_draws_estimate_and_truth(tmp_path):
 
 def test_bad_inputs_exit_2(npz_runs, tmp_path):
     d, paths = npz_runs
-    assert main(["identify", str(tmp_path / "missing.npz")]) == 2
-    bad = tmp_path / "bad.npz"
-    bad.write_bytes(b"not a zip")
-    assert main(["identify", str(bad)]) == 2
+    assert main(['identify', str(tmp_path / 'missing.npz')]) == 2
+    bad = tmp_path / 'bad.npz'
+    bad.write_bytes(b'not a zip')
+    assert main(['identify', str(bad)]) == 2
     # conventional needs two probe nodes per bearing and direction: a named parameter error, not a traceback
-    assert main(["identify", *paths, "--method", "conventional"]) == 2
+    assert main(['identify', *paths, '--method', 'conventional']) == 2

@@ -1,10 +1,9 @@
 """The sign, axis, phasor and numbering rules of bearing_id.conventions, checked against first principles."""
 import math
 
+from bearing_id import conventions as cv
 import numpy as np
 import pytest
-
-from bearing_id import conventions as cv
 
 
 def test_phasor_is_cosine_referenced_to_keyphasor():
@@ -22,10 +21,10 @@ def test_unbalance_force_rotates_forward_with_the_mass():
     x, y = cv.phasor_to_time(fx, phi), cv.phasor_to_time(fy, phi)
     assert np.allclose(np.hypot(x, y), me * W**2)
     assert np.allclose(np.unwrap(np.arctan2(y, x)), np.unwrap(phi + ph))
-    assert cv.whirl_direction(fx, fy) == "forward"
+    assert cv.whirl_direction(fx, fy) == 'forward'
 
 
-@pytest.mark.parametrize("direction,expect", [("x", (1, 0)), ("y", (0, 1))])
+@pytest.mark.parametrize('direction,expect', [('x', (1, 0)), ('y', (0, 1))])
 def test_directional_force(direction, expect):
     fx, fy = cv.force_phasors(2.0, 0.0, direction)
     assert (abs(fx), abs(fy)) == (2.0 * expect[0], 2.0 * expect[1])
@@ -33,8 +32,8 @@ def test_directional_force(direction, expect):
 
 def test_whirl_and_orbit_axes():
     # x = cos, y = sin: counter-clockwise from +x to +y = forward circle of radius 1
-    assert cv.whirl_direction(1.0, -1j) == "forward"
-    assert cv.whirl_direction(1.0, 1j) == "backward"
+    assert cv.whirl_direction(1.0, -1j) == 'forward'
+    assert cv.whirl_direction(1.0, 1j) == 'backward'
     # ellipse x = 2 cos, y = 1 sin -> semi-axes 2 and 1
     major, minor = cv.orbit_semi_axes(2.0, -1j)
     assert major == pytest.approx(2.0) and minor == pytest.approx(1.0)
@@ -59,12 +58,12 @@ def test_literature_frame_mapping():
 
 def test_node_numbers_are_one_based():
     assert cv.node_index(1) == 0
-    assert cv.dof_index(2, "y") == 5
-    assert cv.dof_index(10, "ty", 11) == 39
+    assert cv.dof_index(2, 'y') == 5
+    assert cv.dof_index(10, 'ty', 11) == 39
     for bad in (0, -1, 1.5, True):
         with pytest.raises(ValueError):
             cv.node_index(bad)
-    with pytest.raises(ValueError, match="nodes 1..11"):
+    with pytest.raises(ValueError, match='nodes 1..11'):
         cv.node_index(12, 11)
 
 
@@ -73,4 +72,4 @@ def test_units():
     assert cv.rad_s_to_rpm(2 * math.pi) == pytest.approx(60.0)
     assert np.allclose(cv.rpm_to_rad_s([0, 30]), [0, math.pi])
     assert cv.block2(cv.flat4(np.array([[1, 2], [3, 4]]))).tolist() == [[1, 2], [3, 4]]
-    assert cv.COEFF_ORDER == ("xx", "xy", "yx", "yy")
+    assert cv.COEFF_ORDER == ('xx', 'xy', 'yx', 'yy')

@@ -1,4 +1,5 @@
-"""Tabulated finite-length bearing (bearings/finite_table.py) and the physical fit with --bearing-model finite.
+"""
+Tabulated finite-length bearing (bearings/finite_table.py) and the physical fit with --bearing-model finite.
 
 References (independent of the table):
 * the direct finite-volume Reynolds solver (bearings/finite.py) on the table's grid and on its default grid, at
@@ -11,19 +12,18 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
-import pytest
-
 from bearing_id import bearings
 from bearing_id.bearings import finite, finite_table, short
 from bearing_id.identify.harmonics import simulate_data
 from bearing_id.params import Probe
+import numpy as np
+import pytest
 
 D = L = 0.01265
 C_RAD = 5e-5
 MU = 0.03
 W = 9.7
-P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
+P6 = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
 
 
 def speed_for(S):
@@ -35,8 +35,12 @@ def rel(a, b):
 
 
 def test_spline_representation_error_on_the_closed_form_short_bearing():
-    """The table's spline layout (ln S knots every KNOT_EVERY samples) fitted to the smooth closed-form short bearing
-    reproduces it between the samples to < 2e-5 of the largest entry."""
+    """
+    The table's spline layout fitted to the closed-form short bearing reproduces it to < 2e-5 of the largest entry.
+
+    The layout: ln S knots every KNOT_EVERY samples; fitted to the smooth closed-form short bearing, it reproduces it
+    between the samples.
+    """
     s = np.geomspace(finite_table.S_MIN, finite_table.S_MAX, finite_table.N_SAMPLES)
 
     def row(S):
@@ -53,18 +57,18 @@ def test_spline_representation_error_on_the_closed_form_short_bearing():
         assert rel(k.ravel(), ref[2:6]) < 2e-5 and rel(b.ravel(), ref[6:]) < 2e-5, S
 
 
-@pytest.mark.parametrize("S", [0.03, 0.12, 1.3])
+@pytest.mark.parametrize('S', [0.03, 0.12, 1.3])
 def test_table_matches_direct_solver_on_its_grid(S):
     w = speed_for(S)
     t = finite_table.solution(D, L, C_RAD, MU, W, w)
     d = finite.reynolds(D, L, C_RAD, MU, W, w, *finite_table.TABLE_GRID)
-    assert t.model == "finite" and math.isnan(t.force_error)
+    assert t.model == 'finite' and math.isnan(t.force_error)
     assert abs(t.eccentricity - d.eccentricity) <= finite_table.TOL_ECC
     tol = finite_table.stated_tolerance(S, table_grid=True)
     assert rel(t.K, d.K) <= tol and rel(t.C, d.C) <= tol
 
 
-@pytest.mark.parametrize("S", [0.008, 0.025, 0.07, 0.3, 3.0, 15.0])
+@pytest.mark.parametrize('S', [0.008, 0.025, 0.07, 0.3, 3.0, 15.0])
 def test_table_matches_direct_solver_on_the_default_grid(S):
     w = speed_for(S)
     t = finite_table.solution(D, L, C_RAD, MU, W, w)
@@ -79,19 +83,23 @@ def test_finite_model_uses_the_table_is_fast_and_falls_back_outside_it(rig):
     bearings._solve.cache_clear()
     t0 = time.perf_counter()
     for i in range(500):
-        K, C = bearings.coefficients(b, 50.0 + 0.37 * i, 9.7, model="finite")
+        K, C = bearings.coefficients(b, 50.0 + 0.37 * i, 9.7, model='finite')
     assert time.perf_counter() - t0 < 1.0
     S_big = 2 * finite_table.S_MAX
-    s = bearings.solution(b, speed_for(S_big), W, model="finite")       # outside the table: the direct solver
+    s = bearings.solution(b, speed_for(S_big), W, model='finite')       # outside the table: the direct solver
     assert s.force_error <= 1e-8 and s.sommerfeld > finite_table.S_MAX
-    d = bearings.solution(b, speed_for(0.2), W, model="finite_direct")
+    d = bearings.solution(b, speed_for(0.2), W, model='finite_direct')
     assert d.force_error <= 1e-8
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def finite_truth(rig, model):
-    """Node 6, unbalance A+B, 6 speeds 600-3528 rpm, truth = finite bearing at viscosity x1.3 / clearance x0.7, x0.85."""
-    bfn = bearings.bearing_fn(rig, model="finite", viscosity_factor=(1.3, 1.3), clearance_factor=(0.7, 0.85))
+    """
+    Simulate node 6, unbalance A+B, 6 speeds 600-3528 rpm.
+
+    Truth = finite bearing at viscosity x1.3 / clearance x0.7, x0.85.
+    """
+    bfn = bearings.bearing_fn(rig, model='finite', viscosity_factor=(1.3, 1.3), clearance_factor=(0.7, 0.85))
     return simulate_data(rig, rig.simulation.runs, tuple(np.linspace(600, 3528, 6)), probes=P6, bearing_fn=bfn,
                          model=model)
 
@@ -104,30 +112,33 @@ def _noisy(clean, seed):
 
 
 def test_physical_finite_fits_a_finite_truth_in_seconds(rig, model, finite_truth):
-    """Issue 11: `--bearing-model finite` took 294-566 s and misfit at chi2/dof 1.4e4.  Now: <= 10 s, no misfit,
-    parameters within 3 sigma of the truth, and the short model on the same data is declared a misfit whose note
-    suggests the finite model."""
+    """
+    Issue 11: `--bearing-model finite` took 294-566 s and misfit at chi2/dof 1.4e4.
+
+    Now: <= 10 s, no misfit, parameters within 3 sigma of the truth, and the short model on the same data is declared a
+    misfit whose note suggests the finite model.
+    """
     from bearing_id.identify.physical import fit_physical
     data = _noisy(finite_truth, 5)
     t0 = time.perf_counter()
-    fit, res = fit_physical(model, rig, data, bearing_model="finite")
+    fit, res = fit_physical(model, rig, data, bearing_model='finite')
     assert time.perf_counter() - t0 <= 10.0
     assert not fit.misfit and fit.chi2 / fit.dof < 2.0
     truth = [0.03 * 1.3, 5e-5 * 0.7, 0.03 * 1.3, 5e-5 * 0.85]
     z = np.log(fit.values / truth) / fit.rel_std
     assert np.all(np.abs(z) <= 3.0), z
     assert all(r.plainly_determined for r in res)
-    fs, rs = fit_physical(model, rig, data, bearing_model="short")
-    assert fs.misfit and any("--bearing-model finite" in n for n in rs[0].notes if n.startswith("MODEL MISFIT"))
+    fs, rs = fit_physical(model, rig, data, bearing_model='short')
+    assert fs.misfit and any('--bearing-model finite' in n for n in rs[0].notes if n.startswith('MODEL MISFIT'))
 
 
 def test_finite_misfit_note_does_not_suggest_the_finite_model(rig, model):
     """Data from the short bearing fitted with the finite model: a misfit whose note points elsewhere."""
     from bearing_id.identify.physical import fit_physical
-    bfn = bearings.bearing_fn(rig, model="short", viscosity_factor=1.3, clearance_factor=0.8)
+    bfn = bearings.bearing_fn(rig, model='short', viscosity_factor=1.3, clearance_factor=0.8)
     data = _noisy(simulate_data(rig, rig.simulation.runs, (900, 1800, 2700), probes=P6, bearing_fn=bfn,
                                 model=model), 6)
-    fit, res = fit_physical(model, rig, data, bearing_model="finite")
+    fit, res = fit_physical(model, rig, data, bearing_model='finite')
     assert fit.misfit
-    note = next(n for n in res[0].notes if n.startswith("MODEL MISFIT"))
-    assert "--bearing-model finite" not in note and "LOWER BOUND" in note and "diagnose" in note
+    note = next(n for n in res[0].notes if n.startswith('MODEL MISFIT'))
+    assert '--bearing-model finite' not in note and 'LOWER BOUND' in note and 'diagnose' in note

@@ -1,5 +1,7 @@
-"""Hostile and malformed input files: every reader refuses them with exit 2 and one paragraph on stderr -- no
-traceback, no hang, no huge allocation -- and `bearing-id record` survives kill -9 and stores offered QoS.
+"""
+Hostile and malformed input files: every reader refuses them with exit 2 and one paragraph on stderr.
+
+No traceback, no hang, no huge allocation -- and `bearing-id record` survives kill -9 and stores offered QoS.
 
 The campaign is table-driven (:data:`CASES`): each malformed input (npz, bag, CSV, YAML) is built from one small
 valid simulated recording, then each of the listed commands runs as a subprocess with a timeout (two at a time) and
@@ -19,24 +21,28 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 import struct
 import subprocess
 import sys
 import time
 import zipfile
-from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-STREAM_TOPIC = "/hostile/stream"
+STREAM_TOPIC = '/hostile/stream'
 STREAM_RATE = 50.0            # messages per second from the peer
 
 
 # ------------------------------------------------------------------------------------------------ peer process
 def peer(spec_path: str) -> int:
-    """Publish /rotor/excitation once (RELIABLE + TRANSIENT_LOCAL) and std_msgs/UInt32 k = 0, 1, ... on
-    STREAM_TOPIC at STREAM_RATE until SIGINT/SIGTERM or spec['count'] messages; append 'k wall_time' per message to
-    spec['log'] (flushed), so the test knows when each message left."""
+    """
+    Publish /rotor/excitation once and a numbered stream, logging when each message left.
+
+    /rotor/excitation once (RELIABLE + TRANSIENT_LOCAL) and std_msgs/UInt32 k = 0, 1, ... on STREAM_TOPIC at STREAM_RATE
+    until SIGINT/SIGTERM or spec['count'] messages; append 'k wall_time' per message to spec['log'] (flushed), so the
+    test knows when each message left.
+    """
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
@@ -52,24 +58,24 @@ def peer(spec_path: str) -> int:
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
     signal.signal(signal.SIGINT, lambda *a: stop.append(1))
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("hostile_files_peer")
+    node = rclpy.create_node('hostile_files_peer')
     latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=20, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
     stream = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=400, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
-    ex_pub = node.create_publisher(M.Excitation, "/rotor/excitation", latched)
+    ex_pub = node.create_publisher(M.Excitation, '/rotor/excitation', latched)
     pub = node.create_publisher(UInt32, STREAM_TOPIC, stream)
-    ex_pub.publish(M.excitation_to_msg(Run("A", (ExcitationEntry("unbalance", 8, 2.5e-5, 0.0, "forward", 1.0),))))
+    ex_pub.publish(M.excitation_to_msg(Run('A', (ExcitationEntry('unbalance', 8, 2.5e-5, 0.0, 'forward', 1.0),))))
     t_end = time.monotonic() + 40
-    while pub.get_subscription_count() < spec["subscribers"] and time.monotonic() < t_end and not stop:
+    while pub.get_subscription_count() < spec['subscribers'] and time.monotonic() < t_end and not stop:
         rclpy.spin_once(node, timeout_sec=0.05)
     time.sleep(0.5)                                   # let the recorders match the latched publisher too
-    log = open(spec["log"], "a", buffering=1)
+    log = open(spec['log'], 'a', buffering=1)
     t0 = time.monotonic()
     k = 0
-    while not stop and k < spec["count"]:
+    while not stop and k < spec['count']:
         pub.publish(UInt32(data=k))
-        log.write(f"{k} {time.time():.6f}\n")
+        log.write(f'{k} {time.time():.6f}\n')
         k += 1
         due = t0 + k / STREAM_RATE
         while not stop and time.monotonic() < due:
@@ -80,27 +86,26 @@ def peer(spec_path: str) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    if len(sys.argv) == 3 and sys.argv[1] == "peer":
+if __name__ == '__main__':
+    if len(sys.argv) == 3 and sys.argv[1] == 'peer':
         sys.exit(peer(sys.argv[2]))
-    sys.exit("usage: test_hostile_files.py peer SPEC.json")
+    sys.exit('usage: test_hostile_files.py peer SPEC.json')
 
 
 # ------------------------------------------------------------------------------------------------ tests
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-
 import rosutil  # noqa: E402
 
 
 def bearing_id_cmd() -> list[str]:
-    exe = Path(sys.executable).parent / "bearing-id"
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "bearing_id.cli"]
+    exe = Path(sys.executable).parent / 'bearing-id'
+    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'bearing_id.cli']
 
 
 def run_cli(args, timeout: float = 30.0):
     """(returncode, stdout, stderr, seconds) of `bearing-id ARGS` (killed after ``timeout`` s)."""
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONUNBUFFERED='1')
     t = time.monotonic()
     p = subprocess.run(bearing_id_cmd() + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
                        cwd=str(REPO), env=env, stdin=subprocess.DEVNULL)
@@ -108,12 +113,12 @@ def run_cli(args, timeout: float = 30.0):
 
 
 # ---- builders of malformed inputs (each returns the path to hand to the command)
-def npy_header(shape, descr="<f8") -> bytes:
-    """A version-1.0 .npy header declaring ``shape`` / ``descr`` (whatever data follows)."""
+def npy_header(shape, descr='<f8') -> bytes:
+    """Return a version-1.0 .npy header declaring ``shape`` / ``descr`` (whatever data follows)."""
     d = "{'descr': '%s', 'fortran_order': False, 'shape': %r, }" % (descr, tuple(shape))
     pad = (64 - (10 + len(d) + 1) % 64) % 64
-    d = d + " " * pad + "\n"
-    return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(d)) + d.encode("latin1")
+    d = d + ' ' * pad + '\n'
+    return b'\x93NUMPY\x01\x00' + struct.pack('<H', len(d)) + d.encode('latin1')
 
 
 def members(src: Path) -> dict:
@@ -127,126 +132,129 @@ def save(path: Path, arrays: dict) -> Path:
 
 
 def mk_npz_truncated(base, d):
-    blob = base["npz"].read_bytes()
-    (d / "truncated.npz").write_bytes(blob[: len(blob) // 2])
-    return d / "truncated.npz"
+    blob = base['npz'].read_bytes()
+    (d / 'truncated.npz').write_bytes(blob[: len(blob) // 2])
+    return d / 'truncated.npz'
 
 
 def mk_npz_corrupt_member(base, d):
     """Bytes flipped in the middle of the compressed samples member (its header still reads)."""
-    blob = bytearray(base["npz"].read_bytes())
-    with zipfile.ZipFile(base["npz"]) as zf:
-        info = zf.getinfo("samples.npy")
+    blob = bytearray(base['npz'].read_bytes())
+    with zipfile.ZipFile(base['npz']) as zf:
+        info = zf.getinfo('samples.npy')
     start = info.header_offset + 30 + len(info.filename) + len(info.extra)
     mid = start + info.compress_size // 2
     for i in range(mid, mid + 64):
         blob[i] ^= 0x5A
-    (d / "corrupt_member.npz").write_bytes(bytes(blob))
-    return d / "corrupt_member.npz"
+    (d / 'corrupt_member.npz').write_bytes(bytes(blob))
+    return d / 'corrupt_member.npz'
 
 
 def mk_npz_not_zip(base, d):
-    (d / "text.npz").write_text("this is a CSV, not an npz\n1,2,3\n")
-    return d / "text.npz"
+    (d / 'text.npz').write_text('this is a CSV, not an npz\n1,2,3\n')
+    return d / 'text.npz'
 
 
 def mk_npz_angle_short(base, d):
-    a = members(base["npz"])
-    a["angle"] = a["angle"][:-100]
-    return save(d / "angle_short.npz", a)
+    a = members(base['npz'])
+    a['angle'] = a['angle'][:-100]
+    return save(d / 'angle_short.npz', a)
 
 
 def mk_npz_channels_mismatch(base, d):
-    a = members(base["npz"])
-    a["channels"] = np.array(["p6x", "p6y", "p3x"])
-    return save(d / "channels_mismatch.npz", a)
+    a = members(base['npz'])
+    a['channels'] = np.array(['p6x', 'p6y', 'p3x'])
+    return save(d / 'channels_mismatch.npz', a)
 
 
 def mk_npz_claims_2gib(base, d):
     """samples.npy declares (134217728, 2) float64 = 2 GiB but holds 16 kB: sizes refused before any read."""
-    a = members(base["npz"])
-    del a["samples"]
-    p = save(d / "claims_2gib.npz", a)
-    with zipfile.ZipFile(p, "a", compression=zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("samples.npy", npy_header((1 << 27, 2)) + bytes(16384))
+    a = members(base['npz'])
+    del a['samples']
+    p = save(d / 'claims_2gib.npz', a)
+    with zipfile.ZipFile(p, 'a', compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr('samples.npy', npy_header((1 << 27, 2)) + bytes(16384))
     return p
 
 
 def mk_npz_zip_bomb(base, d):
     """samples.npy honestly holds 128 MiB of zeros, deflated to ~130 kB (ratio ~1000): refused as a zip bomb."""
     n = 1 << 23
-    p = d / "zip_bomb.npz"
-    a = members(base["npz"])
-    a.pop("samples")
-    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-        with zf.open("samples.npy", "w", force_zip64=True) as fh:
+    p = d / 'zip_bomb.npz'
+    a = members(base['npz'])
+    a.pop('samples')
+    with zipfile.ZipFile(p, 'w', compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        with zf.open('samples.npy', 'w', force_zip64=True) as fh:
             fh.write(npy_header((n, 2)))
             chunk = bytes(8 << 20)
             for _ in range(n * 16 // len(chunk)):
                 fh.write(chunk)
         for k, v in a.items():
-            with zf.open(k + ".npy", "w") as fh:
+            with zf.open(k + '.npy', 'w') as fh:
                 np.lib.format.write_array(fh, np.asarray(v), allow_pickle=False)
     return p
 
 
 def mk_npz_missing_keys(base, d):
-    a = members(base["npz"])
-    del a["angle"], a["speed"]
-    return save(d / "missing_keys.npz", a)
+    a = members(base['npz'])
+    del a['angle'], a['speed']
+    return save(d / 'missing_keys.npz', a)
 
 
 def mk_npz_wrong_dtype(base, d):
-    a = members(base["npz"])
-    a["samples"] = a["samples"].astype("U12")
-    return save(d / "wrong_dtype.npz", a)
+    a = members(base['npz'])
+    a['samples'] = a['samples'].astype('U12')
+    return save(d / 'wrong_dtype.npz', a)
 
 
 def mk_npz_pickled(base, d):
-    """An object array (would need pickle): never unpickled."""
-    a = members(base["npz"])
-    del a["nodes"]
-    p = save(d / "pickled.npz", a)
+    """Write an object array (would need pickle): never unpickled."""
+    a = members(base['npz'])
+    del a['nodes']
+    p = save(d / 'pickled.npz', a)
     import io
     buf = io.BytesIO()
-    np.save(buf, np.array([6, "six"], dtype=object), allow_pickle=True)
-    with zipfile.ZipFile(p, "a") as zf:
-        zf.writestr("nodes.npy", buf.getvalue())
+    np.save(buf, np.array([6, 'six'], dtype=object), allow_pickle=True)
+    with zipfile.ZipFile(p, 'a') as zf:
+        zf.writestr('nodes.npy', buf.getvalue())
     return p
 
 
 def mk_npz_nan(base, d):
-    a = members(base["npz"])
-    a["samples"] = np.full_like(a["samples"], np.nan)
-    return save(d / "nan.npz", a)
+    a = members(base['npz'])
+    a['samples'] = np.full_like(a['samples'], np.nan)
+    return save(d / 'nan.npz', a)
 
 
-def _bag(base, d, name, transform=None, storage="mcap"):
-    """The base run as a bag (sensor_driver's messages), each (topic, stamp, msg) passed through ``transform``."""
+def _bag(base, d, name, transform=None, storage='mcap'):
+    """Write the base run as a bag (sensor_driver's messages), each (topic, stamp, msg) passed through ``transform``."""
     from bearing_id.io import bags
-    msgs = base["bag_msgs"]
+    msgs = base['bag_msgs']
     if transform is not None:
         msgs = [m for m in (transform(x) for x in msgs) if m is not None]
     return bags.write_bag(d / name, msgs, storage=storage)
 
 
 def mk_bag_truncated(base, d):
-    p = _bag(base, d, "bag_truncated")
-    f = next(p.glob("*.mcap"))
+    p = _bag(base, d, 'bag_truncated')
+    f = next(p.glob('*.mcap'))
     blob = f.read_bytes()
     f.write_bytes(blob[: len(blob) // 3])
     return p
 
 
 def mk_bag_corrupt_chunk(base, d):
-    """A lost 4 KiB block at the start of the (only) chunk: its schema, channel and first messages are zeros.
-    (Damage inside sample values is undetectable: rosbags writes no chunk CRC -- see the plausibility check.)"""
-    p = _bag(base, d, "bag_corrupt")
-    f = next(p.glob("*.mcap"))
+    """
+    Lose a 4 KiB block at the start of the (only) chunk: its schema, channel and first messages are zeros.
+
+    (Damage inside sample values is undetectable: rosbags writes no chunk CRC -- see the plausibility check.)
+    """
+    p = _bag(base, d, 'bag_corrupt')
+    f = next(p.glob('*.mcap'))
     blob = bytearray(f.read_bytes())
-    (hl,) = struct.unpack_from("<Q", blob, 9)
+    (hl,) = struct.unpack_from('<Q', blob, 9)
     body = 8 + 9 + hl + 9                                       # the first chunk record's content
-    (cl,) = struct.unpack_from("<I", blob, body + 28)
+    (cl,) = struct.unpack_from('<I', blob, body + 28)
     start = body + 28 + 4 + cl + 8                              # its records
     blob[start:start + 4096] = bytes(4096)
     f.write_bytes(bytes(blob))
@@ -254,32 +262,32 @@ def mk_bag_corrupt_chunk(base, d):
 
 
 def mk_bag_empty_dir(base, d):
-    (d / "bag_empty").mkdir()
-    return d / "bag_empty"
+    (d / 'bag_empty').mkdir()
+    return d / 'bag_empty'
 
 
 def mk_bag_metadata_garbage(base, d):
-    p = _bag(base, d, "bag_meta_garbage")
-    (p / "metadata.yaml").write_bytes(b"rosbag2_bagfile_information: {version: [[[\x00\xff\xfe garbage :\n" * 20)
+    p = _bag(base, d, 'bag_meta_garbage')
+    (p / 'metadata.yaml').write_bytes(b'rosbag2_bagfile_information: {version: [[[\x00\xff\xfe garbage :\n' * 20)
     return p
 
 
 def mk_bag_metadata_wrong_types(base, d):
-    p = _bag(base, d, "bag_meta_types")
-    text = (p / "metadata.yaml").read_text()
-    (p / "metadata.yaml").write_text(text.replace("topics_with_message_count:", "topics_with_message_count: 7\n"
-                                                                                 "  x_was_topics:"))
+    p = _bag(base, d, 'bag_meta_types')
+    text = (p / 'metadata.yaml').read_text()
+    (p / 'metadata.yaml').write_text(text.replace('topics_with_message_count:', 'topics_with_message_count: 7\n'
+                                                                                '  x_was_topics:'))
     return p
 
 
 def mk_bag_metadata_bomb(base, d):
-    p = _bag(base, d, "bag_meta_bomb")
-    (p / "metadata.yaml").write_text(BILLION_LAUGHS.replace("shaft: *i", "rosbag2_bagfile_information: *i"))
+    p = _bag(base, d, 'bag_meta_bomb')
+    (p / 'metadata.yaml').write_text(BILLION_LAUGHS.replace('shaft: *i', 'rosbag2_bagfile_information: *i'))
     return p
 
 
 def mk_bag_no_excitation(base, d):
-    return _bag(base, d, "bag_no_excitation", lambda m: None if m[0] == "/rotor/excitation" else m)
+    return _bag(base, d, 'bag_no_excitation', lambda m: None if m[0] == '/rotor/excitation' else m)
 
 
 def mk_bag_mismatched_arrays(base, d):
@@ -287,83 +295,87 @@ def mk_bag_mismatched_arrays(base, d):
     import dataclasses
 
     def bad(m):
-        if m[0] != "/rotor/displacement":
+        if m[0] != '/rotor/displacement':
             return m
         return m[0], m[1], dataclasses.replace(m[2], nodes=np.array([6], dtype=np.uint32))
-    return _bag(base, d, "bag_mismatched", bad)
+    return _bag(base, d, 'bag_mismatched', bad)
 
 
-def mk_bag_unfinished(base, d, name="bag_unfinished"):
-    """A recording killed before it finished: every message flushed as its own chunk (as `bearing-id record` does
-    each second), no summary, no footer, no metadata.yaml, and the last chunk cut off mid-write."""
+def mk_bag_unfinished(base, d, name='bag_unfinished'):
+    """
+    Write a recording killed before it finished.
+
+    Every message flushed as its own chunk (as `bearing-id record` does each second), no summary, no footer, no
+    metadata.yaml, and the last chunk cut off mid-write.
+    """
     from bearing_id.io import bags
     p = d / name
-    w = bags.BagWriter(p, "mcap", flush_period=0.0)
-    for topic, stamp, msg in base["bag_msgs"]:
+    w = bags.BagWriter(p, 'mcap', flush_period=0.0)
+    for topic, stamp, msg in base['bag_msgs']:
         w.write(topic, msg.__msgtype__, stamp, msg)
     w.abort()
-    f = next(p.glob("*.mcap"))
+    f = next(p.glob('*.mcap'))
     f.write_bytes(f.read_bytes()[:-100])
     return p
 
 
 def mk_bag_sqlite_garbage(base, d):
-    p = _bag(base, d, "bag_sqlite_garbage", storage="sqlite3")
-    next(p.glob("*.db3")).write_bytes(b"SQLite format 3\x00" + os.urandom(8192))
+    p = _bag(base, d, 'bag_sqlite_garbage', storage='sqlite3')
+    next(p.glob('*.db3')).write_bytes(b'SQLite format 3\x00' + os.urandom(8192))
     return p
 
 
 def _csv_lines(base):
-    return base["csv"].read_text().splitlines()
+    return base['csv'].read_text().splitlines()
 
 
 def _csv_write(d, name, lines):
-    (d / name).write_text("\n".join(lines) + "\n")
+    (d / name).write_text('\n'.join(lines) + '\n')
     return d / name
 
 
 def _csv_header_index(lines):
-    return next(i for i, s in enumerate(lines) if s.strip() and not s.startswith("#"))
+    return next(i for i, s in enumerate(lines) if s.strip() and not s.startswith('#'))
 
 
 def mk_csv_bad_header(base, d):
     """No header row: the first data row is taken as one, and names no channel."""
     lines = _csv_lines(base)
     del lines[_csv_header_index(lines)]
-    return _csv_write(d, "bad_header.csv", lines)
+    return _csv_write(d, 'bad_header.csv', lines)
 
 
 def mk_csv_non_numeric(base, d):
     lines = _csv_lines(base)
     i = _csv_header_index(lines) + 100
-    cells = lines[i].split(",")
-    cells[1] = "abc"
-    lines[i] = ",".join(cells)
-    return _csv_write(d, "non_numeric.csv", lines)
+    cells = lines[i].split(',')
+    cells[1] = 'abc'
+    lines[i] = ','.join(cells)
+    return _csv_write(d, 'non_numeric.csv', lines)
 
 
 def mk_csv_missing_column(base, d):
     lines = _csv_lines(base)
     h = _csv_header_index(lines)
-    lines = lines[:h] + [",".join(s.split(",")[:-1]) for s in lines[h:]]
-    return _csv_write(d, "missing_column.csv", lines)
+    lines = lines[:h] + [','.join(s.split(',')[:-1]) for s in lines[h:]]
+    return _csv_write(d, 'missing_column.csv', lines)
 
 
 def mk_csv_ragged(base, d):
     lines = _csv_lines(base)
     i = _csv_header_index(lines) + 50
-    lines[i] = ",".join(lines[i].split(",")[:2])
-    return _csv_write(d, "ragged.csv", lines)
+    lines[i] = ','.join(lines[i].split(',')[:2])
+    return _csv_write(d, 'ragged.csv', lines)
 
 
 def mk_csv_no_sample_rate(base, d):
-    lines = [s for s in _csv_lines(base) if not s.startswith("# sample_rate")]
-    return _csv_write(d, "no_sample_rate.csv", lines)
+    lines = [s for s in _csv_lines(base) if not s.startswith('# sample_rate')]
+    return _csv_write(d, 'no_sample_rate.csv', lines)
 
 
 def mk_csv_binary(base, d):
-    (d / "binary.csv").write_bytes(b"# sample_rate: 10240\n" + os.urandom(4096))
-    return d / "binary.csv"
+    (d / 'binary.csv').write_bytes(b'# sample_rate: 10240\n' + os.urandom(4096))
+    return d / 'binary.csv'
 
 
 BILLION_LAUGHS = """\
@@ -386,23 +398,23 @@ def _rig_text() -> str:
 
 
 def mk_yaml_billion_laughs(base, d):
-    (d / "laughs.yaml").write_text(BILLION_LAUGHS)
-    return d / "laughs.yaml"
+    (d / 'laughs.yaml').write_text(BILLION_LAUGHS)
+    return d / 'laughs.yaml'
 
 
 def mk_yaml_deep(base, d):
-    (d / "deep.yaml").write_text("shaft: " + "[" * 10000 + "]" * 10000 + "\n")
-    return d / "deep.yaml"
+    (d / 'deep.yaml').write_text('shaft: ' + '[' * 10000 + ']' * 10000 + '\n')
+    return d / 'deep.yaml'
 
 
 def mk_yaml_deep_maps(base, d):
-    (d / "deep_maps.yaml").write_text("shaft: " + "{a: " * 10000 + "1" + "}" * 10000 + "\n")
-    return d / "deep_maps.yaml"
+    (d / 'deep_maps.yaml').write_text('shaft: ' + '{a: ' * 10000 + '1' + '}' * 10000 + '\n')
+    return d / 'deep_maps.yaml'
 
 
 def mk_yaml_100mb(base, d):
-    p = d / "big.yaml"
-    with open(p, "wb") as fh:
+    p = d / 'big.yaml'
+    with open(p, 'wb') as fh:
         fh.write(_rig_text().encode())
         fh.truncate(100 * 1024 * 1024)           # sparse: 100 MB on paper, nothing written
     return p
@@ -410,90 +422,90 @@ def mk_yaml_100mb(base, d):
 
 def mk_yaml_bearings_ints(base, d):
     text = _rig_text()
-    a = text.index("bearings:")
-    b = text.index("probes:")
-    (d / "bearings_ints.yaml").write_text(text[:a] + "bearings: [1, 2]\n\n" + text[b:])
-    return d / "bearings_ints.yaml"
+    a = text.index('bearings:')
+    b = text.index('probes:')
+    (d / 'bearings_ints.yaml').write_text(text[:a] + 'bearings: [1, 2]\n\n' + text[b:])
+    return d / 'bearings_ints.yaml'
 
 
 def mk_yaml_string_for_number(base, d):
-    (d / "string_number.yaml").write_text(_rig_text().replace("length: 0.85 ", "length: eighty-five ", 1))
-    return d / "string_number.yaml"
+    (d / 'string_number.yaml').write_text(_rig_text().replace('length: 0.85 ', 'length: eighty-five ', 1))
+    return d / 'string_number.yaml'
 
 
 def mk_yaml_list_for_map(base, d):
     text = _rig_text()
-    (d / "list_map.yaml").write_text(text.replace("modal_test:\n", "modal_test: [1, 2]\nx_modal_test:\n", 1))
-    return d / "list_map.yaml"
+    (d / 'list_map.yaml').write_text(text.replace('modal_test:\n', 'modal_test: [1, 2]\nx_modal_test:\n', 1))
+    return d / 'list_map.yaml'
 
 
 def mk_yaml_map_for_list(base, d):
-    (d / "map_list.yaml").write_text(_rig_text().replace("speeds_rpm: [", "speeds_rpm: {a: 1}\n  x_speeds: [",
-                                                                   1))
-    return d / "map_list.yaml"
+    (d / 'map_list.yaml').write_text(_rig_text().replace('speeds_rpm: [', 'speeds_rpm: {a: 1}\n  x_speeds: [',
+                                                         1))
+    return d / 'map_list.yaml'
 
 
 def mk_yaml_python_tag(base, d):
-    (d / "python_tag.yaml").write_text("!!python/object/apply:os.system ['echo pwned']\n")
-    return d / "python_tag.yaml"
+    (d / 'python_tag.yaml').write_text("!!python/object/apply:os.system ['echo pwned']\n")
+    return d / 'python_tag.yaml'
 
 
 def mk_yaml_not_utf8(base, d):
-    (d / "latin1.yaml").write_bytes(_rig_text().encode("utf-8").replace(b"kang2020_rig", b"k\xe4ng\xff"))
-    return d / "latin1.yaml"
+    (d / 'latin1.yaml').write_bytes(_rig_text().encode('utf-8').replace(b'kang2020_rig', b'k\xe4ng\xff'))
+    return d / 'latin1.yaml'
 
 
 def mk_yaml_scalar(base, d):
-    (d / "scalar.yaml").write_text("just a string\n")
-    return d / "scalar.yaml"
+    (d / 'scalar.yaml').write_text('just a string\n')
+    return d / 'scalar.yaml'
 
 
-REC = ("identify", "diagnose")
-PAR = ("identify", "diagnose", "model")
+REC = ('identify', 'diagnose')
+PAR = ('identify', 'diagnose', 'model')
 # name -> (builder, commands, time bound [s] per command, what the message must mention)
 CASES = {
-    "npz truncated": (mk_npz_truncated, REC, 10, "zip"),
-    "npz corrupt zip member": (mk_npz_corrupt_member, REC, 10, "corrupt"),
-    "npz not a zip": (mk_npz_not_zip, ("identify",), 10, "zip"),
-    "npz angle shorter than samples": (mk_npz_angle_short, REC, 10, "angle"),
-    "npz channels vs columns": (mk_npz_channels_mismatch, REC, 10, "channels"),
-    "npz header claims 2 GiB": (mk_npz_claims_2gib, REC, 5, "refused unread"),
-    "npz zip bomb (128 MiB zeros)": (mk_npz_zip_bomb, REC, 5, "zip bomb"),
-    "npz missing keys": (mk_npz_missing_keys, REC, 10, "lacks"),
-    "npz wrong dtype (text samples)": (mk_npz_wrong_dtype, REC, 10, "dtype"),
-    "npz pickled object array": (mk_npz_pickled, REC, 10, "objects"),
-    "npz NaN everywhere": (mk_npz_nan, REC, 10, "NaN"),
-    "bag truncated mcap": (mk_bag_truncated, REC, 10, "truncated"),
-    "bag corrupt mcap chunk": (mk_bag_corrupt_chunk, REC, 10, ""),
-    "bag empty directory": (mk_bag_empty_dir, REC, 10, "metadata.yaml"),
-    "bag metadata.yaml garbage": (mk_bag_metadata_garbage, REC, 10, "metadata.yaml is not"),
-    "bag metadata.yaml wrong types": (mk_bag_metadata_wrong_types, REC, 10, "invalid bag metadata"),
-    "bag metadata.yaml alias bomb": (mk_bag_metadata_bomb, ("diagnose",), 5, "alias"),
-    "bag without /rotor/excitation": (mk_bag_no_excitation, REC, 10, "/rotor/excitation"),
-    "bag messages with mismatched arrays": (mk_bag_mismatched_arrays, REC, 10, "nodes"),
-    "bag unfinished recording": (mk_bag_unfinished, REC, 10, "--recover"),
-    "bag sqlite3 garbage": (mk_bag_sqlite_garbage, ("identify",), 10, "database"),
-    "csv without header row": (mk_csv_bad_header, REC, 10, "header"),
-    "csv non-numeric cells": (mk_csv_non_numeric, REC, 10, "abc"),
-    "csv missing column": (mk_csv_missing_column, REC, 10, "p6y"),
-    "csv ragged row": (mk_csv_ragged, ("diagnose",), 10, "columns"),
-    "csv no sample_rate": (mk_csv_no_sample_rate, REC, 10, "sample_rate"),
-    "csv binary garbage": (mk_csv_binary, ("identify",), 10, "utf-8"),
-    "yaml billion laughs": (mk_yaml_billion_laughs, PAR, 3, "alias"),
-    "yaml 10,000-deep lists": (mk_yaml_deep, PAR, 3, "nested deeper"),
-    "yaml 10,000-deep maps": (mk_yaml_deep_maps, ("model",), 3, "nested deeper"),
-    "yaml 100 MB file": (mk_yaml_100mb, PAR, 3, "bytes"),
-    "yaml bearings: [1, 2]": (mk_yaml_bearings_ints, PAR, 5, "bearings[0]"),
-    "yaml string for a number": (mk_yaml_string_for_number, PAR, 5, "shaft.length"),
-    "yaml list for a mapping": (mk_yaml_list_for_map, PAR, 5, "modal_test"),
-    "yaml mapping for a list": (mk_yaml_map_for_list, PAR, 5, "speeds_rpm"),
-    "yaml python tag": (mk_yaml_python_tag, ("model",), 5, "constructor"),
-    "yaml not UTF-8": (mk_yaml_not_utf8, ("model",), 5, "UTF-8"),
-    "yaml a bare string": (mk_yaml_scalar, ("model",), 5, "mapping"),
+    'npz truncated': (mk_npz_truncated, REC, 10, 'zip'),
+    'npz corrupt zip member': (mk_npz_corrupt_member, REC, 10, 'corrupt'),
+    'npz not a zip': (mk_npz_not_zip, ('identify',), 10, 'zip'),
+    'npz angle shorter than samples': (mk_npz_angle_short, REC, 10, 'angle'),
+    'npz channels vs columns': (mk_npz_channels_mismatch, REC, 10, 'channels'),
+    'npz header claims 2 GiB': (mk_npz_claims_2gib, REC, 5, 'refused unread'),
+    'npz zip bomb (128 MiB zeros)': (mk_npz_zip_bomb, REC, 5, 'zip bomb'),
+    'npz missing keys': (mk_npz_missing_keys, REC, 10, 'lacks'),
+    'npz wrong dtype (text samples)': (mk_npz_wrong_dtype, REC, 10, 'dtype'),
+    'npz pickled object array': (mk_npz_pickled, REC, 10, 'objects'),
+    'npz NaN everywhere': (mk_npz_nan, REC, 10, 'NaN'),
+    'bag truncated mcap': (mk_bag_truncated, REC, 10, 'truncated'),
+    'bag corrupt mcap chunk': (mk_bag_corrupt_chunk, REC, 10, ''),
+    'bag empty directory': (mk_bag_empty_dir, REC, 10, 'metadata.yaml'),
+    'bag metadata.yaml garbage': (mk_bag_metadata_garbage, REC, 10, 'metadata.yaml is not'),
+    'bag metadata.yaml wrong types': (mk_bag_metadata_wrong_types, REC, 10, 'invalid bag metadata'),
+    'bag metadata.yaml alias bomb': (mk_bag_metadata_bomb, ('diagnose',), 5, 'alias'),
+    'bag without /rotor/excitation': (mk_bag_no_excitation, REC, 10, '/rotor/excitation'),
+    'bag messages with mismatched arrays': (mk_bag_mismatched_arrays, REC, 10, 'nodes'),
+    'bag unfinished recording': (mk_bag_unfinished, REC, 10, '--recover'),
+    'bag sqlite3 garbage': (mk_bag_sqlite_garbage, ('identify',), 10, 'database'),
+    'csv without header row': (mk_csv_bad_header, REC, 10, 'header'),
+    'csv non-numeric cells': (mk_csv_non_numeric, REC, 10, 'abc'),
+    'csv missing column': (mk_csv_missing_column, REC, 10, 'p6y'),
+    'csv ragged row': (mk_csv_ragged, ('diagnose',), 10, 'columns'),
+    'csv no sample_rate': (mk_csv_no_sample_rate, REC, 10, 'sample_rate'),
+    'csv binary garbage': (mk_csv_binary, ('identify',), 10, 'utf-8'),
+    'yaml billion laughs': (mk_yaml_billion_laughs, PAR, 3, 'alias'),
+    'yaml 10,000-deep lists': (mk_yaml_deep, PAR, 3, 'nested deeper'),
+    'yaml 10,000-deep maps': (mk_yaml_deep_maps, ('model',), 3, 'nested deeper'),
+    'yaml 100 MB file': (mk_yaml_100mb, PAR, 3, 'bytes'),
+    'yaml bearings: [1, 2]': (mk_yaml_bearings_ints, PAR, 5, 'bearings[0]'),
+    'yaml string for a number': (mk_yaml_string_for_number, PAR, 5, 'shaft.length'),
+    'yaml list for a mapping': (mk_yaml_list_for_map, PAR, 5, 'modal_test'),
+    'yaml mapping for a list': (mk_yaml_map_for_list, PAR, 5, 'speeds_rpm'),
+    'yaml python tag': (mk_yaml_python_tag, ('model',), 5, 'constructor'),
+    'yaml not UTF-8': (mk_yaml_not_utf8, ('model',), 5, 'UTF-8'),
+    'yaml a bare string': (mk_yaml_scalar, ('model',), 5, 'mapping'),
 }
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def base(tmp_path_factory):
     """One small valid run (1200 rpm, 0.6 s) as .npz, .csv and the sensor_driver messages of a bag."""
     from bearing_id import daq
@@ -502,18 +514,18 @@ def base(tmp_path_factory):
     from bearing_id.nodes.sensor_driver import stream_messages
     from bearing_id.params import load_rig
     rig = load_rig()
-    d = tmp_path_factory.mktemp("base")
+    d = tmp_path_factory.mktemp('base')
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1200.0], dwell=0.6, ramp=0.0)
-    npz = rec.save_npz(d / "run_A.npz")
-    csv = daq.write_csv(rec, d / "run_A.csv")
+    npz = rec.save_npz(d / 'run_A.npz')
+    csv = daq.write_csv(rec, d / 'run_A.csv')
     msgs = [(t, ns, m) for t, ns, m, _ in stream_messages([rec], 1024, 1_700_000_000 * 10**9, rig.name,
                                                           types=bags.typestore())]
-    return {"npz": npz, "csv": csv, "bag_msgs": msgs, "dir": d}
+    return {'npz': npz, 'csv': csv, 'bag_msgs': msgs, 'dir': d}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def built(base, tmp_path_factory):
-    d = tmp_path_factory.mktemp("hostile")
+    d = tmp_path_factory.mktemp('hostile')
     cache = {}
 
     def get(name):
@@ -524,21 +536,21 @@ def built(base, tmp_path_factory):
 
 
 def _args(case, command, path, base, tmp):
-    if command == "model":
-        return ["model", "--params", path, "--out", tmp / "model_out", "--no-update"]
-    if case.startswith("yaml"):
-        return [command, base["npz"], "--params", path] + (["--method", "physical"] if command == "identify" else [])
-    return [command, path] + (["--method", "physical"] if command == "identify" else [])
+    if command == 'model':
+        return ['model', '--params', path, '--out', tmp / 'model_out', '--no-update']
+    if case.startswith('yaml'):
+        return [command, base['npz'], '--params', path] + (['--method', 'physical'] if command == 'identify' else [])
+    return [command, path] + (['--method', 'physical'] if command == 'identify' else [])
 
 
 RUNS = [(c, cmd) for c, (_, cmds, _, _) in CASES.items() for cmd in cmds]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def campaign(base, built, tmp_path_factory):
     """Every (case, command) run once, two at a time: {(case, command): (path, rc, stdout, stderr, seconds)}."""
     from concurrent.futures import ThreadPoolExecutor
-    tmp = tmp_path_factory.mktemp("campaign")
+    tmp = tmp_path_factory.mktemp('campaign')
     paths = {case: built(case) for case in CASES}
 
     def one(key):
@@ -549,22 +561,22 @@ def campaign(base, built, tmp_path_factory):
         return dict(pool.map(one, RUNS))
 
 
-@pytest.mark.parametrize("case,command", RUNS)
+@pytest.mark.parametrize('case,command', RUNS)
 def test_malformed_input_exits_2_with_one_paragraph(case, command, campaign):
     _, _, bound, mention = CASES[case]
     path, rc, out, err, dt = campaign[(case, command)]
-    msg = f"{case} / {command}: rc {rc}, {dt:.2f} s\n--- stdout ---\n{out}\n--- stderr ---\n{err}"
+    msg = f'{case} / {command}: rc {rc}, {dt:.2f} s\n--- stdout ---\n{out}\n--- stderr ---\n{err}'
     assert rc == 2, msg
-    assert "Traceback" not in err and "Traceback" not in out, msg
+    assert 'Traceback' not in err and 'Traceback' not in out, msg
     text = err.strip()
-    assert text.startswith(f"bearing-id {command}:") and "\n" not in text, msg      # one paragraph
-    assert mention.lower() in text.replace(str(path), "").lower(), msg                # says what, not only where
+    assert text.startswith(f'bearing-id {command}:') and '\n' not in text, msg      # one paragraph
+    assert mention.lower() in text.replace(str(path), '').lower(), msg                # says what, not only where
     assert dt < bound, msg
 
 
 def test_billion_laughs_parse_is_refused_in_under_a_second(base, built):
-    from bearing_id.params import ParamError, load_yaml_bounded
-    for case in ("yaml billion laughs", "yaml 10,000-deep lists", "yaml 10,000-deep maps", "yaml 100 MB file"):
+    from bearing_id.params import load_yaml_bounded, ParamError
+    for case in ('yaml billion laughs', 'yaml 10,000-deep lists', 'yaml 10,000-deep maps', 'yaml 100 MB file'):
         t = time.perf_counter()
         with pytest.raises(ParamError):
             load_yaml_bounded(built(case))
@@ -572,15 +584,17 @@ def test_billion_laughs_parse_is_refused_in_under_a_second(base, built):
 
 
 def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():
-    """Each value of the packaged rig (every section, list item and leaf) replaced by each of a number, a string, a
-    list, a mapping, null, a boolean, a huge integer, NaN, -1, [] and {}: parse_rig returns or raises ParamError --
-    never AttributeError/TypeError/KeyError -- and the message names the replaced key (or, for a value that is
-    valid but breaks another, that other field)."""
+    """
+    Each value of the packaged rig replaced by each wrong type: parse_rig returns or raises ParamError naming it.
+
+    Every section, list item and leaf replaced by each of a number, a string, a list, a mapping, null, a boolean, a huge
+    integer, NaN, -1, [] and {}: parse_rig returns or raises ParamError -- never AttributeError/TypeError/KeyError --
+    and the message names the replaced key (or, for a value that is valid but breaks another, that other field).
+    """
     import copy
 
-    import yaml
-
     from bearing_id.params import ParamError, parse_rig
+    import yaml
     raw = yaml.safe_load(_rig_text())
 
     def paths(x, pre=()):
@@ -592,7 +606,7 @@ def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():
     bad = []
     n = 0
     for path in paths(raw):
-        for value in (1, "x", [1, 2], {"a": 1}, None, True, 10**400, float("nan"), -1, [], {}):
+        for value in (1, 'x', [1, 2], {'a': 1}, None, True, 10**400, float('nan'), -1, [], {}):
             d = copy.deepcopy(raw)
             tgt = d
             for k in path[:-1]:
@@ -603,20 +617,23 @@ def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():
                 parse_rig(d)
             except ParamError as exc:
                 key = next(str(k) for k in reversed(path) if not isinstance(k, int))
-                if "malformed rig file" in str(exc) or (key not in str(exc) and "." not in str(exc)):
+                if 'malformed rig file' in str(exc) or (key not in str(exc) and '.' not in str(exc)):
                     bad.append((path, value, str(exc)))
             except Exception as exc:  # noqa: BLE001 - the point of the test
-                bad.append((path, value, f"{type(exc).__name__}: {exc}"))
+                bad.append((path, value, f'{type(exc).__name__}: {exc}'))
     assert n > 1000 and not bad, bad[:10]
 
 
 def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
-    """200 copies of the base .npz, cut short or with random bytes overwritten: load_npz returns a checked recording
-    or raises ValueError (exit 2 in the CLI) -- nothing else."""
+    """
+    200 copies of the base .npz, cut short or with random bytes overwritten: load_npz returns or raises ValueError.
+
+    It returns a checked recording or raises ValueError (exit 2 in the CLI) -- nothing else.
+    """
     import random
 
     from bearing_id.rig import load_npz
-    blob = base["npz"].read_bytes()
+    blob = base['npz'].read_bytes()
     rng = random.Random(2)
     other = []
     for k in range(200):
@@ -627,56 +644,59 @@ def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
             off = int(len(b) * rng.random())
             for i in range(off, min(len(b), off + rng.choice([1, 4, 64]))):
                 b[i] = rng.randrange(256)
-        p = tmp_path / f"damaged_{k}.npz"
+        p = tmp_path / f'damaged_{k}.npz'
         p.write_bytes(bytes(b))
         try:
             load_npz(p)
         except ValueError:
             pass
         except Exception as exc:  # noqa: BLE001 - the point of the test
-            other.append(f"{p.name}: {type(exc).__name__}: {exc}")
+            other.append(f'{p.name}: {type(exc).__name__}: {exc}')
     assert not other, other[:5]
 
 
 def test_legitimate_aliases_still_load(tmp_path):
     """Anchors that expand to a few nodes (as yaml.safe_dump writes for shared objects) are fine."""
     from bearing_id.params import load_rig
-    text = _rig_text().replace("  - {node: 4, outer_diameter: 0.08,", "  - &disc {node: 4, outer_diameter: 0.08,", 1)
-    text = text.replace("  - {node: 8, outer_diameter: 0.08, inner_diameter: 0.01265, thickness: 0.015, "
-                        "density: 7800.0}", "  - {<<: *disc, node: 8}", 1)
-    p = tmp_path / "aliased.yaml"
+    text = _rig_text().replace('  - {node: 4, outer_diameter: 0.08,', '  - &disc {node: 4, outer_diameter: 0.08,', 1)
+    text = text.replace('  - {node: 8, outer_diameter: 0.08, inner_diameter: 0.01265, thickness: 0.015, '
+                        'density: 7800.0}', '  - {<<: *disc, node: 8}', 1)
+    p = tmp_path / 'aliased.yaml'
     p.write_text(text)
     rig = load_rig(p)
     assert [d.node for d in rig.discs] == [4, 8] and rig.discs[1].thickness == 0.015
 
 
-@pytest.mark.parametrize("fmt", ["csv", "bag"])
+@pytest.mark.parametrize('fmt', ['csv', 'bag'])
 def test_valid_base_inputs_identify(fmt, base, tmp_path):
-    """Control: the unmodified inputs the campaign damages are read and analysed -- exit 1, not 2: one run at one
-    speed with one probe pair gives 4 equations for the physical method's 4 unknowns, which the data do not fix
-    separately (the honest answer), and the output says so instead of printing numbers."""
-    if fmt == "bag":
-        path = _bag(base, tmp_path, "good_bag")
+    """
+    Control: the unmodified inputs the campaign damages are read and analysed -- exit 1, not 2.
+
+    One run at one speed with one probe pair gives 4 equations for the physical method's 4 unknowns, which the data do
+    not fix separately (the honest answer), and the output says so instead of printing numbers.
+    """
+    if fmt == 'bag':
+        path = _bag(base, tmp_path, 'good_bag')
     else:
-        path = base["csv"]
-    rc, out, err, dt = run_cli(["identify", path, "--method", "physical"], timeout=60)
-    assert rc == 1 and "UNDETERMINED" in out + err and "Traceback" not in err, (rc, out + err)
+        path = base['csv']
+    rc, out, err, dt = run_cli(['identify', path, '--method', 'physical'], timeout=60)
+    assert rc == 1 and 'UNDETERMINED' in out + err and 'Traceback' not in err, (rc, out + err)
 
 
 def test_read_bag_salvage_and_recover_without_ros(base, tmp_path):
     """An unfinished bag reads with salvage=True and --recover makes it complete (offline part of the kill test)."""
     from bearing_id.io import bags
     p = mk_bag_unfinished(base, tmp_path)
-    n_all = len(base["bag_msgs"])
+    n_all = len(base['bag_msgs'])
     got = list(bags.read_bag(p, salvage=True))
     assert len(got) == n_all - 1                         # all but the message cut off mid-write
-    assert [m[2] for m in got] == [m[1] for m in base["bag_msgs"][:-1]]
-    rc, out, err, _ = run_cli(["record", p, "--recover"])
+    assert [m[2] for m in got] == [m[1] for m in base['bag_msgs'][:-1]]
+    rc, out, err, _ = run_cli(['record', p, '--recover'])
     assert rc == 0, out + err
     assert len(list(bags.read_bag(p))) == len(got)
-    assert (p.parent / (p.name + ".unfinished")).is_dir()
+    assert (p.parent / (p.name + '.unfinished')).is_dir()
     q = bags.offered_qos(p)
-    assert q["/rotor/excitation"][0].durability.name == "TRANSIENT_LOCAL"
+    assert q['/rotor/excitation'][0].durability.name == 'TRANSIENT_LOCAL'
 
 
 WRITER_CHILD = """
@@ -695,13 +715,17 @@ for k in range(100000):
 """
 
 
-@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
-    """Offline half of the kill test, both storages: a BagWriter (flush every 0.25 s) SIGKILLed mid-stream leaves a
-    bag that read_bag(salvage=True) reads and --recover completes, missing at most the last flush period."""
+    """
+    Offline half of the kill test, both storages: a bag SIGKILLed mid-stream is read and recovered.
+
+    A BagWriter (flush every 0.25 s) SIGKILLed mid-stream leaves a bag that read_bag(salvage=True) reads and --recover
+    completes, missing at most the last flush period.
+    """
     from bearing_id.io import bags
-    bag, log = tmp_path / "bag", tmp_path / "log"
-    child = subprocess.Popen([sys.executable, "-c", WRITER_CHILD, str(REPO), str(bag), storage, str(log)],
+    bag, log = tmp_path / 'bag', tmp_path / 'log'
+    child = subprocess.Popen([sys.executable, '-c', WRITER_CHILD, str(REPO), str(bag), storage, str(log)],
                              start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         t_end = time.monotonic() + 30
@@ -715,51 +739,54 @@ def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
         if child.poll() is None:
             os.killpg(child.pid, 9)
             child.wait(10)
-    sent = {int(k): float(t) for k, t in (ln.split() for ln in log.read_text().splitlines() if ln.count(" ") == 1)}
+    sent = {int(k): float(t) for k, t in (ln.split() for ln in log.read_text().splitlines() if ln.count(' ') == 1)}
     salvaged = [m.data for t, _, _, m in bags.read_bag(bag, salvage=True) if t == STREAM_TOPIC]
-    rc, out, err, _ = run_cli(["record", bag, "--recover"])
+    rc, out, err, _ = run_cli(['record', bag, '--recover'])
     assert rc == 0, out + err
     got = [m.data for t, _, _, m in bags.read_bag(bag) if t == STREAM_TOPIC]
     assert got == salvaged == list(range(len(got)))
     assert {k for k, t in sent.items() if t < t_kill - 0.5} <= set(got), (len(sent), len(got))
-    assert bags.offered_qos(bag)["/rotor/excitation"][0].durability.name == "TRANSIENT_LOCAL"
+    assert bags.offered_qos(bag)['/rotor/excitation'][0].durability.name == 'TRANSIENT_LOCAL'
 
 
 def test_campaign_table(campaign, request, capsys):
     """Print the campaign table (with -s)."""
     assert len(campaign) == len(RUNS)
-    if request.config.getoption("capture") != "no":
+    if request.config.getoption('capture') != 'no':
         return
     with capsys.disabled():
-        print("\n| input | command | exit | seconds |\n|---|---|---|---|")
+        print('\n| input | command | exit | seconds |\n|---|---|---|---|')
         for (case, cmd), (_, rc, _, _, dt) in campaign.items():
-            print(f"| {case} | {cmd} | {rc} | {dt:.2f} |")
+            print(f'| {case} | {cmd} | {rc} | {dt:.2f} |')
 
 
 # ------------------------------------------------------------------------------------------------ record (ROS)
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def recording_session(tmp_path_factory):
-    """Two recorders against one peer: A (mcap) is SIGKILLed after 160 messages (~3.2 s into the stream), B
-    (sqlite3) records on until the peer has sent 220 and is stopped, then stops on SIGINT.  Returns (bag A, kill
-    wall time, bag B, peer log {k: wall time}, outputs)."""
+    """
+    Run two recorders against one peer; A (mcap) is SIGKILLed, B (sqlite3) is stopped on SIGINT.
+
+    A is SIGKILLed after 160 messages (~3.2 s into the stream), B records on until the peer has sent 220 and is stopped,
+    then stops on SIGINT.  Returns (bag A, kill wall time, bag B, peer log {k: wall time}, outputs).
+    """
     py = rosutil.require_ros()
-    d = tmp_path_factory.mktemp("record")
+    d = tmp_path_factory.mktemp('record')
     env = rosutil.ros_env()
-    bag_a, bag_b, log = d / "killed", d / "clean", d / "peer.log"
-    spec = d / "peer.json"
-    spec.write_text(json.dumps({"log": str(log), "count": 1000, "subscribers": 2}))
-    topics = ["/rotor/excitation", f"{STREAM_TOPIC}:std_msgs/msg/UInt32"]
-    rec = rosutil.script("bearing-id")
-    a = rosutil.RosProcess([rec, "record", str(bag_a), "--topics", *topics], env=env, hard_timeout=90)
-    b = rosutil.RosProcess([rec, "record", str(bag_b), "--topics", *topics, "--storage", "sqlite3"], env=env,
+    bag_a, bag_b, log = d / 'killed', d / 'clean', d / 'peer.log'
+    spec = d / 'peer.json'
+    spec.write_text(json.dumps({'log': str(log), 'count': 1000, 'subscribers': 2}))
+    topics = ['/rotor/excitation', f'{STREAM_TOPIC}:std_msgs/msg/UInt32']
+    rec = rosutil.script('bearing-id')
+    a = rosutil.RosProcess([rec, 'record', str(bag_a), '--topics', *topics], env=env, hard_timeout=90)
+    b = rosutil.RosProcess([rec, 'record', str(bag_b), '--topics', *topics, '--storage', 'sqlite3'], env=env,
                            hard_timeout=90)
-    p = rosutil.RosProcess([py, str(HERE / "test_hostile_files.py"), "peer", str(spec)], env=env, hard_timeout=90)
+    p = rosutil.RosProcess([py, str(HERE / 'test_hostile_files.py'), 'peer', str(spec)], env=env, hard_timeout=90)
 
     def lines():
         return len(log.read_text().splitlines()) if log.exists() else 0
 
     def outputs():
-        return "\n".join(x.output() for x in (p, a, b))
+        return '\n'.join(x.output() for x in (p, a, b))
     try:
         t_end = time.monotonic() + 60
         while time.monotonic() < t_end and lines() < 160:
@@ -785,46 +812,44 @@ def recording_session(tmp_path_factory):
 
 @pytest.mark.ros
 def test_record_killed_with_sigkill_loses_at_most_about_a_second(recording_session):
-    from rosbags.rosbag2 import Reader
-
     from bearing_id.io import bags
+    from rosbags.rosbag2 import Reader
     bag, t_kill, _, sent, outs = recording_session
-    assert not (bag / "metadata.yaml").exists(), outs[0]
-    with pytest.raises(bags.BagError, match="--recover"):
+    assert not (bag / 'metadata.yaml').exists(), outs[0]
+    with pytest.raises(bags.BagError, match='--recover'):
         list(bags.read_bag(bag))
     salvaged = [m.data for t, _, _, m in bags.read_bag(bag, salvage=True) if t == STREAM_TOPIC]
-    rc, out, err, _ = run_cli(["record", bag, "--recover"])
+    rc, out, err, _ = run_cli(['record', bag, '--recover'])
     assert rc == 0, out + err
     got = [m.data for t, _, _, m in bags.read_bag(bag) if t == STREAM_TOPIC]
     assert got == salvaged
     with Reader(bag) as r:                    # stock rosbags reads the recovered bag
-        assert {c.topic for c in r.connections} == {"/rotor/excitation", STREAM_TOPIC}
-    assert got == list(range(len(got))), "the readable messages are a gap-free prefix"
+        assert {c.topic for c in r.connections} == {'/rotor/excitation', STREAM_TOPIC}
+    assert got == list(range(len(got))), 'the readable messages are a gap-free prefix'
     before = [k for k, t in sent.items() if t < t_kill - 1.5]    # 1 s flush period + delivery/scheduling slack
     assert len(before) > 50, (len(sent), t_kill)
     assert set(before) <= set(got), (len(before), len(got), outs[0])
     lost = t_kill - sent[got[-1]]
-    print(f"\nkill -9: {len(got)} of the {sum(t < t_kill for t in sent.values())} messages sent before the kill are "
-          f"readable; the newest readable one was sent {lost:.2f} s before the kill")
+    print(f'\nkill -9: {len(got)} of the {sum(t < t_kill for t in sent.values())} messages sent before the kill are '
+          f'readable; the newest readable one was sent {lost:.2f} s before the kill')
     q = bags.offered_qos(bag)
-    assert q["/rotor/excitation"] and all(x.durability.name == "TRANSIENT_LOCAL" for x in q["/rotor/excitation"])
+    assert q['/rotor/excitation'] and all(x.durability.name == 'TRANSIENT_LOCAL' for x in q['/rotor/excitation'])
 
 
 @pytest.mark.ros
 def test_record_stores_the_publishers_offered_qos(recording_session):
-    import yaml
-
     from bearing_id.io import bags
+    import yaml
     _, _, bag, sent, outs = recording_session
-    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    tops = {t["topic_metadata"]["name"]: t for t in meta["topics_with_message_count"]}
-    ex = tops["/rotor/excitation"]["topic_metadata"]["offered_qos_profiles"]
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    tops = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
+    ex = tops['/rotor/excitation']['topic_metadata']['offered_qos_profiles']
     prof = yaml.safe_load(ex) if isinstance(ex, str) else ex
-    assert prof and all(p["durability"] == "transient_local" and p["reliability"] == "reliable" for p in prof), ex
-    st = tops[STREAM_TOPIC]["topic_metadata"]["offered_qos_profiles"]
+    assert prof and all(p['durability'] == 'transient_local' and p['reliability'] == 'reliable' for p in prof), ex
+    st = tops[STREAM_TOPIC]['topic_metadata']['offered_qos_profiles']
     st = yaml.safe_load(st) if isinstance(st, str) else st
-    assert st and all(p["durability"] == "volatile" for p in st), st
-    assert tops["/rotor/excitation"]["message_count"] == 1
-    assert tops[STREAM_TOPIC]["message_count"] == len(sent), outs[1]
+    assert st and all(p['durability'] == 'volatile' for p in st), st
+    assert tops['/rotor/excitation']['message_count'] == 1
+    assert tops[STREAM_TOPIC]['message_count'] == len(sent), outs[1]
     got = [m.data for t, _, _, m in bags.read_bag(bag) if t == STREAM_TOPIC]
     assert got == sorted(sent)

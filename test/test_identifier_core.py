@@ -1,28 +1,30 @@
-"""The identifier's data path without ROS (issue 9 "nothing dropped that can be kept", issue 10 "kept apart"):
-blocks that arrive before their run's excitation wait and are used; a dwell split by a lost block uses both halves;
-a restarted identifier knows the runs from its record; probe sets are never stacked; a malformed record line is
-skipped.  References: the offline route on the same samples (harmonics.recording_vectors) and the simulator."""
+"""
+The identifier's data path without ROS (issue 9 "nothing dropped that can be kept", issue 10 "kept apart").
+
+Blocks that arrive before their run's excitation wait and are used; a dwell split by a lost block uses both halves; a
+restarted identifier knows the runs from its record; probe sets are never stacked; a malformed record line is skipped.
+References: the offline route on the same samples (harmonics.recording_vectors) and the simulator.
+"""
 from __future__ import annotations
 
 import json
-
-import numpy as np
-import pytest
 
 from bearing_id import rig as R
 from bearing_id.identify import harmonics
 from bearing_id.io.messages import Block
 from bearing_id.nodes.identifier import IdentifierCore
 from bearing_id.nodes.runs import RunResolver
-from bearing_id.params import Probe, load_rig
+from bearing_id.params import load_rig, Probe
+import numpy as np
+import pytest
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def rig():
     return load_rig()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def rec(rig):
     return R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0], dwell=3.0, ramp=0.0)
 
@@ -46,20 +48,20 @@ def test_blocks_wait_for_their_run_and_are_released_in_order(rec):
     new, released = rs.announce(0.0, rec.run)
     assert new and [t for _, _, t in released] == [0, 1, 2, 3] and all(r is rec.run for _, r, _ in released)
     assert rs.resolve(bl[0]) is rec.run and not rs.waiting
-    for k, b in enumerate(blocks(rec, run_id="Z")):                           # a run never announced: bounded
+    for k, b in enumerate(blocks(rec, run_id='Z')):                           # a run never announced: bounded
         rs.resolve(b, k)
     assert len(rs.waiting) == 5 and rs.dropped > 0
 
 
 def test_blocks_without_run_id_go_to_the_run_announced_before_their_stamp(rec, rig):
     rs = RunResolver()
-    b0 = next(blocks(rec, run_id=""))
+    b0 = next(blocks(rec, run_id=''))
     assert rs.resolve(b0) is None
     _, rel = rs.announce(b0.stamp, rec.run)
     assert [r.id for _, r, _ in rel] == [rec.run.id]
     other = rig.simulation.runs[1]
     rs.announce(b0.stamp + 10.0, other)
-    late = Block(**{**b0.__dict__, "stamp_ns": b0.stamp_ns + 11_000_000_000})
+    late = Block(**{**b0.__dict__, 'stamp_ns': b0.stamp_ns + 11_000_000_000})
     assert rs.resolve(late) is other and rs.resolve(b0) is rec.run
 
 
@@ -70,78 +72,81 @@ def _feed_all(core, bl, run, skip=()):
         if k in skip:
             prev_ok = False
             continue
-        wins += core.feed(b, run, "measured", prev_ok, 0.0)
+        wins += core.feed(b, run, 'measured', prev_ok, 0.0)
         prev_ok = True
-    wins += core.flush("measured", 1e9, 0.0)
+    wins += core.flush('measured', 1e9, 0.0)
     return [w for w in wins if core.add_window(w)]
 
 
 def test_a_dwell_split_by_a_lost_block_uses_both_halves(rec, rig, tmp_path):
     ref = harmonics.recording_vectors(rec)
     assert len(ref) == 1
-    core = IdentifierCore(rig, "physical", tmp_path)
+    core = IdentifierCore(rig, 'physical', tmp_path)
     core.add_excitation(rec.run)
     bl = list(blocks(rec))
     used = _feed_all(core, bl, rec.run, skip={len(bl) // 2})
     assert len(used) == 2                                   # both halves were fitted and stored ...
-    (speed, X, X_std, _), = core.vectors["measured"][rec.run.id]        # ... as one combined vector
+    (speed, X, X_std, _), = core.vectors['measured'][rec.run.id]        # ... as one combined vector
     assert abs(speed - ref[0].speed) <= 1e-9 * speed
     assert np.all(np.abs(X - ref[0].X) <= 3 * np.hypot(X_std, ref[0].X_std))
     core.close()
     # each half alone is less certain than the combination
-    core2 = IdentifierCore(rig, "physical", tmp_path / "halves")
+    core2 = IdentifierCore(rig, 'physical', tmp_path / 'halves')
     first_half = _feed_all(core2, bl[:len(bl) // 2], rec.run)
-    assert first_half and np.all(core2.vectors["measured"][rec.run.id][0][2] > X_std)
+    assert first_half and np.all(core2.vectors['measured'][rec.run.id][0][2] > X_std)
     core2.close()
 
 
 def test_a_restarted_identifier_knows_its_runs_and_vectors_from_the_record(rec, rig, tmp_path):
-    core = IdentifierCore(rig, "physical", tmp_path)
+    core = IdentifierCore(rig, 'physical', tmp_path)
     core.add_excitation(rec.run, stamp=12.5)
     _feed_all(core, list(blocks(rec)), rec.run)
-    n = len(core.vectors["measured"][rec.run.id])
+    n = len(core.vectors['measured'][rec.run.id])
     core.close()
-    again = IdentifierCore(rig, "physical", tmp_path)
-    assert again.resumed["vectors"] == n and list(again.runs) == [rec.run.id]
+    again = IdentifierCore(rig, 'physical', tmp_path)
+    assert again.resumed['vectors'] == n and list(again.runs) == [rec.run.id]
     assert again.run_starts == [(12.5, rec.run)]
     rs = RunResolver()
     for stamp, run in again.run_starts:
         rs.announce(stamp, run)
-    b = next(blocks(rec, run_id="", t0=13.0))
+    b = next(blocks(rec, run_id='', t0=13.0))
     assert rs.resolve(b) == rec.run                        # a block without run id is not dropped after restart
     again.close()
 
 
 def test_probe_sets_are_kept_apart(rec, rig, tmp_path):
-    core = IdentifierCore(rig, "physical", tmp_path)
+    core = IdentifierCore(rig, 'physical', tmp_path)
     run_a, run_b = rig.simulation.runs
     core.add_excitation(run_a)
     core.add_excitation(run_b)
     _feed_all(core, list(blocks(rec)), run_a)
-    moved = (Probe("p5x", 5, "x"), Probe("p5y", 5, "y"))      # the pair remounted at node 5 for run B
+    moved = (Probe('p5x', 5, 'x'), Probe('p5y', 5, 'y'))      # the pair remounted at node 5 for run B
     _feed_all(core, list(blocks(rec, run_id=run_b.id, probes=moved)), run_b)
     assert core.assemble() is None                          # never stacked: run B's set has no run A vectors
-    assert any("probe set changed" in n for n in core.notes)
+    assert any('probe set changed' in n for n in core.notes)
     core.close()
 
 
 def test_a_malformed_record_line_is_skipped_with_a_note(rec, rig, tmp_path):
-    core = IdentifierCore(rig, "physical", tmp_path)
+    core = IdentifierCore(rig, 'physical', tmp_path)
     core.add_excitation(rec.run)
     _feed_all(core, list(blocks(rec)), rec.run)
     core.close()
-    with open(tmp_path / "record.jsonl", "a") as fh:        # valid JSON, but a vector without "X"
-        fh.write(json.dumps({"n": 99, "type": "vector", "source": "measured", "run_id": "A", "speed": 157.0,
-                             "probes": [["p6x", 6, "x"]]}) + "\n")
-    again = IdentifierCore(rig, "physical", tmp_path)
-    assert again.resumed["malformed"] == 1 and again.resumed["vectors"] == 1
-    assert any("malformed" in n for n in again.notes)
+    with open(tmp_path / 'record.jsonl', 'a') as fh:        # valid JSON, but a vector without "X"
+        fh.write(json.dumps({'n': 99, 'type': 'vector', 'source': 'measured', 'run_id': 'A', 'speed': 157.0,
+                             'probes': [['p6x', 6, 'x']]}) + '\n')
+    again = IdentifierCore(rig, 'physical', tmp_path)
+    assert again.resumed['malformed'] == 1 and again.resumed['vectors'] == 1
+    assert any('malformed' in n for n in again.notes)
     again.close()
 
 
 def test_a_long_dwell_is_fitted_in_pieces_and_combined(rec):
-    """Windows longer than max_window are fitted in pieces (bounded memory) and combined: the same vector as the
-    whole window within the stated sigma, and a sigma no larger than 1.2 x the whole window's."""
+    """
+    Windows longer than max_window are fitted in pieces (bounded memory) and combined.
+
+    The same vector as the whole window within the stated sigma, and a sigma no larger than 1.2 x the whole window's.
+    """
     whole, = harmonics.recording_vectors(rec)
     pieces = harmonics.recording_vectors(rec, max_window=0.7)
     assert len(pieces) == 1                         # one vector per dwell, from several pieces

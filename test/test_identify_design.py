@@ -1,12 +1,11 @@
 """Experiment-design check (identify/design.py): ranks per speed, the analytic Jacobian, and the advice."""
-import numpy as np
-import pytest
-
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.identify.design import analyse, check_design, coefficient_jacobian
-from bearing_id.params import ExcitationEntry, Probe, Run, load_rig
+from bearing_id.params import ExcitationEntry, load_rig, Probe, Run
 from bearing_id.rig import scenario
-from bearing_id.rotor.assembly import RotorModel, harmonic_response, probe_matrix
+from bearing_id.rotor.assembly import harmonic_response, probe_matrix, RotorModel
+import numpy as np
+import pytest
 
 
 def bearing_fn(w):
@@ -18,7 +17,7 @@ def bearing_fn(w):
 SPEEDS = [float(rpm_to_rad_s(s)) for s in (900, 1800, 2700)]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def setup():
     rig = load_rig()
     return rig, RotorModel.from_params(rig)
@@ -26,9 +25,9 @@ def setup():
 
 def unbalance_runs(rig):
     # the rig's runs A, B plus the paper's Table 3 and Table 4 unbalances and one more distribution
-    extra = Run("U", (ExcitationEntry("unbalance", 4, 3e-5, 2.0, "forward"),
-                      ExcitationEntry("unbalance", 8, 1e-5, -1.0, "forward")))
-    return list(rig.simulation.runs) + scenario("paper_table3") + scenario("paper_table4") + [extra]
+    extra = Run('U', (ExcitationEntry('unbalance', 4, 3e-5, 2.0, 'forward'),
+                      ExcitationEntry('unbalance', 8, 1e-5, -1.0, 'forward')))
+    return list(rig.simulation.runs) + scenario('paper_table3') + scenario('paper_table4') + [extra]
 
 
 def test_unbalance_with_midspan_probe_is_rank_8_of_16_however_many_runs(setup):
@@ -50,7 +49,7 @@ def test_one_unbalance_run_is_rank_4(setup):
 
 def test_directional_forces_at_the_discs_determine_all_16(setup):
     rig, model = setup
-    for rep in check_design(model, rig.probes, scenario("force"), SPEEDS, bearing_fn, advice=False):
+    for rep in check_design(model, rig.probes, scenario('force'), SPEEDS, bearing_fn, advice=False):
         assert rep.data.rank == 16 and rep.data.determined.all()
         assert np.isfinite(rep.data.condition)
 
@@ -60,22 +59,22 @@ def test_probes_near_the_bearings_with_unbalance_structurally_16_but_noise_limit
     # same orbits: at 1 % sample noise over 20480 samples the weakest combination is known only to >= 30 % of the
     # coefficients' size (measured 36 % ... 1400 %), so the noise-based rank stays below 16.
     rig, model = setup
-    probes = tuple(Probe(f"p{n}{d}", n, d) for n in (2, 3, 9, 10) for d in ("x", "y"))
+    probes = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 3, 9, 10) for d in ('x', 'y'))
     for rep in check_design(model, probes, list(rig.simulation.runs), SPEEDS, bearing_fn, advice=False):
         assert rep.data.structural_rank == 16
         assert rep.data.rank < 16
         assert 1.0 / rep.data.singular_values[15] > 0.3
-        assert rep.methods["conventional"].startswith("rank")       # two probe nodes per bearing: applicable
+        assert rep.methods['conventional'].startswith('rank')       # two probe nodes per bearing: applicable
     # the same probes with the directional-force plan: determined
-    for rep in check_design(model, probes, scenario("force"), SPEEDS, bearing_fn, advice=False):
+    for rep in check_design(model, probes, scenario('force'), SPEEDS, bearing_fn, advice=False):
         assert rep.data.rank == 16
 
 
 def test_advice_reaches_full_rank(setup):
     rig, model = setup
     rep = check_design(model, rig.probes, list(rig.simulation.runs), SPEEDS[1:2], bearing_fn, max_steps=4)[0]
-    assert rep.advice, "an undetermined plan must come with advice"
-    assert rep.advice[-1].endswith("rank 16 of 16")
+    assert rep.advice, 'an undetermined plan must come with advice'
+    assert rep.advice[-1].endswith('rank 16 of 16')
 
 
 def test_jacobian_matches_finite_differences(setup):
@@ -83,10 +82,10 @@ def test_jacobian_matches_finite_differences(setup):
     rig, model = setup
     w = SPEEDS[1]
     co = bearing_fn(w)
-    runs = scenario("force")[:2] + list(rig.simulation.runs[:1])
+    runs = scenario('force')[:2] + list(rig.simulation.runs[:1])
     from bearing_id.excitation import harmonic_forces
     forces = [harmonic_forces(r.excitation, w, model.n_nodes)[1.0] for r in runs]
-    probes = (Probe("a", 6, "x"), Probe("b", 3, "y"))
+    probes = (Probe('a', 6, 'x'), Probe('b', 3, 'y'))
     J, X = coefficient_jacobian(model, w, co, probes, forces)
     S = probe_matrix(model, probes)
 
@@ -112,7 +111,7 @@ def test_jacobian_matches_finite_differences(setup):
 def test_analyse_on_a_known_matrix():
     # columns 0, 1 measured with unit information, column 2 never: rank 2, third coefficient undetermined
     J = np.array([[100.0, 0, 0], [0, 100.0, 0], [0, 0, 0]])
-    a = analyse(J, ["a", "b", "c"], max_rel_std=0.05)
+    a = analyse(J, ['a', 'b', 'c'], max_rel_std=0.05)
     assert a.rank == 2 and a.structural_rank == 2
     assert a.determined.tolist() == [True, True, False]
     np.testing.assert_allclose(a.rel_std[:2], [0.01, 0.01])

@@ -1,4 +1,5 @@
-"""``direct`` identification: output-error fit of the 16 bearing coefficients through the FE model.
+"""
+``direct`` identification: output-error fit of the 16 bearing coefficients through the FE model.
 
 References (independent of the fit):
 * the FE model's own frequency response (rotor.assembly.harmonic_response, a plain linear solve) makes the data;
@@ -15,9 +16,6 @@ K and for C (the accuracy benchmark, benchmarks/bench_accuracy.py, uses the same
 """
 import math
 
-import numpy as np
-import pytest
-
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.excitation import harmonic_forces
 from bearing_id.identify import eq38_error
@@ -26,10 +24,12 @@ from bearing_id.identify.harmonics import simulate_data
 from bearing_id.params import Probe
 from bearing_id.rig import scenario
 from bearing_id.rotor.assembly import harmonic_response, probe_matrix
+import numpy as np
+import pytest
 
 NOISE = 0.01
 N_USED = int(0.75 * 2.0 * 10240)          # samples per 1X fit in the default plan (2 s dwell, 25 % settle dropped)
-P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
+P6 = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
 
 # coefficients NOT from the bearing module: an arbitrary non-symmetric set (N/m, N s/m)
 K_ARB = {2: np.array([[3.1e5, 1.2e5], [-2.4e5, 5.2e5]]), 10: np.array([[2.6e5, 0.9e5], [-1.9e5, 4.4e5]])}
@@ -57,7 +57,7 @@ def noisy(data, seed):
 
 def test_jacobian_matches_finite_differences(model):
     W = rpm_to_rad_s(1700.0)
-    cases = exact_cases(model, scenario("force"), P6 + (Probe("p3x", 3, "x"),), W, TRUTH_ARB)
+    cases = exact_cases(model, scenario('force'), P6 + (Probe('p3x', 3, 'x'),), W, TRUTH_ARB)
     beta = coeffs_to_beta(TRUTH_ARB, (2, 10))
     _, dys = response_and_jacobian(model, W, cases, beta, (2, 10))
     scale = np.repeat([3e5, 500.0, 3e5, 500.0], 4)        # block magnitudes: K then C per bearing
@@ -77,7 +77,7 @@ def test_zero_noise_force_plan_recovers_coefficients_exactly(model):
     """Algebra check: data from the model itself, start 30 % off -> the 16 coefficients to 1e-6 relative."""
     W = rpm_to_rad_s(2100.0)
     theory = {n: (1.3 * K, 0.7 * C) for n, (K, C) in TRUTH_ARB.items()}
-    res = fit_speed(model, W, exact_cases(model, scenario("force"), P6, W, TRUTH_ARB), (2, 10), theory=theory)
+    res = fit_speed(model, W, exact_cases(model, scenario('force'), P6, W, TRUTH_ARB), (2, 10), theory=theory)
     assert res.rank == 16 and res.unknowns == 16 and res.fully_determined
     for i, n in enumerate((2, 10)):
         np.testing.assert_allclose(res.K[i], K_ARB[n], rtol=1e-6, atol=1e-6 * np.abs(K_ARB[n]).max())
@@ -88,10 +88,10 @@ def test_zero_noise_force_plan_recovers_coefficients_exactly(model):
 def test_force_plan_node6_one_percent_noise_within_benchmark_tolerance(rig, model):
     """Truth = the rig's (viscosity x1.25, clearance x0.8), theory = nominal, node 6 only: <= 3 % (eq. 38)."""
     speeds = (900, 1500, 2100, 2700)
-    data = noisy(simulate_data(rig, scenario("force"), speeds, probes=P6, model=model), seed=11)
+    data = noisy(simulate_data(rig, scenario('force'), speeds, probes=P6, model=model), seed=11)
     res = identify_direct(model, rig, data)
     err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
-    assert err["K"] <= 3.0 and err["C"] <= 3.0, err
+    assert err['K'] <= 3.0 and err['C'] <= 3.0, err
     for r in res:
         assert r.rank == 16 and r.fully_determined
     # the reported 1-sigma describes the actual error: normalised errors have an RMS of order one
@@ -104,13 +104,13 @@ def test_force_plan_node6_one_percent_noise_within_benchmark_tolerance(rig, mode
     assert 0.4 < zr < 2.5, zr
 
 
-@pytest.mark.parametrize("n_runs", [2, 3])
+@pytest.mark.parametrize('n_runs', [2, 3])
 def test_unbalance_node6_is_rank_8_and_undetermined(rig, model, n_runs):
     runs = list(rig.simulation.runs)
     if n_runs == 3:   # a third, different unbalance distribution adds no rank (the 2-D subspace argument)
         from bearing_id.params import ExcitationEntry, Run
-        runs.append(Run("C", (ExcitationEntry("unbalance", 4, 2.0e-5, 2.0, "forward"),
-                              ExcitationEntry("unbalance", 8, 1.0e-5, -1.0, "forward"))))
+        runs.append(Run('C', (ExcitationEntry('unbalance', 4, 2.0e-5, 2.0, 'forward'),
+                              ExcitationEntry('unbalance', 8, 1.0e-5, -1.0, 'forward'))))
     data = noisy(simulate_data(rig, runs, (1200, 2400), probes=P6, model=model), seed=5)
     for r in identify_direct(model, rig, data):
         assert (r.rank, r.unknowns) == (8, 16)
@@ -130,7 +130,7 @@ def test_unbalance_node6_with_prior_is_flagged_prior_dominated(rig, model):
 
 def test_prior_does_not_spoil_a_determined_problem(rig, model):
     """With the force plan a weak prior (1-sigma = 100 % of the block scale) changes the answer by << its std."""
-    data = noisy(simulate_data(rig, scenario("force"), (2400,), probes=P6, model=model), seed=8)
+    data = noisy(simulate_data(rig, scenario('force'), (2400,), probes=P6, model=model), seed=8)
     (a,) = identify_direct(model, rig, data)
     (b,) = identify_direct(model, rig, data, prior_weight=1.0)
     assert b.fully_determined
@@ -139,9 +139,9 @@ def test_prior_does_not_spoil_a_determined_problem(rig, model):
 
 def test_unknown_option_is_refused(rig, model):
     data = simulate_data(rig, rig.simulation.runs, (1200,), probes=P6, model=model)
-    with pytest.raises(ValueError, match="unknown option"):
-        identify_direct(model, rig, data, options={"prior": 1.0})
-    with pytest.raises(ValueError, match="prior_weight"):
+    with pytest.raises(ValueError, match='unknown option'):
+        identify_direct(model, rig, data, options={'prior': 1.0})
+    with pytest.raises(ValueError, match='prior_weight'):
         identify_direct(model, rig, data, prior_weight=-1.0)
 
 
@@ -152,12 +152,12 @@ def test_unknown_option_is_refused(rig, model):
 # The whole default schedule (600..3000 rpm): the issue's target is the mean over the benchmark's speeds.
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def force_schedule_data(rig, model):
     from bearing_id.identify.harmonics import from_recordings
     from bearing_id.rig import simulate_run
     recs = [simulate_run(rig, run, probes=P6, seed=40 + k)
-            for k, run in enumerate(scenario("force"))]
+            for k, run in enumerate(scenario('force'))]
     return from_recordings(recs)
 
 
@@ -177,12 +177,15 @@ def test_schedule_1x_vectors_equal_steady_state_phasors_within_their_std(rig, mo
 
 
 def test_direct_on_the_schedule_meets_target_and_its_std_predicts_its_error(rig, model, force_schedule_data):
-    """Issue-4 target (<= 3 % eq. 38 for K and C, force plan, node 6) on the default schedule, every coefficient
-    determined, and normalised errors (estimate - truth) / std with an RMS of order one."""
+    """
+    Issue-4 target (<= 3 % eq. 38 for K and C, force plan, node 6) on the default schedule.
+
+    Every coefficient determined, and normalised errors (estimate - truth) / std with an RMS of order one.
+    """
     data = force_schedule_data
     res = identify_direct(model, rig, data)
     err = eq38_error(res, [data.truth_at(r.speed) for r in res])
-    assert err["K"] <= 3.0 and err["C"] <= 3.0, err
+    assert err['K'] <= 3.0 and err['C'] <= 3.0, err
     z = []
     for r in res:
         assert r.fully_determined
@@ -190,7 +193,7 @@ def test_direct_on_the_schedule_meets_target_and_its_std_predicts_its_error(rig,
         for i, n in enumerate(r.nodes):
             z += list(((r.K[i] - t[n][0]) / r.K_std[i]).ravel()) + list(((r.C[i] - t[n][1]) / r.C_std[i]).ravel())
         # 4 runs x 2 channels x Re/Im = 16 equations for 16 unknowns: the notes must say the residual checks nothing
-        assert r.extra["redundancy"] == 0
-        assert any("no redundancy" in note for note in r.notes)
+        assert r.extra['redundancy'] == 0
+        assert any('no redundancy' in note for note in r.notes)
     zr = math.sqrt(np.mean(np.square(z)))
     assert 0.5 < zr < 1.8, zr

@@ -1,4 +1,5 @@
-"""``physical`` identification: viscosity and clearance per bearing, all speeds at once, from node 6 only.
+"""
+``physical`` identification: viscosity and clearance per bearing, all speeds at once, from node 6 only.
 
 References (independent of the fit):
 * the data come from the FE frequency response with the rig's truth bearings (the bearing model at viscosity x1.25
@@ -15,21 +16,20 @@ viscosity and clearance within 3 % (the "few %" of the issue).
 """
 import math
 
-import numpy as np
-import pytest
-
 from bearing_id.identify import eq38_error
 from bearing_id.identify.harmonics import simulate_data
 from bearing_id.identify.physical import fit_physical, identify_physical
 from bearing_id.params import Probe
+import numpy as np
+import pytest
 
 NOISE = 0.01
 N_USED = int(0.75 * 2.0 * 10240)
-P6 = (Probe("p6x", 6, "x"), Probe("p6y", 6, "y"))
+P6 = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
 SPEEDS = (600, 1200, 1800, 2400, 3000)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def clean(rig, model):
     return simulate_data(rig, rig.simulation.runs, SPEEDS, probes=P6, model=model)
 
@@ -43,8 +43,8 @@ def noisy(data, seed):
 
 def true_params(rig):
     t = rig.simulation.truth
-    return {f"{b.name}.viscosity": b.viscosity * t.viscosity_factor[i] for i, b in enumerate(rig.bearings)} | \
-        {f"{b.name}.clearance": b.clearance * t.clearance_factor[i] for i, b in enumerate(rig.bearings)}
+    return {f'{b.name}.viscosity': b.viscosity * t.viscosity_factor[i] for i, b in enumerate(rig.bearings)} | \
+        {f'{b.name}.clearance': b.clearance * t.clearance_factor[i] for i, b in enumerate(rig.bearings)}
 
 
 def test_zero_noise_recovers_parameters_to_1e6(rig, model, clean):
@@ -66,9 +66,9 @@ def test_node6_unbalance_one_percent_noise(rig, model, clean):
         assert abs(v / truth[name] - 1) <= 0.03, (name, v, truth[name])
         assert 0 < s < 0.03
     err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
-    assert err["K"] <= 2.0 and err["C"] <= 3.0, err
+    assert err['K'] <= 2.0 and err['C'] <= 3.0, err
     for r in res:
-        assert r.fully_determined and r.unknowns == 4 and r.method == "physical"
+        assert r.fully_determined and r.unknowns == 4 and r.method == 'physical'
         assert np.all(np.isfinite(r.K_std)) and np.all(r.K_std > 0)
 
 
@@ -87,21 +87,24 @@ def test_fitting_the_load_too_is_rank_deficient_but_coefficients_stay_determined
     assert (fit.rank, fit.unknowns) == (4, 6)
     assert not np.any(fit.determined) and np.all(np.isnan(fit.rel_std))
     err = eq38_error(res, [data.truth[float(w)] for w in data.speeds])
-    assert err["K"] <= 2.0 and err["C"] <= 3.0, err
+    assert err['K'] <= 2.0 and err['C'] <= 3.0, err
     assert all(r.fully_determined for r in res)
 
 
 def test_dispatcher_signature_and_options(rig, model, clean):
-    res = identify_physical(model, rig, noisy(clean, seed=2), options={"params": ("viscosity", "clearance")})
-    assert len(res) == len(SPEEDS) and "fit" in res[0].extra
-    with pytest.raises(ValueError, match="unknown option"):
-        identify_physical(model, rig, clean, options={"viscosity_only": True})
+    res = identify_physical(model, rig, noisy(clean, seed=2), options={'params': ('viscosity', 'clearance')})
+    assert len(res) == len(SPEEDS) and 'fit' in res[0].extra
+    with pytest.raises(ValueError, match='unknown option'):
+        identify_physical(model, rig, clean, options={'viscosity_only': True})
 
 
-@pytest.mark.parametrize("truth_model,misfit", [("finite", True), ("short", False)])
+@pytest.mark.parametrize('truth_model,misfit', [('finite', True), ('short', False)])
 def test_model_form_misfit_is_declared_only_when_the_bearing_model_is_wrong(rig, model, truth_model, misfit):
-    """Truth = finite-length Reynolds bearing, estimator = short bearing: chi2/dof >> 1 must be declared (the bias is
-    then ~7 %, far beyond the noise-based 1-sigma); with a short-bearing truth it must not be."""
+    """
+    Truth = finite-length Reynolds bearing, estimator = short bearing: chi2/dof >> 1 must be declared.
+
+    The bias is then ~7 %, far beyond the noise-based 1-sigma; with a short-bearing truth it must not be declared.
+    """
     from bearing_id import rig as rigmod
     from bearing_id.identify import harmonics
     from bearing_id.identify.determined import chi2_quantile
@@ -113,5 +116,5 @@ def test_model_form_misfit_is_declared_only_when_the_bearing_model_is_wrong(rig,
     fit, res = fit_physical(model, rig, data)
     # misfit threshold: the 99.9 % point of chi-square(dof) / dof (issue 11; was a fixed 3)
     assert (fit.chi2 / fit.dof > chi2_quantile(0.999, fit.dof) / fit.dof) == misfit, fit.chi2 / fit.dof
-    assert any("MODEL MISFIT" in n for n in res[0].notes) == misfit
-    assert res[0].extra["misfit"] == misfit and res[0].misfit == misfit
+    assert any('MODEL MISFIT' in n for n in res[0].notes) == misfit
+    assert res[0].extra['misfit'] == misfit and res[0].misfit == misfit

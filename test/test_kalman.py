@@ -1,5 +1,8 @@
-"""Kalman filter (paper section 3.1): exact discretisation, exact sinusoidal input, steady-state gain, fast path equal
-to filterpy's time-varying filter, RTS smoother, NIS consistency and the streaming API.
+"""
+Kalman filter (paper section 3.1).
+
+Exact discretisation, exact sinusoidal input, steady-state gain, fast path equal to filterpy's time-varying filter, RTS
+smoother, NIS consistency and the streaming API.
 
 Independent references: eigen-decomposition and quadrature for the discretisation; scipy solve_ivp (rtol 1e-11) for
 the forced response; filterpy's KalmanFilter and rts_smoother; the time-varying Riccati recursion for the
@@ -8,12 +11,11 @@ rotor case.
 """
 import math
 
+from bearing_id import kalman as kf
 import numpy as np
 import pytest
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.stats import chi2
-
-from bearing_id import kalman as kf
 
 FS = 2000.0
 
@@ -78,7 +80,7 @@ def test_exact_sinusoidal_input_matches_ode_integration():
         return sum(np.real(F * np.exp(1j * r * ph)) for r, F in FORCES.items())
 
     sol = solve_ivp(lambda tt, x: A @ x + B @ force(tt), (0, t[-1]), x0, t_eval=t, rtol=1e-11, atol=1e-14,
-                    method="DOP853")
+                    method='DOP853')
     xp = kf.particular_state(km.Xp, angle)
     x = np.empty((N, 4))
     x[0] = x0
@@ -90,8 +92,8 @@ def test_exact_sinusoidal_input_matches_ode_integration():
 # ------------------------------------------------------------------------------------------------ steady state
 def test_steady_state_gain_two_routes_and_riccati_limit():
     km = model2()
-    P1, K1, S1 = kf.steady_state_gain(km.Phi, km.H, km.Q, km.R, method="sda")
-    P2, K2, S2 = kf.steady_state_gain(km.Phi, km.H, km.Q, km.R, method="scipy")
+    P1, K1, S1 = kf.steady_state_gain(km.Phi, km.H, km.Q, km.R, method='sda')
+    P2, K2, S2 = kf.steady_state_gain(km.Phi, km.H, km.Q, km.R, method='scipy')
     np.testing.assert_allclose(P1, P2, rtol=0, atol=1e-9 * np.abs(P1).max())
     np.testing.assert_allclose(K1, K2, rtol=1e-8, atol=1e-12 * np.abs(K1).max())
     # the time-varying Riccati recursion from a large P0 converges to the same P
@@ -104,19 +106,19 @@ def test_steady_state_gain_two_routes_and_riccati_limit():
 
 
 # ------------------------------------------------------------------------------------------------ fast == reference
-@pytest.mark.parametrize("start", ["steady", "transient"])
+@pytest.mark.parametrize('start', ['steady', 'transient'])
 def test_fast_filter_equals_filterpy_reference(start):
     km = model2()
     rng = np.random.default_rng(4)
     N = 1500
     angle = 0.2 + W * np.arange(N) / FS
     xp = kf.particular_state(km.Xp, angle)
-    x0 = xp[0] + (0 if start == "steady" else np.array([2e-5, -1e-5, 1e-3, 2e-3]))
+    x0 = xp[0] + (0 if start == 'steady' else np.array([2e-5, -1e-5, 1e-3, 2e-3]))
     x, z = simulate_discrete(km, N, x0, rng, 1e-10 * np.eye(4), 1e-8 * np.eye(1), angle)
-    x0_filter = None if start == "steady" else xp[0] + np.array([1e-5, 0, 0, 1e-3])
+    x0_filter = None if start == 'steady' else xp[0] + np.array([1e-5, 0, 0, 1e-3])
     fast = kf.fast_filter(km, z, angle, x0=x0_filter)
     ref = kf.reference_filter(km, z, angle, x0=x0_filter)
-    for name in ("estimates", "innovations"):
+    for name in ('estimates', 'innovations'):
         a, b = getattr(fast, name), getattr(ref, name)
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), name
     np.testing.assert_allclose(fast.nis, ref.nis, rtol=1e-9, atol=1e-12)
@@ -124,7 +126,8 @@ def test_fast_filter_equals_filterpy_reference(start):
 
 
 def test_rts_smoother_matches_filterpy_and_beats_the_filter():
-    from filterpy.kalman import KalmanFilter, rts_smoother as fp_rts
+    from filterpy.kalman import KalmanFilter
+    from filterpy.kalman import rts_smoother as fp_rts
 
     km = model2(Q=1e-9, R=1e-8)
     rng = np.random.default_rng(11)
@@ -176,11 +179,11 @@ def test_refuses_nonfinite_and_bad_shapes():
     z = np.zeros((100, 1))
     z[[3, 7, 9]] = np.nan
     for fn in (kf.fast_filter, kf.reference_filter, kf.rts_smoother):
-        with pytest.raises(ValueError, match="3 non-finite"):
+        with pytest.raises(ValueError, match='3 non-finite'):
             fn(km, z, angle)
-    with pytest.raises(ValueError, match=r"\(N, 1\)"):
+    with pytest.raises(ValueError, match=r'\(N, 1\)'):
         kf.fast_filter(km, np.zeros((100, 2)), angle)
-    with pytest.raises(ValueError, match="Q"):
+    with pytest.raises(ValueError, match='Q'):
         model2(Q=-1.0)
 
 
@@ -208,14 +211,14 @@ def test_streaming_equals_batch_and_checks_band():
         s.step_block(z[:10], angle[:10], W * 1.1)
     bad = z[:10].copy()
     bad[2] = np.inf
-    with pytest.raises(ValueError, match="1 non-finite"):
+    with pytest.raises(ValueError, match='1 non-finite'):
         s.step_block(bad, angle[:10], W)
 
 
 # ------------------------------------------------------------------------------------------------ rotor
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def rotor_case():
-    pytest.importorskip("bearing_id.rotor.assembly")
+    pytest.importorskip('bearing_id.rotor.assembly')
     from bearing_id import rig as rigmod
     from bearing_id.excitation import harmonic_forces
     from bearing_id.params import load_rig
@@ -228,16 +231,16 @@ def rotor_case():
     coeffs = {node: (kb, cb) for node in model.bearing_nodes}
     speed = 1500 * 2 * math.pi / 60
     run = rig.simulation.runs[0]
-    probes = [(6, "x"), (6, "y")] + [(b, d) for b in model.bearing_nodes for d in ("x", "y")]
+    probes = [(6, 'x'), (6, 'y')] + [(b, d) for b in model.bearing_nodes for d in ('x', 'y')]
     from bearing_id.params import Probe
-    probes = tuple(Probe(name=f"p{n}{d}", node=n, direction=d) for n, d in probes)
+    probes = tuple(Probe(name=f'p{n}{d}', node=n, direction=d) for n, d in probes)
     rec = rigmod.simulate(rig, run, rigmod.step_schedule([1500.0], 0.3), probes=probes, noise=0.0,
                           bearing_fn=lambda w: coeffs, model=model)
     forces = harmonic_forces(run.excitation, speed, model.n_nodes)
     return rig, model, coeffs, speed, rec, forces
 
 
-@pytest.mark.parametrize("q", [1e-16, 1e-17, 1e-18])
+@pytest.mark.parametrize('q', [1e-16, 1e-17, 1e-18])
 def test_rotor_bearing_node_estimates_paper_q(rotor_case, q):
     rig, model, coeffs, speed, rec, forces = rotor_case
     rng = np.random.default_rng(8)
@@ -246,7 +249,7 @@ def test_rotor_bearing_node_estimates_paper_q(rotor_case, q):
     z = z_clean + sigma * rng.standard_normal(z_clean.shape)
     km = kf.rotor_kalman_model(model, speed, coeffs, rig.probes, rec.sample_rate, forces=forces, Q=q, R=sigma**2)
     assert km.n == 2 * model.ndof and np.allclose(km.Q, q * np.eye(km.n))
-    assert km.out_names == ("n2x", "n2y", "n10x", "n10y")
+    assert km.out_names == ('n2x', 'n2y', 'n10x', 'n10y')
     res = kf.fast_filter(km, z, rec.angle)
     truth = rec.samples[:, 2:]
     rel = np.sqrt(np.mean((res.estimates - truth) ** 2, axis=0)) / np.sqrt(np.mean(truth**2, axis=0))

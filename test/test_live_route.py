@@ -1,4 +1,5 @@
-"""Issue 9: the live node route gives the offline answer, with an honest 1-sigma.
+"""
+Issue 9: the live node route gives the offline answer, with an honest 1-sigma.
 
 * Three node processes (sensor_driver playing DAQ exports, kf_estimator, identifier) on a rig with speed ramps between
   the dwells and unequal true bearings: every coefficient within 0.25 of its stated 1-sigma of the offline route
@@ -14,7 +15,6 @@ import time
 
 import numpy as np
 import pytest
-
 import rosutil
 
 TRUTH_VISCOSITY = [1.30, 0.85]      # x nominal, bearing 1 and 2: unequal true bearings
@@ -27,7 +27,7 @@ def _truth(rig):
 
 
 def _z(results, truth_fn):
-    """(identified - truth) / stated 1-sigma of every determined coefficient, flattened."""
+    """Return (identified - truth) / stated 1-sigma of every determined coefficient, flattened."""
     z = []
     for r in results:
         co = truth_fn(r.speed)
@@ -52,30 +52,30 @@ def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coef
     paths = []
     for k, run in enumerate(rig.simulation.runs):
         rec = R.simulate_run(rig, run, speeds_rpm=speeds, dwell=1.5, ramp=1.0, bearing_fn=truth, seed=4242 + k)
-        paths.append(rec.save_npz(tmp_path / f"run_{run.id}.npz"))
-    ref = identify("physical", RotorModel.from_params(rig), rig, harmonics.from_npz(paths))
+        paths.append(rec.save_npz(tmp_path / f'run_{run.id}.npz'))
+    ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_npz(paths))
 
     env = rosutil.ros_env()
-    rec_dir = tmp_path / "rec"
+    rec_dir = tmp_path / 'rec'
     procs = []
     try:
-        procs.append(rosutil.RosProcess([rosutil.script("identifier"), "--ros-args", "-p", "method:=physical",
-                                         "-p", f"record_dir:={rec_dir}", "-p", "runs:=[A,B]"], env=env,
+        procs.append(rosutil.RosProcess([rosutil.script('identifier'), '--ros-args', '-p', 'method:=physical',
+                                         '-p', f'record_dir:={rec_dir}', '-p', 'runs:=[A,B]'], env=env,
                                         hard_timeout=150))
-        procs.append(rosutil.RosProcess([rosutil.script("kf_estimator"), "--ros-args", "-p",
-                                         "prebuild_speeds_rpm:=[900.0,1500.0,2400.0,2700.0]"], env=env,
+        procs.append(rosutil.RosProcess([rosutil.script('kf_estimator'), '--ros-args', '-p',
+                                         'prebuild_speeds_rpm:=[900.0,1500.0,2400.0,2700.0]'], env=env,
                                         hard_timeout=150))
-        drv = rosutil.RosProcess([rosutil.script("sensor_driver"), "--ros-args", "-p", "source:=file",
-                                  "-p", f"files:=[{paths[0]},{paths[1]}]", "-p", "rate_factor:=4.0",
-                                  "-p", "wait_for_subscribers:=2", "-p", "exit_when_done:=true"], env=env,
+        drv = rosutil.RosProcess([rosutil.script('sensor_driver'), '--ros-args', '-p', 'source:=file',
+                                  '-p', f'files:=[{paths[0]},{paths[1]}]', '-p', 'rate_factor:=4.0',
+                                  '-p', 'wait_for_subscribers:=2', '-p', 'exit_when_done:=true'], env=env,
                                  hard_timeout=150)
         procs.append(drv)
         assert drv.wait(120) == 0, drv.output()
         t_end = time.monotonic() + 30
         res = []
         while time.monotonic() < t_end:
-            res = [e["result"] for e in Record(rec_dir, fsync=False).entries("result")]
-            if len({round(r["speed_rad_s"], 3) for r in res}) == len(speeds):
+            res = [e['result'] for e in Record(rec_dir, fsync=False).entries('result')]
+            if len({round(r['speed_rad_s'], 3) for r in res}) == len(speeds):
                 break
             time.sleep(0.25)
         for p in procs[:2]:
@@ -85,23 +85,23 @@ def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coef
     finally:
         for p in procs:
             p.close()
-    last = {round(r["speed_rad_s"], 3): r for r in res}
+    last = {round(r['speed_rad_s'], 3): r for r in res}
     assert sorted(last) == sorted(round(r.speed, 3) for r in ref), (sorted(last), [r.speed for r in ref])
     for r in ref:
         assert r.fully_determined
         d = last[round(r.speed, 3)]
         co = truth(r.speed)
-        for i, b in enumerate(d["bearings"]):
-            for key, true in (("K", co[r.nodes[i]][0]), ("C", co[r.nodes[i]][1])):
+        for i, b in enumerate(d['bearings']):
+            for key, true in (('K', co[r.nodes[i]][0]), ('C', co[r.nodes[i]][1])):
                 live = np.array(b[key], float)
-                off, std = getattr(r, key)[i], getattr(r, f"{key}_std")[i]
-                assert np.all(np.abs(live - off) <= 0.25 * std), (r.speed_rpm, b["name"] if "name" in b else i,
-                                                                   key, live, off, std)
+                off, std = getattr(r, key)[i], getattr(r, f'{key}_std')[i]
+                assert np.all(np.abs(live - off) <= 0.25 * std), (r.speed_rpm, b['name'] if 'name' in b else i,
+                                                                  key, live, off, std)
                 assert np.all(np.abs(live - true) <= 3.0 * std), (r.speed_rpm, i, key, live, true, std)
 
 
 def _blocks(rec, block=1024):
-    """The recording as the DisplacementBlocks the sensor_driver sends (plain data, per-sample angles)."""
+    """Return the recording as the DisplacementBlocks the sensor_driver sends (plain data, per-sample angles)."""
     from bearing_id.io.messages import Block
     fs = rec.sample_rate
     for k, i0 in enumerate(range(0, rec.samples.shape[0], block)):
@@ -113,8 +113,11 @@ def _blocks(rec, block=1024):
 
 
 def _with_noise(rec, noise, rng):
-    """A copy of a noise-free recording with white noise of ``noise`` x each channel's RMS per constant-speed step
-    (the rig's noise model, drawn here with our own generator)."""
+    """
+    Return a copy of a noise-free recording with white noise of ``noise`` x each channel's RMS.
+
+    Per constant-speed step (the rig's noise model, drawn here with our own generator).
+    """
     import dataclasses
     x = rec.samples.copy()
     for a, b, _, _ in rec.segments:
@@ -124,28 +127,28 @@ def _with_noise(rec, noise, rng):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method, scenario", [("physical", "default"), ("direct", "force")])
+@pytest.mark.parametrize('method, scenario', [('physical', 'default'), ('direct', 'force')])
 def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scenario, tmp_path):
     from bearing_id import rig as R
     from bearing_id.nodes.identifier import IdentifierCore
     from bearing_id.params import load_rig
     rig = load_rig()
     truth = _truth(rig)
-    runs = rig.simulation.runs if scenario == "default" else R.scenario(scenario)
+    runs = rig.simulation.runs if scenario == 'default' else R.scenario(scenario)
     clean = [R.simulate_run(rig, run, speeds_rpm=[1200.0, 2400.0], dwell=1.0, ramp=0.5, bearing_fn=truth, noise=0.0)
              for run in runs]
     rng = np.random.default_rng(20261123)
     zs = []
     for seed in range(12):
-        core = IdentifierCore(rig, method, tmp_path / f"rec{seed}")
+        core = IdentifierCore(rig, method, tmp_path / f'rec{seed}')
         for run in runs:
             core.add_excitation(run)
         for rec in clean:
             noisy = _with_noise(rec, 0.01, rng)
             wins = []
             for b in _blocks(noisy):
-                wins += core.feed(b, rec.run, "measured", True, 0.0)
-            wins += core.flush("measured", 1e9, 0.0)
+                wins += core.feed(b, rec.run, 'measured', True, 0.0)
+            wins += core.flush('measured', 1e9, 0.0)
             for w in wins:
                 core.add_window(w)
         results, _ = core.solve()
@@ -154,7 +157,7 @@ def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scen
         zs.append(_z(results, truth))
     z = np.concatenate(zs)
     rms = float(np.sqrt(np.mean(z ** 2)))
-    print(f"{method}: RMS error/sigma {rms:.3f}, max {np.max(np.abs(z)):.2f}, over {z.size} determined coefficient "
-          f"estimates of {12 * 2 * 16} ({len(zs)} seeds)")
+    print(f'{method}: RMS error/sigma {rms:.3f}, max {np.max(np.abs(z)):.2f}, over {z.size} determined coefficient '
+          f'estimates of {12 * 2 * 16} ({len(zs)} seeds)')
     assert z.size >= 0.75 * 12 * 2 * 16
     assert 0.7 <= rms <= 1.4, rms

@@ -1,14 +1,13 @@
 """Live model health from Kalman innovations (kf_estimator's /diagnostics item), against closed forms and the rig."""
-import numpy as np
-import pytest
-
+from bearing_id import rig as rigmod
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.excitation import harmonic_forces
-from bearing_id.kalman import StreamingKF, rotor_kalman_model
+from bearing_id.kalman import rotor_kalman_model, StreamingKF
 from bearing_id.nodes.kf_estimator import HEALTH_COHERENT, innovation_health, innovation_health_terms
 from bearing_id.params import load_rig
-from bearing_id import rig as rigmod
 from bearing_id.rotor.assembly import RotorModel
+import numpy as np
+import pytest
 
 
 def blocks(nu, angle, n=1024):
@@ -21,15 +20,15 @@ def test_shares_match_closed_form():
     angle = 2 * np.pi * 37.3 * np.arange(N) / 10240.0
     white = rng.standard_normal((N, 2)) * sigma
     h = innovation_health(blocks(white, angle))
-    assert h["fraction"][1] < 10 / N and h["fraction"][2] < 10 / N and abs(h["lag1"]) < 0.05
+    assert h['fraction'][1] < 10 / N and h['fraction'][2] < 10 / N and abs(h['lag1']) < 0.05
     nu = white + A * np.cos(angle + 0.3)[:, None]
     h = innovation_health(blocks(nu, angle))
     # power share of a sinusoid of amplitude A in white noise of variance sigma^2
-    assert h["fraction"][1] == pytest.approx(A**2 / 2 / (A**2 / 2 + sigma**2), rel=0.05)
-    assert h["fraction"][2] < 10 / N
+    assert h['fraction'][1] == pytest.approx(A**2 / 2 / (A**2 / 2 + sigma**2), rel=0.05)
+    assert h['fraction'][2] < 10 / N
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def setting():
     rig = load_rig()
     model = RotorModel.from_params(rig)
@@ -38,7 +37,7 @@ def setting():
     return rig, model, run, rec
 
 
-@pytest.mark.parametrize("truth_model,flagged", [(True, False), (False, True)])
+@pytest.mark.parametrize('truth_model,flagged', [(True, False), (False, True)])
 def test_health_flags_a_wrong_model_only(setting, truth_model, flagged):
     rig, model, run, rec = setting
     W = rpm_to_rad_s(1500.0)
@@ -52,4 +51,4 @@ def test_health_flags_a_wrong_model_only(setting, truth_model, flagged):
         _, nu, _ = kf.step_block(rec.samples[i:i + 1024], rec.angle[i:i + 1024], W)
         terms.append(innovation_health_terms(nu, rec.angle[i:i + 1024]))
     h = innovation_health(terms)
-    assert (h["fraction"][1] > HEALTH_COHERENT) == flagged, h
+    assert (h['fraction'][1] > HEALTH_COHERENT) == flagged, h

@@ -4,40 +4,39 @@ from __future__ import annotations
 import json
 import math
 
-import numpy as np
-import pytest
-
-from bearing_id.daq import DaqError, angle_from_keyphasor, read_csv, read_daq, write_csv
+from bearing_id.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
 from bearing_id.nodes.common import ParamSpec, StreamMonitor, validate_values, with_common, yaml_block
 from bearing_id.params import ParamError, Probe, Run
 from bearing_id.record import Record
+import numpy as np
+import pytest
 
 SPECS = [
-    ParamSpec("block_size", 1024, "samples per block", "samples", lo=16, hi=65536),
-    ParamSpec("rate_factor", 1.0, "playback speed relative to real time", "-", lo=0.0, hi=1000.0),
-    ParamSpec("source", "sim", "data source", choices=("sim", "file")),
-    ParamSpec("speeds_rpm", [600.0, 900.0], "speed steps", "rpm", lo=1.0, hi=1e5),
-    ParamSpec("channels", ["p6x", "p6y"], "expected channel names"),
+    ParamSpec('block_size', 1024, 'samples per block', 'samples', lo=16, hi=65536),
+    ParamSpec('rate_factor', 1.0, 'playback speed relative to real time', '-', lo=0.0, hi=1000.0),
+    ParamSpec('source', 'sim', 'data source', choices=('sim', 'file')),
+    ParamSpec('speeds_rpm', [600.0, 900.0], 'speed steps', 'rpm', lo=1.0, hi=1e5),
+    ParamSpec('channels', ['p6x', 'p6y'], 'expected channel names'),
 ]
 
 
 def test_defaults_validate_and_bad_values_name_the_parameter():
     v = validate_values(SPECS, {})
-    assert v["block_size"] == 1024 and v["source"] == "sim"
-    for bad, name in [({"block_size": 8}, "block_size"), ({"rate_factor": -1.0}, "rate_factor"),
-                      ({"rate_factor": float("nan")}, "rate_factor"), ({"source": "tcp"}, "source"),
-                      ({"speeds_rpm": [600.0, 0.0]}, "speeds_rpm[1]"), ({"block_size": 1.5}, "block_size"),
-                      ({"channels": ["p6x", 3]}, "channels[1]"), ({"blocksize": 3}, "blocksize")]:
+    assert v['block_size'] == 1024 and v['source'] == 'sim'
+    for bad, name in [({'block_size': 8}, 'block_size'), ({'rate_factor': -1.0}, 'rate_factor'),
+                      ({'rate_factor': float('nan')}, 'rate_factor'), ({'source': 'tcp'}, 'source'),
+                      ({'speeds_rpm': [600.0, 0.0]}, 'speeds_rpm[1]'), ({'block_size': 1.5}, 'block_size'),
+                      ({'channels': ['p6x', 3]}, 'channels[1]'), ({'blocksize': 3}, 'blocksize')]:
         with pytest.raises(ParamError, match=rf"{name.replace('[', '.').replace(']', '.')}"):
             validate_values(SPECS, bad)
 
 
 def test_yaml_block_round_trips_defaults():
     import yaml
-    text = yaml_block("sensor_driver", SPECS)
-    d = yaml.safe_load(text)["/**"]["ros__parameters"]
+    text = yaml_block('sensor_driver', SPECS)
+    d = yaml.safe_load(text)['/**']['ros__parameters']
     assert d == {s.name: s.default for s in SPECS}
-    assert text.count("#") >= len(SPECS)   # every default commented
+    assert text.count('#') >= len(SPECS)   # every default commented
 
 
 def _block(n=1024, nch=2, amp=1e-5, seed=0):
@@ -45,17 +44,20 @@ def _block(n=1024, nch=2, amp=1e-5, seed=0):
 
 
 def test_stream_monitor_resynchronises_after_restarts_jumps_and_hostile_blocks():
-    """Issue 10: one bad block never blocks the stream for good (a far-future stamp, an absurd sample rate, a
-    sequence reset when the DAQ restarts, a renumbered source)."""
+    """
+    Issue 10: one bad block never blocks the stream for good.
+
+    A far-future stamp, an absurd sample rate, a sequence reset when the DAQ restarts, a renumbered source.
+    """
     fs, n = 10240.0, 1024
-    ch = ["p6x", "p6y"]
-    m = StreamMonitor("/rotor/displacement", expected_channels=ch)
+    ch = ['p6x', 'p6y']
+    m = StreamMonitor('/rotor/displacement', expected_channels=ch)
     for k in range(3):
         assert m.check(k, k * n / fs, fs, ch, _block()).usable
     r = m.check(3, 1e6, fs, ch, _block())                 # stamped a million seconds ahead
-    assert r.usable and not r.contiguous and "time gap" in r.problems[0]
+    assert r.usable and not r.contiguous and 'time gap' in r.problems[0]
     r = m.check(4, 4 * n / fs, fs, ch, _block())          # the next one is on time again: accepted, new segment
-    assert r.usable and not r.contiguous and "stamp went back" in r.problems[0]
+    assert r.usable and not r.contiguous and 'stamp went back' in r.problems[0]
     r = m.check(5, 5 * n / fs, fs, ch, _block())
     assert r.usable and r.contiguous and not r.problems
     r = m.check(6, 6 * n / fs, 1e-300, ch, _block())      # absurd rate: rejected, no state change
@@ -63,73 +65,73 @@ def test_stream_monitor_resynchronises_after_restarts_jumps_and_hostile_blocks()
     r = m.check(6, 6 * n / fs, fs, ch, _block())
     assert r.usable and r.contiguous, r.problems
     r = m.check(0, 100.0, fs, ch, _block())               # the driver restarted: sequence back to 0
-    assert r.usable and not r.contiguous and "restarted" in r.problems[0]
+    assert r.usable and not r.contiguous and 'restarted' in r.problems[0]
     r = m.check(1, 100.0 + n / fs, fs, ch, _block())
     assert r.usable and r.contiguous
     r = m.check(4_000_000_000, 100.0 + 2 * n / fs, fs, ch, _block())   # renumbered: not 4e9 lost blocks
-    assert r.usable and not r.contiguous and "jumped" in r.problems[0]
-    st = m.status("x")
-    assert st.values["source_restarts"] == 1 and st.values["sequence_jumps"] == 1 and st.values["lost_blocks"] == 0
+    assert r.usable and not r.contiguous and 'jumped' in r.problems[0]
+    st = m.status('x')
+    assert st.values['source_restarts'] == 1 and st.values['sequence_jumps'] == 1 and st.values['lost_blocks'] == 0
 
 
 def test_stream_monitor_flags_each_fault_where_it_happens():
     fs, n = 10240.0, 1024
-    m = StreamMonitor("/rotor/displacement", expected_channels=["p6x", "p6y"])
-    ch = ["p6x", "p6y"]
+    m = StreamMonitor('/rotor/displacement', expected_channels=['p6x', 'p6y'])
+    ch = ['p6x', 'p6y']
     r = m.check(0, 0.0, fs, ch, _block(), now=0.0)
     assert r.usable and r.contiguous and not r.problems
     r = m.check(1, n / fs, fs, ch, _block(), now=0.1)
     assert r.usable and r.contiguous
     # gap: seq 2, 3 lost
     r = m.check(4, 4 * n / fs, fs, ch, _block(), now=0.2)
-    assert r.usable and not r.contiguous and "2 block(s) lost" in r.problems[0] and "seq 4" in r.problems[0]
+    assert r.usable and not r.contiguous and '2 block(s) lost' in r.problems[0] and 'seq 4' in r.problems[0]
     # NaN
     bad = _block()
     bad[17, 1] = np.nan
     r = m.check(5, 5 * n / fs, fs, ch, bad, now=0.3)
-    assert not r.usable and "sample 17" in r.problems[0] and "p6y" in r.problems[0]
+    assert not r.usable and 'sample 17' in r.problems[0] and 'p6y' in r.problems[0]
     # stamp goes back one block on a contiguous sequence number: the clock jumped -- a new segment, not a loss
     r = m.check(6, 4 * n / fs, fs, ch, _block(), now=0.4)
-    assert r.usable and not r.contiguous and "stamp went back" in r.problems[0]
+    assert r.usable and not r.contiguous and 'stamp went back' in r.problems[0]
     # repeated sequence
     r = m.check(6, 7 * n / fs, fs, ch, _block(), now=0.5)
-    assert not r.usable and "went back" in r.problems[0]
+    assert not r.usable and 'went back' in r.problems[0]
     # a late block (sequence behind, stamp behind)
     r = m.check(5, 3 * n / fs, fs, ch, _block(), now=0.55)
-    assert not r.usable and "went back" in r.problems[0]
+    assert not r.usable and 'went back' in r.problems[0]
     # wrong channel names
-    r = m.check(7, 7 * n / fs, fs, ["a", "b"], _block(), now=0.6)
-    assert not r.usable and any("wrong channels" in p for p in r.problems)
+    r = m.check(7, 7 * n / fs, fs, ['a', 'b'], _block(), now=0.6)
+    assert not r.usable and any('wrong channels' in p for p in r.problems)
     # micrometres sent as metres
     r = m.check(8, 8 * n / fs, fs, ch, _block() * 1e6, now=0.7)
-    assert not r.usable and any("micrometres" in p for p in r.problems)
-    st = m.status("x", now=0.8)
+    assert not r.usable and any('micrometres' in p for p in r.problems)
+    st = m.status('x', now=0.8)
     assert st.level == 1
-    assert st.values["sequence_gaps"] == 1 and st.values["lost_blocks"] == 2
-    assert st.values["nonfinite_samples"] == 1 and st.values["out_of_order"] == 2 and st.values["stamp_jumps"] == 1
-    assert st.values["wrong_channels"] == 1 and st.values["implausible_amplitude"] == 1
+    assert st.values['sequence_gaps'] == 1 and st.values['lost_blocks'] == 2
+    assert st.values['nonfinite_samples'] == 1 and st.values['out_of_order'] == 2 and st.values['stamp_jumps'] == 1
+    assert st.values['wrong_channels'] == 1 and st.values['implausible_amplitude'] == 1
     # nothing new for a while -> stale
-    assert m.status("x", stale_after=5.0, now=10.0).level == 3
+    assert m.status('x', stale_after=5.0, now=10.0).level == 3
 
 
 def test_record_appends_resumes_and_survives_a_torn_line(tmp_path):
     X = np.array([1e-6 + 2e-6j, -3e-7j])
     with Record(tmp_path) as r:
-        assert r.append("vector", run="A", speed=62.8, X=X, std=np.array([1e-9, np.nan])) == 0
-        assert r.append("result", speed=62.8, K=np.eye(2)) == 1
+        assert r.append('vector', run='A', speed=62.8, X=X, std=np.array([1e-9, np.nan])) == 0
+        assert r.append('result', speed=62.8, K=np.eye(2)) == 1
     # a crash mid-write leaves a torn last line
-    with open(tmp_path / "record.jsonl", "a") as fh:
+    with open(tmp_path / 'record.jsonl', 'a') as fh:
         fh.write('{"n": 2, "type": "vec')
     r2 = Record(tmp_path)
     e = r2.entries()
-    assert r2.torn_lines == 1 and [x["n"] for x in e] == [0, 1]
-    np.testing.assert_array_equal(e[0]["X"], X)
-    assert math.isnan(e[0]["std"][1])
-    assert r2.append("vector", run="B", X=X) == 2          # numbering continues, nothing overwritten
+    assert r2.torn_lines == 1 and [x['n'] for x in e] == [0, 1]
+    np.testing.assert_array_equal(e[0]['X'], X)
+    assert math.isnan(e[0]['std'][1])
+    assert r2.append('vector', run='B', X=X) == 2          # numbering continues, nothing overwritten
     r2.close()
-    lines = (tmp_path / "record.jsonl").read_text().splitlines()
-    assert json.loads(lines[0])["n"] == 0 and json.loads(lines[-1])["run"] == "B"
-    assert [x["type"] for x in Record(tmp_path).entries()] == ["vector", "result", "vector"]
+    lines = (tmp_path / 'record.jsonl').read_text().splitlines()
+    assert json.loads(lines[0])['n'] == 0 and json.loads(lines[-1])['run'] == 'B'
+    assert [x['type'] for x in Record(tmp_path).entries()] == ['vector', 'result', 'vector']
 
 
 def test_keyphasor_angle_matches_the_true_angle_within_one_sample():
@@ -155,62 +157,65 @@ def test_csv_round_trip_with_units_and_bad_headers(tmp_path):
     t = np.arange(n) / fs
     ang = 100.0 * t
     samples = np.column_stack([1e-5 * np.cos(ang), 1e-5 * np.sin(ang)])
-    rec = Recording(fs, t, np.full(n, 100.0), ang, (Probe("p6x", 6, "x"), Probe("p6y", 6, "y")), samples,
-                    Run("A", ()))
-    p = write_csv(rec, tmp_path / "daq.csv", units="um")
+    rec = Recording(fs, t, np.full(n, 100.0), ang, (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y')), samples,
+                    Run('A', ()))
+    p = write_csv(rec, tmp_path / 'daq.csv', units='um')
     back = read_daq(p)
-    assert back.sample_rate == fs and back.channels == ["p6x", "p6y"] and back.probes[0].node == 6
+    assert back.sample_rate == fs and back.channels == ['p6x', 'p6y'] and back.probes[0].node == 6
     np.testing.assert_allclose(back.samples, samples, rtol=1e-10, atol=1e-17)
     np.testing.assert_allclose(back.angle, ang, rtol=1e-10)
-    bad = tmp_path / "bad.csv"
-    bad.write_text("# units: um\n# channels: p6x@6x\nt,angle,p6x\n0,0,1\n")
-    with pytest.raises(DaqError, match="sample_rate"):
+    bad = tmp_path / 'bad.csv'
+    bad.write_text('# units: um\n# channels: p6x@6x\nt,angle,p6x\n0,0,1\n')
+    with pytest.raises(DaqError, match='sample_rate'):
         read_csv(bad)
-    bad.write_text("# sample_rate: 100\n# channels: p6x@6q\nt,angle,p6x\n0,0,1\n")
-    with pytest.raises(DaqError, match="p6x@6q"):
+    bad.write_text('# sample_rate: 100\n# channels: p6x@6q\nt,angle,p6x\n0,0,1\n')
+    with pytest.raises(DaqError, match='p6x@6q'):
         read_csv(bad)
 
 
-@pytest.mark.parametrize("node", ["sensor_driver", "kf_estimator", "identifier"])
+@pytest.mark.parametrize('node', ['sensor_driver', 'kf_estimator', 'identifier'])
 def test_params_yaml_documents_every_parameter_with_its_default(node):
     """params/<node>.yaml holds every declared parameter (set ones equal the default, unset ones commented)."""
     import importlib
 
-    import yaml
     from bearing_id.params import PACKAGE_PARAMS
-    mod = importlib.import_module(f"bearing_id.nodes.{node}")
-    text = (PACKAGE_PARAMS / f"{node}.yaml").read_text()
-    d = yaml.safe_load(text)["/**"]["ros__parameters"]
+    import yaml
+    mod = importlib.import_module(f'bearing_id.nodes.{node}')
+    text = (PACKAGE_PARAMS / f'{node}.yaml').read_text()
+    d = yaml.safe_load(text)['/**']['ros__parameters']
     specs = with_common(mod.SPECS)
     for s in specs:
         if s.default is None:
-            assert f"# {s.name}:" in text and s.name not in d
+            assert f'# {s.name}:' in text and s.name not in d
         else:
             assert d[s.name] == (list(s.default) if isinstance(s.default, tuple) else s.default), s.name
-        assert s.description.split(" (")[0][:40] in text.replace("\n    # ", " "), s.name
+        assert s.description.split(' (')[0][:40] in text.replace('\n    # ', ' '), s.name
     assert set(d) <= {s.name for s in specs}
     validate_values(specs, d)
 
 
 def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path):
-    """The identifier's block-by-block windows + vectors == harmonics.from_bag (what `bearing-id identify` uses), to
-    the bit, on the bag with speed ramps between the dwells (ramp steps inside blocks)."""
+    """
+    The identifier's block-by-block windows + vectors == harmonics.from_bag (what `bearing-id identify` uses).
+
+    To the bit, on the bag with speed ramps between the dwells (ramp steps inside blocks).
+    """
     from bearing_id.identify import harmonics
     from bearing_id.io import bags, messages
     from bearing_id.nodes.identifier import IdentifierCore
-    from bearing_id.params import PACKAGE_PARAMS, load_rig
-    bag = PACKAGE_PARAMS.parent / "bags" / "unbalance_ab_sweep"
+    from bearing_id.params import load_rig, PACKAGE_PARAMS
+    bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
     ref = harmonics.from_bag(bag)
-    core = IdentifierCore(load_rig(), "physical", tmp_path)
+    core = IdentifierCore(load_rig(), 'physical', tmp_path)
     wins = []
-    for topic, _, _, msg in bags.read_bag(bag, ["/rotor/excitation", "/rotor/displacement"]):
-        if topic == "/rotor/excitation":
+    for topic, _, _, msg in bags.read_bag(bag, ['/rotor/excitation', '/rotor/displacement']):
+        if topic == '/rotor/excitation':
             core.add_excitation(messages.excitation_from_msg(msg))
             continue
         b = messages.block_from_msg(msg)
         assert b.has_sample_angles and b.run_id in core.runs
-        wins += core.feed(b, core.runs[b.run_id], "measured", True, 0.0)
-    wins += core.flush("measured", 1e9, 0.0)
+        wins += core.feed(b, core.runs[b.run_id], 'measured', True, 0.0)
+    wins += core.flush('measured', 1e9, 0.0)
     for w in wins:
         core.add_window(w)
     data = core.assemble()
@@ -221,8 +226,12 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path):
 
 
 def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_filter():
-    """submit() returns before the model exists (the build runs in the worker); once built, the queued blocks are
-    filtered in order and equal kalman.fast_filter over the same samples (the batch route)."""
+    """
+    submit() returns before the model exists (the build runs in the worker).
+
+    Once built, the queued blocks are filtered in order and equal kalman.fast_filter over the same samples (the batch
+    route).
+    """
     import time as _time
     from types import SimpleNamespace
 
@@ -237,7 +246,7 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     fs, n = rec.sample_rate, 1024
     w = float(rec.speed[0])
     blocks = [SimpleNamespace(seq=k, stamp=i0 / fs, samples=rec.samples[i0:i0 + n], angles=lambda i0=i0: (
-                              rec.angle[i0:i0 + n]), sample_rate=fs, probes=rec.probes, frame_id="rig")
+                              rec.angle[i0:i0 + n]), sample_rate=fs, probes=rec.probes, frame_id='rig')
               for k, i0 in enumerate(range(0, 4 * n, n))]
     t0 = _time.perf_counter()
     for b in blocks:
@@ -261,8 +270,12 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
 
 
 def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check():
-    """The paper's 4 g x 63 mm unbalance (rig.scenario('paper_table3')) drives orbits past 30 % of the clearance at
-    2400 rpm; rig.check_validity (steady-state response) is the independent reference."""
+    """
+    The paper's 4 g x 63 mm unbalance drives orbits past 30 % of the clearance at 2400 rpm.
+
+    The unbalance: rig.scenario('paper_table3').  rig.check_validity (steady-state response) is the independent
+    reference.
+    """
     import time as _time
     from types import SimpleNamespace
 
@@ -271,21 +284,21 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
     from bearing_id.nodes.kf_estimator import EstimatorCore
     from bearing_id.params import load_rig
     rig = load_rig()
-    run = R.scenario("paper_table3")[0]
+    run = R.scenario('paper_table3')[0]
     ref = R.check_validity(rig, [run], [rpm_to_rad_s(600.0), rpm_to_rad_s(2400.0)])
-    assert {round(i.speed) for i in ref if i.kind == "orbit"} == {round(rpm_to_rad_s(2400.0))}
+    assert {round(i.speed) for i in ref if i.kind == 'orbit'} == {round(rpm_to_rad_s(2400.0))}
     core = EstimatorCore(rig, 1e-16, 1e-7, 0.01)
     for rpm, expect_warn in ((600.0, False), (2400.0, True)):
         rec = R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=0.3, noise=0.0)
         w = float(rec.speed[0])
         core.last_orbit.clear()
         b = SimpleNamespace(seq=0, stamp=0.0, samples=rec.samples[:2048], angles=lambda rec=rec: rec.angle[:2048],
-                            sample_rate=rec.sample_rate, probes=rec.probes, frame_id="rig")
+                            sample_rate=rec.sample_rate, probes=rec.probes, frame_id='rig')
         core.submit(b, run, w, False)
         t_end = _time.monotonic() + 30
         while core.pending and _time.monotonic() < t_end:
             core.drain()
             _time.sleep(0.01)
         st = core.validity_status(w)
-        assert (st.level == 1 and "orbit" in st.message and "clearance" in st.message) == expect_warn, st
+        assert (st.level == 1 and 'orbit' in st.message and 'clearance' in st.message) == expect_warn, st
     core.close()

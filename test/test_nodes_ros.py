@@ -1,42 +1,45 @@
-"""The three nodes as processes: parameter rejection at start-up, the params/*.yaml files, SIGTERM, and the whole
-chain sensor_driver -> kf_estimator -> identifier against the offline route on the same simulated data."""
+"""
+The three nodes as processes.
+
+Parameter rejection at start-up, the params/*.yaml files, SIGTERM, and the whole chain sensor_driver -> kf_estimator ->
+identifier against the offline route on the same simulated data.
+"""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 import pytest
-
 import rosutil
 
 pytestmark = pytest.mark.ros
 REPO = rosutil.REPO
 
 
-@pytest.mark.parametrize("node, param, value", [
-    ("sensor_driver", "block_size", "8"),
-    ("sensor_driver", "source", "tcp"),
-    ("kf_estimator", "measurement_noise", "-1.0"),
-    ("kf_estimator", "speed_band", "0.5"),
-    ("identifier", "method", "magic"),
-    ("identifier", "settle_fraction", "1.5"),
+@pytest.mark.parametrize('node, param, value', [
+    ('sensor_driver', 'block_size', '8'),
+    ('sensor_driver', 'source', 'tcp'),
+    ('kf_estimator', 'measurement_noise', '-1.0'),
+    ('kf_estimator', 'speed_band', '0.5'),
+    ('identifier', 'method', 'magic'),
+    ('identifier', 'settle_fraction', '1.5'),
 ])
 def test_out_of_range_parameter_is_rejected_naming_it(node, param, value):
-    r = rosutil.run([rosutil.script(node), "--ros-args", "-p", f"{param}:={value}"], timeout=60)
+    r = rosutil.run([rosutil.script(node), '--ros-args', '-p', f'{param}:={value}'], timeout=60)
     assert r.returncode == 2, r.stdout + r.stderr
-    assert f"parameter '{param}'" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert f"parameter '{param}'" in r.stderr and 'Traceback' not in r.stderr, r.stderr
 
 
 def test_wrong_parameter_type_is_rejected_naming_it():
-    r = rosutil.run([rosutil.script("kf_estimator"), "--ros-args", "-p", "process_noise:=abc"], timeout=60)
-    assert r.returncode == 2 and "parameter 'process_noise'" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    r = rosutil.run([rosutil.script('kf_estimator'), '--ros-args', '-p', 'process_noise:=abc'], timeout=60)
+    assert r.returncode == 2 and "parameter 'process_noise'" in r.stderr and 'Traceback' not in r.stderr, r.stderr
 
 
-@pytest.mark.parametrize("node", ["sensor_driver", "kf_estimator", "identifier"])
+@pytest.mark.parametrize('node', ['sensor_driver', 'kf_estimator', 'identifier'])
 def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
-    cmd = [rosutil.script(node), "--ros-args", "--params-file", str(REPO / "params" / f"{node}.yaml")]
-    if node == "identifier":
-        cmd += ["-p", f"record_dir:={tmp_path / 'rec'}"]
+    cmd = [rosutil.script(node), '--ros-args', '--params-file', str(REPO / 'params' / f'{node}.yaml')]
+    if node == 'identifier':
+        cmd += ['-p', f"record_dir:={tmp_path / 'rec'}"]
     with rosutil.RosProcess(cmd, hard_timeout=60) as p:
         time.sleep(3.0)
         assert p.alive(), p.output()
@@ -46,36 +49,36 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
         os.kill(p.pid, signal.SIGTERM)
         rc = p.wait(5.0)
         assert rc == 0 and time.monotonic() - t < 5.0, p.output()
-        assert "SIGTERM: shutting down" in p.stderr + p.stdout and "Traceback" not in p.stderr, p.output()
-    if node == "identifier":
+        assert 'SIGTERM: shutting down' in p.stderr + p.stdout and 'Traceback' not in p.stderr, p.output()
+    if node == 'identifier':
         from bearing_id.record import Record
-        assert [e["type"] for e in Record(tmp_path / "rec", fsync=False).entries()] == ["session"]
+        assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['session']
 
 
 @pytest.mark.slow
 def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
-    """sim -> three processes -> coefficients; the same simulation offline gives the same numbers (1e-6)."""
+    """Simulate -> three processes -> coefficients; the same simulation offline gives the same numbers (1e-6)."""
     env = rosutil.ros_env()
     speeds = [1200.0, 2400.0]
-    rec_dir = tmp_path / "rec"
+    rec_dir = tmp_path / 'rec'
     procs = []
     try:
-        procs.append(rosutil.RosProcess([rosutil.script("identifier"), "--ros-args", "-p", "method:=physical",
-                                         "-p", f"record_dir:={rec_dir}", "-p", "runs:=[A,B]"], env=env,
+        procs.append(rosutil.RosProcess([rosutil.script('identifier'), '--ros-args', '-p', 'method:=physical',
+                                         '-p', f'record_dir:={rec_dir}', '-p', 'runs:=[A,B]'], env=env,
                                         hard_timeout=120))
-        procs.append(rosutil.RosProcess([rosutil.script("kf_estimator"), "--ros-args", "-p",
-                                         "prebuild_speeds_rpm:=[1200.0,2400.0]"], env=env, hard_timeout=120))
-        drv = rosutil.RosProcess([rosutil.script("sensor_driver"), "--ros-args", "-p", "speeds_rpm:=[1200.0,2400.0]",
-                                  "-p", "dwell:=1.5", "-p", "rate_factor:=4.0", "-p", "wait_for_subscribers:=2",
-                                  "-p", "exit_when_done:=true"], env=env, hard_timeout=120)
+        procs.append(rosutil.RosProcess([rosutil.script('kf_estimator'), '--ros-args', '-p',
+                                         'prebuild_speeds_rpm:=[1200.0,2400.0]'], env=env, hard_timeout=120))
+        drv = rosutil.RosProcess([rosutil.script('sensor_driver'), '--ros-args', '-p', 'speeds_rpm:=[1200.0,2400.0]',
+                                  '-p', 'dwell:=1.5', '-p', 'rate_factor:=4.0', '-p', 'wait_for_subscribers:=2',
+                                  '-p', 'exit_when_done:=true'], env=env, hard_timeout=120)
         procs.append(drv)
         assert drv.wait(90) == 0, drv.output()
         from bearing_id.record import Record
         t_end = time.monotonic() + 30
         res = []
         while time.monotonic() < t_end:
-            res = [e["result"] for e in Record(rec_dir, fsync=False).entries("result")]
-            if len({round(r["speed_rad_s"], 6) for r in res}) == 2:
+            res = [e['result'] for e in Record(rec_dir, fsync=False).entries('result')]
+            if len({round(r['speed_rad_s'], 6) for r in res}) == 2:
                 break
             time.sleep(0.25)
         for p in procs[:2]:
@@ -91,11 +94,11 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
     from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     recs = [R.simulate_run(rig, r, speeds_rpm=speeds, dwell=1.5) for r in rig.simulation.runs]
-    ref = identify("physical", RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
-    last = {round(r["speed_rad_s"], 6): r for r in res}
+    ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
+    last = {round(r['speed_rad_s'], 6): r for r in res}
     assert sorted(last) == sorted(round(r.speed, 6) for r in ref)
     for r in ref:
         d = last[round(r.speed, 6)]
-        for i, b in enumerate(d["bearings"]):
-            np.testing.assert_allclose(np.array(b["K"], float), r.K[i], rtol=1e-6)
-            np.testing.assert_allclose(np.array(b["C"], float), r.C[i], rtol=1e-6)
+        for i, b in enumerate(d['bearings']):
+            np.testing.assert_allclose(np.array(b['K'], float), r.K[i], rtol=1e-6)
+            np.testing.assert_allclose(np.array(b['C'], float), r.C[i], rtol=1e-6)

@@ -1,4 +1,5 @@
-"""The simulated rig: exact steady state and transients, noise level, validity flags, file round trip.
+"""
+The simulated rig: exact steady state and transients, noise level, validity flags, file round trip.
 
 References: the FE model's frequency response (rotor.assembly.harmonic_response) for the steady state, an
 independent adaptive ODE integration (scipy solve_ivp, rtol 1e-10) of M q'' + C q' + K q = f(t) across a speed
@@ -6,16 +7,15 @@ step for the transient, and a plain least-squares sine fit written here.
 """
 import math
 
+from bearing_id import rig as rigmod
+from bearing_id.conventions import dof_index, rpm_to_rad_s
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from bearing_id import rig as rigmod
-from bearing_id.conventions import dof_index, rpm_to_rad_s
-
-pytest.importorskip("bearing_id.rotor.assembly")
-pytest.importorskip("bearing_id.bearings")
-from bearing_id.rotor.assembly import harmonic_response  # noqa: E402
+pytest.importorskip('bearing_id.rotor.assembly')
+pytest.importorskip('bearing_id.bearings')
+from bearing_id.rotor.assembly import harmonic_response  # noqa: E402, I100  (after the importorskip guards)
 
 
 def lsq_phasor(y, phi):
@@ -64,7 +64,7 @@ def test_transient_after_speed_step_matches_ode_integration(rig, model):
         return np.concatenate([x[n:], Minv @ (f - C2 @ x[n:] - K2 @ x[:n])])
 
     tt = np.arange(rec.segments[1][1] - n1) / rec.sample_rate
-    sol = solve_ivp(rhs, (0, tt[-1]), x0, t_eval=tt, rtol=1e-10, atol=1e-16, method="DOP853")
+    sol = solve_ivp(rhs, (0, tt[-1]), x0, t_eval=tt, rtol=1e-10, atol=1e-16, method='DOP853')
     sel = [dof_index(p.node, p.direction, model.n_nodes) for p in rec.probes]
     ref = sol.y[sel].T
     got = rec.samples[n1:]
@@ -97,25 +97,25 @@ def test_noise_level_is_the_stated_fraction_of_rms(rig):
 def test_default_scenario_is_physically_consistent_and_paper_scenario_is_flagged(rig, model):
     speeds = [rpm_to_rad_s(s) for s in rig.simulation.speeds_rpm]
     assert rigmod.check_validity(rig, rig.simulation.runs, speeds, model=model) == []
-    issues = rigmod.check_validity(rig, rigmod.scenario("paper_table3"), speeds, model=model)
-    assert any(i.kind == "orbit" for i in issues)
+    issues = rigmod.check_validity(rig, rigmod.scenario('paper_table3'), speeds, model=model)
+    assert any(i.kind == 'orbit' for i in issues)
     flagged = sorted({i.speed for i in issues})
     assert rpm_to_rad_s(1800.0) in flagged
     issues = rigmod.check_validity(rig, rig.simulation.runs, speeds, model=model, threshold=speeds[3])
-    assert {i.speed for i in issues if i.kind == "stability"} == set(speeds[3:])
+    assert {i.speed for i in issues if i.kind == 'stability'} == set(speeds[3:])
 
 
 def test_npz_round_trip(rig, tmp_path):
     rec = rigmod.simulate_run(rig, rig.simulation.runs[1], speeds_rpm=[900.0, 1200.0], dwell=0.05)
-    back = rigmod.load_npz(rec.save_npz(tmp_path / "r.npz"))
+    back = rigmod.load_npz(rec.save_npz(tmp_path / 'r.npz'))
     assert np.array_equal(back.samples, rec.samples) and np.array_equal(back.angle, rec.angle)
     assert back.probes == rec.probes and back.run == rec.run and back.segments == rec.segments
-    for s, c in rec.truth["coefficients"].items():
+    for s, c in rec.truth['coefficients'].items():
         for node, (K, C) in c.items():
-            assert np.array_equal(back.truth["coefficients"][s][node][0], K)
-    (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04 truncated")
-    with pytest.raises(ValueError, match="bad.npz"):
-        rigmod.load_npz(tmp_path / "bad.npz")
+            assert np.array_equal(back.truth['coefficients'][s][node][0], K)
+    (tmp_path / 'bad.npz').write_bytes(b'PK\x03\x04 truncated')
+    with pytest.raises(ValueError, match='bad.npz'):
+        rigmod.load_npz(tmp_path / 'bad.npz')
 
 
 def test_truth_differs_from_theory_by_about_a_quarter(rig):

@@ -1,4 +1,5 @@
-"""FE rotor model against closed forms and against other computation routes.
+"""
+FE rotor model against closed forms and against other computation routes.
 
 References (independent of bearing_id.rotor):
 * pinned-pinned Timoshenko beam: the exact frequency equation of the Timoshenko equations for sin/cos modes
@@ -11,14 +12,13 @@ References (independent of bearing_id.rotor):
 """
 import math
 
-import numpy as np
-import pytest
-
 from bearing_id.conventions import dof_index, rpm_to_rad_s, unbalance_phasors
-from bearing_id.rotor.assembly import (RotorModel, dynamic_stiffness, harmonic_response, probe_matrix,
-                                       state_space, static_bearing_loads)
+from bearing_id.rotor.assembly import (dynamic_stiffness, harmonic_response, probe_matrix, RotorModel, state_space,
+                                       static_bearing_loads)
 from bearing_id.rotor.elements import DiscElement, ShaftElement, shear_coefficient
 from bearing_id.rotor.modal import campbell, critical_speeds, damped_modes, free_free_frequencies
+import numpy as np
+import pytest
 
 E, NU, RHO = 2.1e11, 0.3, 7850.0
 GMOD = E / (2 * (1 + NU))
@@ -59,7 +59,7 @@ def timoshenko_pinned_exact(length, d, mode, kappa):
 def test_shear_coefficients_solid_section():
     # Hutchinson (2001) solid circle 6(1+nu)^2/(7+12nu+4nu^2); Cowper (1966) 6(1+nu)/(7+6nu)
     assert shear_coefficient(1.0, 0.0, 0.3) == pytest.approx(6 * 1.3**2 / (7 + 3.6 + 0.36), rel=1e-14)
-    assert shear_coefficient(1.0, 0.0, 0.3, "cowper") == pytest.approx(6 * 1.3 / (7 + 1.8), rel=1e-14)
+    assert shear_coefficient(1.0, 0.0, 0.3, 'cowper') == pytest.approx(6 * 1.3 / (7 + 1.8), rel=1e-14)
 
 
 def test_element_matrix_properties():
@@ -121,9 +121,12 @@ def test_pinned_pinned_timoshenko_closed_form():
 
 
 def test_mesh_convergence_pinned_pinned():
-    """Monotone convergence from above.  Once elements are shorter than the diameter (phi >> 1) the
-    interdependent-interpolation element converges as h^2 (error / 4 per halving); with slender elements and
-    no shear (Rayleigh beam) as h^4."""
+    """
+    Monotone convergence from above.
+
+    Once elements are shorter than the diameter (phi >> 1) the interdependent-interpolation element converges as h^2
+    (error / 4 per halving); with slender elements and no shear (Rayleigh beam) as h^4.
+    """
     L, d = 0.5, 0.05
     kappa = shear_coefficient(d, 0.0, NU)
     exact = timoshenko_pinned_exact(L, d, 3, kappa)
@@ -161,7 +164,7 @@ def test_rig_model_shape_and_mass(rig, model):
 
 def test_static_bearing_loads_lever_rule(rig):
     # move a disc off centre so the two reactions differ; centre of gravity from the geometry here
-    discs = (rig.discs[0], rig.discs[1].__class__(**{**rig.discs[1].__dict__, "node": 9}))
+    discs = (rig.discs[0], rig.discs[1].__class__(**{**rig.discs[1].__dict__, 'node': 9}))
     r2 = rig.replace(discs=discs)
     m = RotorModel.from_params(r2)
     loads = static_bearing_loads(m)
@@ -187,8 +190,8 @@ def test_harmonic_response_equals_state_space_route(model):
     W = rpm_to_rad_s(2000.0)
     A, B = state_space(model, W, ANISO)
     F = np.zeros((model.ndof, 2), complex)
-    F[dof_index(4, "x"), 0] = 1.0
-    F[dof_index(8, "y"), 1] = 1.0 - 0.5j
+    F[dof_index(4, 'x'), 0] = 1.0
+    F[dof_index(8, 'y'), 1] = 1.0 - 0.5j
     for w in (W, 0.43 * W, 2 * W):   # synchronous and not
         q = harmonic_response(model, W, w, F, ANISO)
         x = np.linalg.solve(1j * w * np.eye(2 * model.ndof) - A, B @ F)
@@ -203,7 +206,7 @@ def test_damped_modes_are_eigenpairs_and_gyroscopic_sign(model):
     M, K = model.M, model.K.copy()
     C = model.C + W * model.G
     for node, (k, c) in ANISO.items():
-        i = dof_index(node, "x")
+        i = dof_index(node, 'x')
         K[i:i + 2, i:i + 2] += k
         C[i:i + 2, i:i + 2] += c
     for lam, v in zip(m.eigenvalues, m.shapes.T):
@@ -215,9 +218,8 @@ def test_damped_modes_are_eigenpairs_and_gyroscopic_sign(model):
     lo = damped_modes(model, 10.0, ISO, 6)
     hi = damped_modes(model, rpm_to_rad_s(6000.0), ISO, 6)
     for k in range(0, 6, 2):
-        fw_lo = [f for f, w in zip(lo.frequency[k:k + 2], lo.whirl[k:k + 2]) if w == "forward"]
-        fw_hi = [f for f, w in zip(hi.frequency[k:k + 2], hi.whirl[k:k + 2]) if w == "forward"]
-        bw_hi = [f for f, w in zip(hi.frequency[k:k + 2], hi.whirl[k:k + 2]) if w == "backward"]
+        fw_hi = [f for f, w in zip(hi.frequency[k:k + 2], hi.whirl[k:k + 2]) if w == 'forward']
+        bw_hi = [f for f, w in zip(hi.frequency[k:k + 2], hi.whirl[k:k + 2]) if w == 'backward']
         assert len(fw_hi) == 1 and len(bw_hi) == 1
         assert fw_hi[0] > bw_hi[0]
         assert fw_hi[0] > max(lo.frequency[k:k + 2]) * (1 + 1e-6) or k == 0 and fw_hi[0] > min(lo.frequency[k:k + 2])
@@ -234,30 +236,30 @@ def test_critical_speed_matches_unbalance_peak(model):
     for W in speeds:
         F = np.zeros(model.ndof, complex)
         fx, fy = unbalance_phasors(1e-5, 0.0, W)
-        F[dof_index(8, "x")], F[dof_index(8, "y")] = fx, fy
+        F[dof_index(8, 'x')], F[dof_index(8, 'y')] = fx, fy
         q = harmonic_response(model, W, W, F, co)
-        amp.append(abs(q[dof_index(6, "x")]))
+        amp.append(abs(q[dof_index(6, 'x')]))
     peak = speeds[int(np.argmax(amp))]
     assert peak == pytest.approx(c1, rel=2e-3)
     # the crossing really is on the 1X line: forward frequency there equals the speed
     m = damped_modes(model, c1, co, 4)
-    fw = [f for f, w in zip(m.frequency, m.whirl) if w == "forward"]
+    fw = [f for f, w in zip(m.frequency, m.whirl) if w == 'forward']
     assert min(abs(np.array(fw) - c1)) < 1e-6 * c1
 
 
 def test_campbell_shapes(model):
     cb = campbell(model, np.array([100.0, 300.0]), lambda s: ANISO, 4)
     assert cb.frequency.shape == (2, 4) and cb.whirl.shape == (2, 4)
-    assert set(cb.whirl.ravel()) <= {"forward", "backward"}
+    assert set(cb.whirl.ravel()) <= {'forward', 'backward'}
 
 
 def test_probe_matrix_and_dynamic_stiffness(rig, model):
     S = probe_matrix(model, rig.probes)
     assert S.shape == (2, 44)
-    assert S[0, dof_index(6, "x")] == 1 and S[1, dof_index(6, "y")] == 1 and S.sum() == 2
+    assert S[0, dof_index(6, 'x')] == 1 and S[1, dof_index(6, 'y')] == 1 and S.sum() == 2
     W = 300.0
     Z = dynamic_stiffness(model, W, W, ANISO)
-    i = dof_index(2, "x")
+    i = dof_index(2, 'x')
     ref = model.K[i, i + 1] + ANISO[2][0][0, 1] - W**2 * model.M[i, i + 1] + 1j * W * (
         model.C[i, i + 1] + ANISO[2][1][0, 1] + W * model.G[i, i + 1])
     assert Z[i, i + 1] == pytest.approx(ref, rel=1e-14)

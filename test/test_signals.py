@@ -1,4 +1,5 @@
-"""Harmonic vectors, steady windows, slow roll and sub-synchronous components on synthetic signals with known truth.
+"""
+Harmonic vectors, steady windows, slow roll and sub-synchronous components on synthetic signals with known truth.
 
 References: signals built here with conventions.phasor_to_time (the phasor rule), the theoretical least-squares
 variance sigma^2 (D^T D)^-1 checked against the empirical scatter over repeated noise draws, and closed-form
@@ -6,18 +7,17 @@ whirl orbits (x = a cos, y = +-a sin).
 """
 import math
 
-import numpy as np
-import pytest
-
 from bearing_id.conventions import phasor_to_time
 from bearing_id.signals import (harmonic_vectors, slow_roll_compensate, slow_roll_vector, steady_windows,
                                 subsynchronous, whole_revolutions)
+import numpy as np
+import pytest
 
 FS = 10240.0
 
 
 def _signal(angle, phasors, offset):
-    """offset + sum_k Re{X_k exp(j k angle)} per channel; phasors {k: (nch,) complex}."""
+    """Return offset + sum_k Re{X_k exp(j k angle)} per channel; phasors {k: (nch,) complex}."""
     x = np.zeros((angle.size, len(offset))) + np.asarray(offset)
     for k, Xk in phasors.items():
         for c, X in enumerate(Xk):
@@ -55,7 +55,7 @@ def test_whole_revolution_trim():
     # the kept samples cover n_rev turns to within one sample
     covered = angle[i1 - 1] - angle[0] + W / FS
     assert abs(covered - 2 * math.pi * n_rev) <= W / FS
-    with pytest.raises(ValueError, match="revolution"):
+    with pytest.raises(ValueError, match='revolution'):
         harmonic_vectors(np.zeros((100, 1)), angle[:100])
 
 
@@ -105,14 +105,14 @@ def test_nonfinite_refused_or_dropped():
     x = _signal(angle, {1: np.array([1e-5, 2e-5j])}, offset=[0.0, 0.0])
     x[100, 0] = np.nan
     x[200, 1] = np.inf
-    with pytest.raises(ValueError, match="2 non-finite"):
+    with pytest.raises(ValueError, match='2 non-finite'):
         harmonic_vectors(x, angle)
-    fit = harmonic_vectors(x, angle, nonfinite="drop")
+    fit = harmonic_vectors(x, angle, nonfinite='drop')
     assert fit.n_dropped == 2
     np.testing.assert_allclose(fit.X[0], [1e-5, 2e-5j], atol=1e-15)
     bad_angle = angle.copy()
     bad_angle[5] = np.nan
-    with pytest.raises(ValueError, match="angle"):
+    with pytest.raises(ValueError, match='angle'):
         harmonic_vectors(np.nan_to_num(x), bad_angle)
 
 
@@ -169,11 +169,11 @@ def test_slow_roll_estimate_and_compensation():
     W = 1500 * 2 * math.pi / 60
     # vector subtraction removes the runout; what is left is the dynamic part minus its small slow-roll share
     np.testing.assert_allclose(comp[0, 0], dyn_per_w2 * (W**2 - W_sr**2), rtol=1e-9)
-    with pytest.raises(ValueError, match="no steady window"):
+    with pytest.raises(ValueError, match='no steady window'):
         slow_roll_vector(x, angle, t, speed, max_speed=10.0)
 
 
-@pytest.mark.parametrize("sense", ["forward", "backward"])
+@pytest.mark.parametrize('sense', ['forward', 'backward'])
 def test_subsynchronous_whirl(sense):
     rng = np.random.default_rng(3)
     W = 2 * math.pi * 40.0
@@ -182,7 +182,7 @@ def test_subsynchronous_whirl(sense):
     ratio = 0.437
     f = ratio * W / (2 * math.pi)
     a = 4e-6
-    sgn = 1.0 if sense == "forward" else -1.0
+    sgn = 1.0 if sense == 'forward' else -1.0
     x = np.column_stack([phasor_to_time(2e-5, angle) + a * np.cos(2 * math.pi * f * t + 0.3),
                          phasor_to_time(-2e-5j, angle) + sgn * a * np.sin(2 * math.pi * f * t + 0.3)])
     x += 2e-7 * rng.standard_normal(x.shape)
@@ -217,8 +217,12 @@ def _ringing(seed, modes):
 
 
 def test_transient_fit_recovers_1x_beside_a_ringing_mode_with_honest_std():
-    """A lightly damped mode 2 Hz below running speed (and a second one beside it, and one at 103 Hz) biases the
-    plain fit by many sigma; the transient-aware fit recovers 1X with normalised errors ~ N(0, 1)."""
+    """
+    A lightly damped mode 2 Hz below running speed biases the plain fit; the transient-aware fit recovers 1X.
+
+    The mode (and a second one beside it, and one at 103 Hz) biases the plain fit by many sigma; the transient-aware fit
+    recovers 1X with normalised errors ~ N(0, 1).
+    """
     modes = [(33.0, 1.0, [1.5e-5, 1.5e-5j]), (32.6, 3.0, [8e-6, -8e-6j]), (103.0, 5.0, [3e-6, 2e-6])]
     z_tr, z_plain = [], []
     for seed in range(24):
@@ -269,5 +273,5 @@ def test_steady_subsynchronous_component_is_not_taken_as_a_transient():
 
 def test_transient_fit_needs_a_time_base():
     x, angle = _ringing(0, [])
-    with pytest.raises(ValueError, match="sample_rate"):
+    with pytest.raises(ValueError, match='sample_rate'):
         harmonic_vectors(x, angle, transients=1)

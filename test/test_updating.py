@@ -1,18 +1,18 @@
-"""Model updating (Nelder-Mead on mass / stiffness factors) recovers known errors from free-free frequencies.
+"""
+Model updating (Nelder-Mead on mass / stiffness factors) recovers known errors from free-free frequencies.
 
 The "measured" frequencies come from a rotor built with known factors (the truth is set here, not by the code
 under test); the paper's own Table 2 values are run and reported as they come out.
 """
 import dataclasses
 
+from bearing_id.params import load_rig
+from bearing_id.updating import apply_factors, free_free_hz, update_model
 import numpy as np
 import pytest
 
-from bearing_id.params import load_rig
-from bearing_id.updating import apply_factors, free_free_hz, update_model
 
-
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def rig():
     return load_rig()
 
@@ -20,7 +20,7 @@ def rig():
 def test_recovers_one_disc_mass_error_on_asymmetric_rig(rig):
     # move the first disc to node 3 so that the two discs are distinguishable by the modes
     r = rig.replace(discs=(dataclasses.replace(rig.discs[0], node=3), rig.discs[1]))
-    truth = {"disc@3": 1.0, "disc@8": 1.15, "shaft": 0.95}
+    truth = {'disc@3': 1.0, 'disc@8': 1.15, 'shaft': 0.95}
     measured = free_free_hz(r, 4, truth)
     res = update_model(r, measured)
     for k, v in truth.items():
@@ -31,42 +31,49 @@ def test_recovers_one_disc_mass_error_on_asymmetric_rig(rig):
 
 
 def test_symmetric_paper_rig_one_disc_error_up_to_mirror(rig):
-    """+15 % on one disc of the paper rig: recovered within 1 %, up to the mirror image (discs at nodes 4 and 8 of
-    11 are symmetric, so 'disc 4 heavy' and 'disc 8 heavy' give identical free-free frequencies)."""
-    truth = {"disc@4": 1.0, "disc@8": 1.15, "shaft": 1.0}
+    """
+    +15 % on one disc of the paper rig: recovered within 1 %, up to the mirror image.
+
+    Discs at nodes 4 and 8 of 11 are symmetric, so 'disc 4 heavy' and 'disc 8 heavy' give identical free-free
+    frequencies.
+    """
+    truth = {'disc@4': 1.0, 'disc@8': 1.15, 'shaft': 1.0}
     measured = free_free_hz(rig, 4, truth)
-    mirror = free_free_hz(rig, 4, {"disc@4": 1.15, "disc@8": 1.0, "shaft": 1.0})
+    mirror = free_free_hz(rig, 4, {'disc@4': 1.15, 'disc@8': 1.0, 'shaft': 1.0})
     assert np.allclose(mirror, measured, rtol=1e-12)
     res = update_model(rig, measured)
     assert np.allclose(res.updated_hz, measured, rtol=1e-5), res.table()
-    got = sorted([res.factors["disc@4"], res.factors["disc@8"]])
+    got = sorted([res.factors['disc@4'], res.factors['disc@8']])
     assert got == pytest.approx([1.0, 1.15], rel=0.01), res.table()
-    assert res.factors["shaft"] == pytest.approx(1.0, rel=0.01)
+    assert res.factors['shaft'] == pytest.approx(1.0, rel=0.01)
 
 
 def test_stiffness_factor(rig):
-    truth = {"discs": 1.1, "stiffness": 0.92}
+    truth = {'discs': 1.1, 'stiffness': 0.92}
     measured = free_free_hz(rig, 4, truth)
-    res = update_model(rig, measured, parameters=("discs",), stiffness=True)
+    res = update_model(rig, measured, parameters=('discs',), stiffness=True)
     for k, v in truth.items():
         assert res.factors[k] == pytest.approx(v, rel=0.01), res.table()
-    assert res.rig.shaft.youngs_modulus == pytest.approx(rig.shaft.youngs_modulus * res.factors["stiffness"])
+    assert res.rig.shaft.youngs_modulus == pytest.approx(rig.shaft.youngs_modulus * res.factors['stiffness'])
 
 
 def test_mass_and_stiffness_scale_is_flagged_singular(rig):
     """Scaling every mass and E alike leaves all frequencies unchanged: the condition number must say so."""
-    measured = free_free_hz(rig, 4, {"discs": 1.05})
-    res = update_model(rig, measured, parameters=("discs", "shaft"), stiffness=True, maxiter=300)
+    measured = free_free_hz(rig, 4, {'discs': 1.05})
+    res = update_model(rig, measured, parameters=('discs', 'shaft'), stiffness=True, maxiter=300)
     assert res.condition > 1e5
-    f = free_free_hz(apply_factors(rig, {"discs": 1.3, "shaft": 1.3, "stiffness": 1.3}), 4)
+    f = free_free_hz(apply_factors(rig, {'discs': 1.3, 'shaft': 1.3, 'stiffness': 1.3}), 4)
     assert np.allclose(f, free_free_hz(rig, 4), rtol=1e-12)
 
 
 def test_paper_table2_run_as_is(rig):
-    """The paper's measured 62.86 / 110.20 / 279.14 / 361.27 Hz: the table is produced and updating moves every
-    frequency toward the measurement; how close it gets is reported, not asserted (Table 1 geometry gives
-    ~73 / 140 / 352 / 599 Hz, far from the paper's initial 69.26 / 129.75 / 287.31 / 378.53 Hz)."""
+    """
+    The paper's measured 62.86 / 110.20 / 279.14 / 361.27 Hz: the table is produced and updating moves toward them.
+
+    Updating moves every frequency toward the measurement; how close it gets is reported, not asserted (Table 1 geometry
+    gives ~73 / 140 / 352 / 599 Hz, far from the paper's initial 69.26 / 129.75 / 287.31 / 378.53 Hz).
+    """
     res = update_model(rig, rig.modal_test.measured_hz, maxiter=1500)
-    print("\n" + res.table())
+    print('\n' + res.table())
     assert np.all(np.abs(res.updated_hz / res.measured_hz - 1) < np.abs(res.initial_hz / res.measured_hz - 1))
-    assert "Initial model (Hz)" in res.table()
+    assert 'Initial model (Hz)' in res.table()

@@ -1,4 +1,5 @@
-"""Finite-length plain journal bearing: Reynolds equation by finite volumes, Reynolds cavitation, perturbation K, C.
+"""
+Finite-length plain journal bearing: Reynolds equation by finite volumes, Reynolds cavitation, perturbation K, C.
 
 Equation (incompressible, isoviscous, aligned journal), dimensionless with H = h/c, P = p c^2/(mu speed R^2),
 zeta = z/R, tau = speed t, theta measured from +x towards +y (the spin direction)::
@@ -25,9 +26,9 @@ Equilibrium: Newton on the journal position with the perturbation Jacobian until
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
+import math
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,12 +43,14 @@ MAX_ECC = 0.995
 
 @dataclass(frozen=True)
 class FilmState:
-    """Solution of the film at one journal position/velocity (dimensionless).
+    """
+    Solution of the film at one journal position/velocity (dimensionless).
 
     P : (n_theta, n_z) pressure over the half bearing.   force : (2,) dimensionless film force on the journal,
     f = -2 sum P (cos, sin) dtheta dzeta over the full length (multiply by mu speed R^4 / c^2 for newtons).
     free : boolean (n_theta*n_z,) full-film cells.   dforce : (2, 4) d force / d(X, Y, X', Y') (perturbation).
     """
+
     P: np.ndarray
     force: np.ndarray
     free: np.ndarray
@@ -55,7 +58,8 @@ class FilmState:
 
 
 class ReynoldsGrid:
-    """Grid, geometry and operators of the Reynolds equation for one L/D, grid size and groove layout.
+    """
+    Grid, geometry and operators of the Reynolds equation for one L/D, grid size and groove layout.
 
     ``grooves``: sequence of (centre, width) [rad] of axial grooves at ambient pressure, centre measured from the
     load line in the spin direction (the literature convention; the load is along -y here).
@@ -63,7 +67,7 @@ class ReynoldsGrid:
 
     def __init__(self, L_over_D: float, n_theta: int = DEFAULT_N_THETA, n_z: int = DEFAULT_N_Z, grooves=()):
         if n_theta < 16 or n_z < 2:
-            raise ValueError(f"grid too coarse: n_theta={n_theta} (>= 16), n_z={n_z} (>= 2)")
+            raise ValueError(f'grid too coarse: n_theta={n_theta} (>= 16), n_z={n_z} (>= 2)')
         self.n, self.m = int(n_theta), int(n_z)
         self.L_over_D = float(L_over_D)
         self.dth = 2 * math.pi / self.n
@@ -83,7 +87,7 @@ class ReynoldsGrid:
         Tz[0, 0] = -1.0
         Tz[self.m - 1, self.m - 1] = -3.0
         self.Tz = sp.csr_matrix(Tz) / self.dz**2
-        self.Im = sp.identity(self.m, format="csr")
+        self.Im = sp.identity(self.m, format='csr')
         n = self.n
         self._Sp = sp.csr_matrix((np.ones(n), (np.arange(n), (np.arange(n) + 1) % n)), shape=(n, n))  # i -> i+1
         self.w_force = 2 * self.dth * self.dz    # both halves
@@ -95,7 +99,6 @@ class ReynoldsGrid:
 
     def operator(self, a_half: np.ndarray, a_cell: np.ndarray) -> sp.csr_matrix:
         """Discrete div(a grad .) with circumferential face coefficients ``a_half`` (i+1/2) and axial ``a_cell``."""
-        n = self.n
         ap = a_half                               # face i+1/2
         am = np.roll(a_half, 1)                   # face i-1/2
         Dth = (sp.diags(-(ap + am)) + sp.diags(ap) @ self._Sp + sp.diags(am) @ self._Sp.T) / self.dth**2
@@ -116,7 +119,7 @@ class ReynoldsGrid:
               max_iter: int = 200) -> FilmState:
         """Pressure with Reynolds cavitation at position (X, Y) and velocity (Xd, Yd) = d(X, Y)/d tau."""
         if math.hypot(X, Y) >= 1.0:
-            raise ValueError(f"journal position eps = {math.hypot(X, Y):.4f} is outside the clearance circle")
+            raise ValueError(f'journal position eps = {math.hypot(X, Y):.4f} is outside the clearance circle')
         H, Hh = self.film(X, Y)
         Hdot = -(Xd * self.cos + Yd * self.sin)
         A = self.operator(Hh**3, H**3)
@@ -138,7 +141,7 @@ class ReynoldsGrid:
                 break
             active = new_active
         else:  # pragma: no cover - the active-set iteration is finite for M-matrices
-            raise RuntimeError("Reynolds cavitation (active-set) iteration did not converge")
+            raise RuntimeError('Reynolds cavitation (active-set) iteration did not converge')
         free = ~active
         P[active] = 0.0
         force = self.force_of(P)
@@ -148,7 +151,11 @@ class ReynoldsGrid:
         return FilmState(P=P.reshape(self.n, self.m), force=force, free=free, dforce=dforce)
 
     def _perturbation(self, Lop, free, P, H, Hh) -> np.ndarray:
-        """d force / d(X, Y, X', Y') from the linearised (perturbation) Reynolds equations on the full-film cells."""
+        """
+        Return d force / d(X, Y, X', Y') from the linearised (perturbation) Reynolds equations.
+
+        The equations are those of the full-film cells.
+        """
         cols = []
         for dh_cell, dh_half in ((-self.cos, -self.cos_h), (-self.sin, -self.sin_h)):
             dA = self.operator(3 * Hh**2 * dh_half, 3 * H**2 * dh_cell)
@@ -165,12 +172,13 @@ class ReynoldsGrid:
 
 @lru_cache(maxsize=32)
 def grid_for(L_over_D: float, n_theta: int, n_z: int, grooves: tuple = ()) -> ReynoldsGrid:
-    """Cached :class:`ReynoldsGrid` (grids are reused across speeds and loads)."""
+    """Return the cached :class:`ReynoldsGrid` (grids are reused across speeds and loads)."""
     return ReynoldsGrid(L_over_D, n_theta, n_z, grooves)
 
 
 def equilibrium(grid: ReynoldsGrid, load_param: float, start=None, tol: float = 1e-10, max_iter: int = 60):
-    """Journal position (X, Y) where the dimensionless film force equals (0, load_param); returns (X, Y, state, err).
+    """
+    Journal position (X, Y) where the dimensionless film force equals (0, load_param); returns (X, Y, state, err).
 
     ``load_param`` = W c^2 / (mu speed R^4).  Newton with the perturbation Jacobian, step-halving to stay inside
     the clearance and to decrease the residual.  ``err`` = |F - W| / W at the returned position.
@@ -198,16 +206,17 @@ def equilibrium(grid: ReynoldsGrid, load_param: float, start=None, tol: float = 
                     break
             lam *= 0.5
             if lam < 1e-9:
-                raise RuntimeError("finite-bearing equilibrium: no descent step inside the clearance")
+                raise RuntimeError('finite-bearing equilibrium: no descent step inside the clearance')
         z, st, r, err = zn, stn, rn, errn
     if err > tol:
-        raise RuntimeError(f"finite-bearing equilibrium did not converge: relative force error {err:.2e} > {tol:.0e}")
+        raise RuntimeError(f'finite-bearing equilibrium did not converge: relative force error {err:.2e} > {tol:.0e}')
     return z[0], z[1], st, err
 
 
 def reynolds(D: float, L: float, c: float, mu: float, W: float, speed: float, n_theta: int = DEFAULT_N_THETA,
              n_z: int = DEFAULT_N_Z, *, grooves=(), start=None, tol: float = 1e-10) -> BearingSolution:
-    """Finite-length bearing equilibrium and perturbation K [N/m], C [N s/m] in our (x, y) frame.
+    """
+    Finite-length bearing equilibrium and perturbation K [N/m], C [N s/m] in our (x, y) frame.
 
     D, L, c [m]; mu [Pa s]; W [N] static load on the journal along -y; speed [rad/s] > 0.  ``grooves``: axial
     grooves at ambient pressure as (centre, width) [rad] from the load line in the spin direction (default: a plain
@@ -232,7 +241,7 @@ def reynolds(D: float, L: float, c: float, mu: float, W: float, speed: float, n_
     eps = math.hypot(X, Y)
     phi = math.atan2(X, -Y)                           # from the load line (-y) towards +x (spin direction)
     return BearingSolution(eccentricity=eps, attitude_angle=phi, sommerfeld=S, K=K, C=C,
-                           journal_position=(X * c, Y * c), model="finite", force_error=float(err))
+                           journal_position=(X * c, Y * c), model='finite', force_error=float(err))
 
 
 def film_force(D, L, c, mu, speed, x, y, vx=0.0, vy=0.0, n_theta=DEFAULT_N_THETA, n_z=DEFAULT_N_Z, grooves=()):
@@ -243,5 +252,5 @@ def film_force(D, L, c, mu, speed, x, y, vx=0.0, vy=0.0, n_theta=DEFAULT_N_THETA
     return st.force * mu * speed * R**4 / c**2
 
 
-__all__ = ["reynolds", "film_force", "equilibrium", "ReynoldsGrid", "FilmState", "grid_for",
-           "DEFAULT_N_THETA", "DEFAULT_N_Z"]
+__all__ = ['reynolds', 'film_force', 'equilibrium', 'ReynoldsGrid', 'FilmState', 'grid_for',
+           'DEFAULT_N_THETA', 'DEFAULT_N_Z']

@@ -1,4 +1,5 @@
-"""Finite-length plain journal bearing from a precomputed dimensionless table (what bearing codes do).
+"""
+Finite-length plain journal bearing from a precomputed dimensionless table (what bearing codes do).
 
 Why a table.  The direct finite-volume solution (:func:`bearing_id.bearings.finite.reynolds`) costs 0.1-0.4 s per
 bearing and speed, so a physical fit over 6 speeds with finite-difference Jacobians took 5-10 minutes.  And its
@@ -42,9 +43,9 @@ here); any other L/D is built on first use (161 solutions on the default grid, a
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import threading
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -59,16 +60,22 @@ TOL_ECC = 0.002                 # eccentricity, table vs direct solver (either g
 
 
 def stated_tolerance(S: float, table_grid: bool = True) -> float:
-    """Stated bound (the module docstring's table, rounded up) on max |K or C difference| / largest |entry| between
-    the table and the direct solver at Sommerfeld number ``S``, on the table's grid or (False) the default grid."""
+    """
+    Return the stated bound on max |K or C difference| / largest |entry| between the table and the direct solver.
+
+    At Sommerfeld number ``S``, on the table's grid or (``table_grid`` False) the default grid; the bound is the module
+    docstring's table, rounded up.
+    """
     if S < 0.02:
         return 0.035 if table_grid else 0.10
     if S < 0.05:
         return 0.015 if table_grid else 0.04
     return 0.005 if table_grid else 0.015
+
+
 LD_MATCH = 1e-9                 # relative L/D agreement to use a shipped table
 
-_COLS = ("eps", "phi", "kxx", "kxy", "kyx", "kyy", "bxx", "bxy", "byx", "byy")
+_COLS = ('eps', 'phi', 'kxx', 'kxy', 'kyx', 'kyy', 'bxx', 'bxy', 'byx', 'byy')
 
 
 def _norm(S):
@@ -77,13 +84,15 @@ def _norm(S):
 
 @dataclass(frozen=True)
 class FiniteTable:
-    """Dimensionless finite-bearing solution vs Sommerfeld number for one L/D (plain 360-degree bearing).
+    """
+    Dimensionless finite-bearing solution vs Sommerfeld number for one L/D (plain 360-degree bearing).
 
     knots (n + 4,), coef (n, 10): cubic B-spline in ln S of (eps, phi, k (4), b (4)) with k, b divided by
     sqrt(1 + S); columns ``_COLS``; grid = (n_theta, n_z) of the direct solutions it was fitted to;
     fit_rms (10,): RMS of the least-squares residual (the averaged jumps) per column, k, b relative to the
     largest entry.
     """
+
     L_over_D: float
     knots: np.ndarray
     coef: np.ndarray
@@ -93,12 +102,12 @@ class FiniteTable:
     fit_rms: np.ndarray
 
     def _splines(self):
-        sp = getattr(self, "_sp", None)
+        sp = getattr(self, '_sp', None)
         if sp is None:
             from scipy.interpolate import BSpline
             b = BSpline(np.asarray(self.knots, float), np.asarray(self.coef, float), 3, extrapolate=False)
             sp = (b, b.derivative())
-            object.__setattr__(self, "_sp", sp)
+            object.__setattr__(self, '_sp', sp)
         return sp
 
     def in_range(self, S: float) -> bool:
@@ -107,7 +116,7 @@ class FiniteTable:
     def evaluate(self, S: float, derivative: bool = False):
         """(eps, phi, k (2,2), b (2,2)) at Sommerfeld number ``S``; with ``derivative`` also their d / d ln S."""
         if not self.in_range(S):
-            raise ValueError(f"Sommerfeld number {S:.4g} outside the table [{self.s_min:g}, {self.s_max:g}]")
+            raise ValueError(f'Sommerfeld number {S:.4g} outside the table [{self.s_min:g}, {self.s_max:g}]')
         b, db = self._splines()
         x = math.log(S)
         v = b(x)
@@ -122,7 +131,8 @@ class FiniteTable:
 
 
 def sample(L_over_D: float, n_theta: int, n_z: int, s_values) -> np.ndarray:
-    """Direct solutions (len(s_values), 10) = (eps, phi, k (4), b (4)) at Sommerfeld numbers ``s_values``.
+    """
+    Direct solutions (len(s_values), 10) = (eps, phi, k (4), b (4)) at Sommerfeld numbers ``s_values``.
 
     Dimensionless set-up D = c = mu = speed = 1 (so k = K / W, b = C / W), continuation from the largest S down
     (each start = the previous equilibrium), equilibrium to |F - W| / W <= 1e-12.
@@ -180,8 +190,12 @@ def _shipped() -> dict:
 
 
 def table_for(L_over_D: float, *, build: bool = True) -> FiniteTable | None:
-    """The table for ``L_over_D``: a shipped one when L/D matches (relative 1e-9), else built on first use with the
-    default grid (cached for the process), or None when ``build`` is False."""
+    """
+    Return the table for ``L_over_D``.
+
+    A shipped one when L/D matches (relative 1e-9), else built on first use with the default grid (cached for the
+    process), or None when ``build`` is False.
+    """
     LD = float(L_over_D)
     with _LOCK:
         for key, tab in _TABLES.items():
@@ -189,8 +203,8 @@ def table_for(L_over_D: float, *, build: bool = True) -> FiniteTable | None:
                 return tab
         for key, d in _shipped().items():
             if abs(float(key) - LD) <= LD_MATCH * LD:
-                tab = FiniteTable(float(key), np.asarray(d["knots"]), np.asarray(d["coef"]), d["s_min"],
-                                  d["s_max"], tuple(d["grid"]), np.asarray(d["fit_rms"]))
+                tab = FiniteTable(float(key), np.asarray(d['knots']), np.asarray(d['coef']), d['s_min'],
+                                  d['s_max'], tuple(d['grid']), np.asarray(d['fit_rms']))
                 _TABLES[float(key)] = tab
                 return tab
         if not build:
@@ -202,7 +216,8 @@ def table_for(L_over_D: float, *, build: bool = True) -> FiniteTable | None:
 
 
 def solution(D: float, L: float, c: float, mu: float, W: float, speed: float) -> BearingSolution:
-    """Finite-length bearing equilibrium and K [N/m], C [N s/m] in our (x, y) frame from the table.
+    """
+    Finite-length bearing equilibrium and K [N/m], C [N s/m] in our (x, y) frame from the table.
 
     Same arguments and result as :func:`bearing_id.bearings.finite.reynolds` (plain 360-degree bearing, default
     grid otherwise).  ``force_error`` is NaN for a table value (no equilibrium was solved here); outside the
@@ -216,55 +231,72 @@ def solution(D: float, L: float, c: float, mu: float, W: float, speed: float) ->
         return reynolds(D, L, c, mu, W, speed)
     eps, phi, k, b = tab.evaluate(S)
     return BearingSolution(eccentricity=eps, attitude_angle=phi, sommerfeld=S, K=k * (W / c),
-                           C=b * (W / (c * speed)), journal_position=journal_position(eps, phi, c), model="finite",
+                           C=b * (W / (c * speed)), journal_position=journal_position(eps, phi, c), model='finite',
                            force_error=math.nan)
+
+
+def _wrapped_list(prefix: str, values, suffix: str, width: int = 120) -> list[str]:
+    """Format ``prefix[v0, v1, ...]suffix`` over lines of at most ``width`` columns (continuation under the '[')."""
+    items = [repr(float(v)) for v in values]
+    lines, cur, ind = [], prefix + '[', ' ' * (len(prefix) + 1)
+    for i, item in enumerate(items):
+        tok = item + (',' if i < len(items) - 1 else ']' + suffix)
+        if cur.strip() and not cur.endswith('[') and len(cur) + 1 + len(tok) > width:
+            lines.append(cur)
+            cur = ind + tok
+        else:
+            cur += ('' if cur.endswith('[') else ' ') + tok
+    if not items:
+        cur += ']' + suffix
+    lines.append(cur)
+    return lines
 
 
 def write_module(tables, path=None) -> str:
     """Write ``tables`` (list of FiniteTable) as the Python module :mod:`._finite_tables`; returns the path."""
     from pathlib import Path
-    path = Path(path) if path is not None else Path(__file__).with_name("_finite_tables.py")
-    lines = ['"""Generated by ``python -m bearing_id.bearings.finite_table --write``: dimensionless finite-bearing',
-             'tables (see :mod:`bearing_id.bearings.finite_table`).  Do not edit."""', "", "TABLES = {"]
+    path = Path(path) if path is not None else Path(__file__).with_name('_finite_tables.py')
+    lines = ['"""', 'Dimensionless finite-bearing tables (see :mod:`bearing_id.bearings.finite_table`).', '',
+             'Generated by ``python -m bearing_id.bearings.finite_table --write``.  Do not edit.', '"""', '',
+             'TABLES = {']
     for t in tables:
-        lines.append(f"    {t.L_over_D!r}: {{")
+        lines.append(f'    {t.L_over_D!r}: {{')
         lines.append(f"        'grid': {tuple(t.grid)!r}, 's_min': {t.s_min!r}, 's_max': {t.s_max!r},")
-        lines.append(f"        'fit_rms': {[float(v) for v in t.fit_rms]!r},")
-        lines.append(f"        'knots': {[float(v) for v in t.knots]!r},")
+        lines.extend(_wrapped_list("        'fit_rms': ", t.fit_rms, ','))
+        lines.extend(_wrapped_list("        'knots': ", t.knots, ','))
         lines.append("        'coef': [")
         for row in np.asarray(t.coef):
-            lines.append(f"            {[float(v) for v in row]!r},")
-        lines.append("        ],")
-        lines.append("    },")
-    lines.append("}")
-    path.write_text("\n".join(lines) + "\n")
+            lines.extend(_wrapped_list('            ', row, ','))
+        lines.append('        ],')
+        lines.append('    },')
+    lines.append('}')
+    path.write_text('\n'.join(lines) + '\n')
     return str(path)
 
 
 def main(argv=None) -> int:
     import argparse
     import time
-    ap = argparse.ArgumentParser(description="build the shipped finite-bearing tables")
-    ap.add_argument("--LD", type=float, nargs="+", default=[1.0, 0.5])
-    ap.add_argument("--samples", type=int, default=N_SAMPLES)
-    ap.add_argument("--write", action="store_true", help="write bearing_id/bearings/_finite_tables.py")
-    ap.add_argument("--out", help="write the module here instead")
+    ap = argparse.ArgumentParser(description='build the shipped finite-bearing tables')
+    ap.add_argument('--LD', type=float, nargs='+', default=[1.0, 0.5])
+    ap.add_argument('--samples', type=int, default=N_SAMPLES)
+    ap.add_argument('--write', action='store_true', help='write bearing_id/bearings/_finite_tables.py')
+    ap.add_argument('--out', help='write the module here instead')
     args = ap.parse_args(argv)
     tabs = []
     for LD in args.LD:
         t0 = time.perf_counter()
         tabs.append(build_table(LD, n_samples=args.samples))
-        print(f"L/D {LD:g}: {args.samples} direct solutions on {TABLE_GRID} in {time.perf_counter() - t0:.0f} s; "
-              f"fit residual RMS (jumps averaged) {np.array2string(tabs[-1].fit_rms, precision=2)}", flush=True)
+        print(f'L/D {LD:g}: {args.samples} direct solutions on {TABLE_GRID} in {time.perf_counter() - t0:.0f} s; '
+              f'fit residual RMS (jumps averaged) {np.array2string(tabs[-1].fit_rms, precision=2)}', flush=True)
     if args.write or args.out:
         print(write_module(tabs, args.out))
     return 0
 
-__all__ = ["FiniteTable", "table_for", "solution", "build_table", "fit_table", "sample", "TABLE_GRID", "S_MIN",
-           "S_MAX", "TOL_ECC", "stated_tolerance"]
+
+__all__ = ['FiniteTable', 'table_for', 'solution', 'build_table', 'fit_table', 'sample', 'TABLE_GRID', 'S_MIN',
+           'S_MAX', 'TOL_ECC', 'stated_tolerance']
 
 
-if __name__ == "__main__":  # pragma: no cover
+if __name__ == '__main__':  # pragma: no cover
     raise SystemExit(main())
-
-

@@ -1,4 +1,5 @@
-"""Closed-form short-bearing (Ocvirk) solution of a plain cylindrical journal bearing.
+"""
+Closed-form short-bearing (Ocvirk) solution of a plain cylindrical journal bearing.
 
 Physics (Ocvirk & DuBois 1953; coefficients as in Lund 1987, Childs 1993 section 3, Friswell et al. 2010 section 5.5):
 the circumferential pressure flow is neglected against the axial one, so Reynolds' equation integrates in z,
@@ -18,8 +19,8 @@ f = -K q - C q'.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.optimize import brentq
@@ -29,31 +30,33 @@ from ..conventions import lit_to_xy
 
 @dataclass(frozen=True)
 class BearingSolution:
-    """Static equilibrium and linearised coefficients of one journal bearing at one speed.
+    """
+    Static equilibrium and linearised coefficients of one journal bearing at one speed.
 
     eccentricity : eps = e/c [-].   attitude_angle : phi [rad], journal position measured from the load line in the
     spin direction.   sommerfeld : S = mu N L D / W (R/c)^2 [-].   K (2,2) [N/m], C (2,2) [N s/m] in our (x, y) frame.
     journal_position : (x, y) [m] of the journal centre relative to the bearing centre (load along -y -> y < 0).
     model : 'short' | 'finite'.   force_error : |F_film - F_required| / W at the equilibrium found (0 = closed form).
     """
+
     eccentricity: float
     attitude_angle: float
     sommerfeld: float
     K: np.ndarray
     C: np.ndarray
     journal_position: tuple
-    model: str = "short"
+    model: str = 'short'
     force_error: float = 0.0
 
 
 def check_inputs(D, L, c, mu, W, speed) -> None:
     """Raise ValueError with a clear message for non-physical bearing inputs."""
-    for name, v in (("diameter D", D), ("length L", L), ("radial clearance c", c), ("viscosity mu", mu),
-                    ("static load W", W)):
+    for name, v in (('diameter D', D), ('length L', L), ('radial clearance c', c), ('viscosity mu', mu),
+                    ('static load W', W)):
         if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"bearing {name} must be a positive finite number (SI), got {v!r}")
+            raise ValueError(f'bearing {name} must be a positive finite number (SI), got {v!r}')
     if not (np.isfinite(speed) and speed > 0):
-        raise ValueError(f"journal bearing speed must be > 0 rad/s (no hydrodynamic film at zero speed), got {speed!r}")
+        raise ValueError(f'journal bearing speed must be > 0 rad/s (no hydrodynamic film at zero speed), got {speed!r}')
 
 
 def sommerfeld_number(D, L, c, mu, W, speed) -> float:
@@ -62,7 +65,7 @@ def sommerfeld_number(D, L, c, mu, W, speed) -> float:
 
 
 def short_load_parameter(eps):
-    """pi S (L/D)^2 of the short bearing as a function of eps (decreasing from inf at 0 to 0 at 1)."""
+    """Return pi S (L/D)^2 of the short bearing as a function of eps (decreasing from inf at 0 to 0 at 1)."""
     eps = np.asarray(eps, dtype=float)
     return (1 - eps**2) ** 2 / (eps * np.sqrt(16 * eps**2 + math.pi**2 * (1 - eps**2)))
 
@@ -71,7 +74,7 @@ def short_eccentricity(sommerfeld: float, L_over_D: float) -> float:
     """Eccentricity ratio of the short bearing from its Sommerfeld number (brentq on the load equation)."""
     sigma = math.pi * sommerfeld * L_over_D**2
     if not (np.isfinite(sigma) and sigma > 0):
-        raise ValueError(f"Sommerfeld number must be positive and finite, got {sommerfeld!r}")
+        raise ValueError(f'Sommerfeld number must be positive and finite, got {sommerfeld!r}')
 
     def g(e):  # sigma * eps * sqrt(...) - (1 - eps^2)^2 : -1 at 0, 4 sigma at 1, monotone increasing
         return sigma * e * math.sqrt(16 * e * e + math.pi**2 * (1 - e * e)) - (1 - e * e) ** 2
@@ -85,7 +88,8 @@ def short_attitude_angle(eps: float) -> float:
 
 
 def short_coefficients_lit(eps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Dimensionless (k = K c / W, b = C c speed / W) short-bearing coefficients in the literature frame.
+    """
+    Dimensionless (k = K c / W, b = C c speed / W) short-bearing coefficients in the literature frame.
 
     Closed forms of the linearised Ocvirk pi-film forces (Lund 1987; Childs 1993 ch. 3; Friswell et al. 2010
     eq. 5.80, which states the same numbers directly in a horizontal/vertical frame equal to our (x, y): its
@@ -114,7 +118,8 @@ def journal_position(eps: float, phi: float, c: float) -> tuple[float, float]:
 
 
 def ocvirk(D: float, L: float, c: float, mu: float, W: float, speed: float) -> BearingSolution:
-    """Short-bearing equilibrium and K [N/m], C [N s/m] (our frame) of a plain journal bearing.
+    """
+    Short-bearing equilibrium and K [N/m], C [N s/m] (our frame) of a plain journal bearing.
 
     D, L, c [m]; mu [Pa s]; W [N] static load (acting on the journal along -y); speed [rad/s] > 0.
     """
@@ -126,11 +131,12 @@ def ocvirk(D: float, L: float, c: float, mu: float, W: float, speed: float) -> B
     K = lit_to_xy(k * W / c)
     C = lit_to_xy(b * W / (c * speed))
     return BearingSolution(eccentricity=eps, attitude_angle=phi, sommerfeld=S, K=K, C=C,
-                           journal_position=journal_position(eps, phi, c), model="short", force_error=0.0)
+                           journal_position=journal_position(eps, phi, c), model='short', force_error=0.0)
 
 
 def short_film_force(x, y, vx, vy, D, L, c, mu, speed, n=4000):
-    """Film force (Fx, Fy) [N] on the journal at position (x, y) [m] and velocity (vx, vy) [m/s], pi film.
+    """
+    Film force (Fx, Fy) [N] on the journal at position (x, y) [m] and velocity (vx, vy) [m/s], pi film.
 
     Direct quadrature of the short-bearing pressure (midpoint rule with ``n`` points): an independent route to
     the closed forms above (used by the tests).  h = c - x cos t - y sin t, t from +x towards +y (the spin
@@ -146,5 +152,5 @@ def short_film_force(x, y, vx, vy, D, L, c, mu, speed, n=4000):
     return -w * np.sum(pbar * ct), -w * np.sum(pbar * st)
 
 
-__all__ = ["BearingSolution", "ocvirk", "sommerfeld_number", "short_eccentricity", "short_attitude_angle",
-           "short_load_parameter", "short_coefficients_lit", "short_film_force", "journal_position", "check_inputs"]
+__all__ = ['BearingSolution', 'ocvirk', 'sommerfeld_number', 'short_eccentricity', 'short_attitude_angle',
+           'short_load_parameter', 'short_coefficients_lit', 'short_film_force', 'journal_position', 'check_inputs']

@@ -1,4 +1,5 @@
-"""``bearing-id identify``: bearing coefficients per speed from recordings (.npz per run, or a bag), offline.
+"""
+``bearing-id identify``: bearing coefficients per speed from recordings (.npz per run, or a bag), offline.
 
 Exit codes: 0 every printed coefficient is determined by the data (or --allow-undetermined was given);
 1 some coefficient is not determined by the data (they are named, never printed as numbers); 2 bad input.
@@ -8,49 +9,52 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
+import sys
 
 import numpy as np
 
-from ..params import ParamError, load_rig
+from ..params import load_rig, ParamError
 
-UNITS = {"K": "N/m", "C": "N s/m"}
+UNITS = {'K': 'N/m', 'C': 'N s/m'}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("identify", help="identify the bearing stiffness and damping coefficients per speed",
-                       description="Identify K [N/m] and C [N s/m] of each bearing per steady speed from .npz "
-                                   "recordings (one file per excitation run) or a bag. Coefficients the data do "
-                                   "not determine are named and the command exits 1 unless --allow-undetermined.")
-    p.add_argument("inputs", nargs="+", help=".npz or .csv recordings (one per run) or one bag directory")
-    p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--method", default="paper", choices=("paper", "conventional", "direct", "physical"))
-    p.add_argument("--json", help="write the results to this JSON file")
-    p.add_argument("--plot", help="write the coefficients-vs-speed plot (PNG); with --method paper also "
-                                  "<name>_bearing_vectors.png: KF bearing-node amplitude/phase vs speed (and the "
-                                  "truth when the recordings carry it)")
-    p.add_argument("--report", metavar="DIR", help="also write DIR/report.html: one self-contained page with the "
-                                                   "Campbell diagram, mode shapes, Bode / polar / orbit / spectrum "
-                                                   "plots, the coefficients vs speed and these tables")
-    p.add_argument("--allow-undetermined", action="store_true",
+    p = sub.add_parser('identify', help='identify the bearing stiffness and damping coefficients per speed',
+                       description='Identify K [N/m] and C [N s/m] of each bearing per steady speed from .npz '
+                                   'recordings (one file per excitation run) or a bag. Coefficients the data do '
+                                   'not determine are named and the command exits 1 unless --allow-undetermined.')
+    p.add_argument('inputs', nargs='+', help='.npz or .csv recordings (one per run) or one bag directory')
+    p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
+    p.add_argument('--method', default='paper', choices=('paper', 'conventional', 'direct', 'physical'))
+    p.add_argument('--json', help='write the results to this JSON file')
+    p.add_argument('--plot', help='write the coefficients-vs-speed plot (PNG); with --method paper also '
+                                  '<name>_bearing_vectors.png: KF bearing-node amplitude/phase vs speed (and the '
+                                  'truth when the recordings carry it)')
+    p.add_argument('--report', metavar='DIR', help='also write DIR/report.html: one self-contained page with the '
+                                                   'Campbell diagram, mode shapes, Bode / polar / orbit / spectrum '
+                                                   'plots, the coefficients vs speed and these tables')
+    p.add_argument('--allow-undetermined', action='store_true',
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
-    p.add_argument("--Q", type=float, default=None, help="paper method: KF process noise (default 1e-16)")
-    p.add_argument("--bearing-model", choices=("short", "finite"), default=None,
+    p.add_argument('--Q', type=float, default=None, help='paper method: KF process noise (default 1e-16)')
+    p.add_argument('--bearing-model', choices=('short', 'finite'), default=None,
                    help="physical method: the estimator's bearing model, short (Ocvirk, default) or finite "
-                        "(finite-length Reynolds; slower)")
+                        '(finite-length Reynolds; slower)')
     return p
 
 
 def load_data(inputs, rig=None):
-    """HarmonicData from .npz / .csv recordings (one per run) or one bag; ParamError (exit 2) for any bad input.
-    With ``rig``, a recording without excitation (a CSV export) takes that of the params' run of the same id."""
+    """
+    Load HarmonicData from .npz / .csv recordings (one per run) or one bag; ParamError (exit 2) for any bad input.
+
+    With ``rig``, a recording without excitation (a CSV export) takes that of the params' run of the same id.
+    """
     from .inputs import attach_excitation, load_recordings
     recs = load_recordings(inputs, one_bag_only=True)
     if rig is not None:
         recs = attach_excitation(recs, rig, required=True)
-    from ..identify import harmonics
     from .inputs import InputError
+    from ..identify import harmonics
     try:
         return harmonics.from_recordings(recs)
     except ValueError as exc:
@@ -58,57 +62,57 @@ def load_data(inputs, rig=None):
 
 
 def _fmt(v):
-    return "nan" if not math.isfinite(v) else f"{v:.4g}"
+    return 'nan' if not math.isfinite(v) else f'{v:.4g}'
 
 
 def format_results(results, allow_undetermined: bool) -> str:
     """Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged."""
     lines = []
     for r in results:
-        lines.append(f"speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  "
-                     f"condition {_fmt(r.condition)}  residual {_fmt(r.residual)}")
+        lines.append(f'speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  '
+                     f'condition {_fmt(r.condition)}  residual {_fmt(r.residual)}')
         lines.append(f"  {'bearing':10s} {'coeff':5s} {'value':>12s} {'1-sigma':>12s}  unit")
         for b, name in enumerate(r.bearings):
-            for sym in ("K", "C"):
-                val, std, det = getattr(r, sym), getattr(r, sym + "_std"), getattr(r, sym + "_determined")
-                for k, lab in enumerate(("xx", "xy", "yx", "yy")):
+            for sym in ('K', 'C'):
+                val, std, det = getattr(r, sym), getattr(r, sym + '_std'), getattr(r, sym + '_determined')
+                for k, lab in enumerate(('xx', 'xy', 'yx', 'yy')):
                     i, j = divmod(k, 2)
                     if det[b, i, j]:
-                        lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} "
-                                     f"{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}")
+                        lines.append(f'  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} '
+                                     f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}')
                     elif allow_undetermined:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
-                                     f"{UNITS[sym]} (prior)")
+                                     f'{UNITS[sym]} (prior)')
                     else:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
         for n in r.notes:
-            lines.append(f"  note: {n}")
-    return "\n".join(lines)
+            lines.append(f'  note: {n}')
+    return '\n'.join(lines)
 
 
 def _add_honesty(d: dict, r) -> None:
     """Per-bearing theory sensitivity / interpolation bias (2x2 per K and C) and the theory fraction, into ``d``."""
     nb = len(r.nodes)
-    for key, name in (("theory_sensitivity", "theory_sensitivity"), ("interpolation_bias", "interpolation_bias")):
+    for key, name in (('theory_sensitivity', 'theory_sensitivity'), ('interpolation_bias', 'interpolation_bias')):
         v = r.extra.get(key)
         if v is None:
             continue
         v = np.asarray(v, dtype=float)
-        for i, b in enumerate(d["bearings"]):
-            b[name] = {"K": v[4 * i:4 * i + 4].reshape(2, 2).tolist(),
-                       "C": v[4 * nb + 4 * i:4 * nb + 4 * i + 4].reshape(2, 2).tolist()}
-    if "theory_fraction" in r.extra:
-        d["theory_fraction"] = float(r.extra["theory_fraction"])
+        for i, b in enumerate(d['bearings']):
+            b[name] = {'K': v[4 * i:4 * i + 4].reshape(2, 2).tolist(),
+                       'C': v[4 * nb + 4 * i:4 * nb + 4 * i + 4].reshape(2, 2).tolist()}
+    if 'theory_fraction' in r.extra:
+        d['theory_fraction'] = float(r.extra['theory_fraction'])
 
 
 def bearing_vectors_plot(model, data, results, plot_path):
-    """The paper's Figs 5-6: KF bearing-node 1X vectors per run vs speed, with the truth's when known -> PNG path."""
+    """Plot the paper's Figs 5-6: KF bearing-node 1X vectors per run vs speed, the truth's when known -> PNG path."""
+    from ..identify.paper import bearing_dofs, forces_at
     from ..plots import plot_bearing_vectors
     from ..rotor.assembly import harmonic_response
-    from ..identify.paper import bearing_dofs, forces_at
-    if not results or any("z_B" not in r.extra for r in results):
+    if not results or any('z_B' not in r.extra for r in results):
         return None
-    est = np.stack([np.asarray(r.extra["z_B"]) for r in results], axis=1)          # (nr, ns, nb, 2)
+    est = np.stack([np.asarray(r.extra['z_B']) for r in results], axis=1)          # (nr, ns, nb, 2)
     true = None
     if all(data.truth_at(r.speed) is not None for r in results):
         true = np.zeros_like(est)
@@ -117,10 +121,10 @@ def bearing_vectors_plot(model, data, results, plot_path):
             for k, F in enumerate(forces_at(model, data.runs, r.speed)):
                 true[k, s] = harmonic_response(model, r.speed, r.speed, F, data.truth_at(r.speed))[b].reshape(-1, 2)
     p = Path(plot_path)
-    out = p.with_name(p.stem + "_bearing_vectors" + (p.suffix or ".png"))
+    out = p.with_name(p.stem + '_bearing_vectors' + (p.suffix or '.png'))
     return plot_bearing_vectors([r.speed for r in results], est, out, true=true, nodes=tuple(results[0].nodes),
-                                labels=("KF estimate", "true"), run_labels=[str(run.id) for run in data.runs],
-                                title="bearing-node 1X displacement: Kalman filter (theory model) vs true")
+                                labels=('KF estimate', 'true'), run_labels=[str(run.id) for run in data.runs],
+                                title='bearing-node 1X displacement: Kalman filter (theory model) vs true')
 
 
 def run(args) -> int:
@@ -133,18 +137,18 @@ def run(args) -> int:
     check_probe_nodes(data.recordings, model.n_nodes)
     opts = {}
     if args.Q is not None:
-        if args.method != "paper":
-            raise ParamError("--Q applies to --method paper only")
-        opts["Q"] = args.Q
+        if args.method != 'paper':
+            raise ParamError('--Q applies to --method paper only')
+        opts['Q'] = args.Q
     if args.bearing_model is not None:
-        if args.method != "physical":
-            raise ParamError("--bearing-model applies to --method physical only")
-        opts["bearing_model"] = args.bearing_model
+        if args.method != 'physical':
+            raise ParamError('--bearing-model applies to --method physical only')
+        opts['bearing_model'] = args.bearing_model
     try:
         results = identify(args.method, model, rig, data, options=opts or None)
     except ValueError as exc:   # the data cannot feed this method (e.g. conventional without two probes per bearing)
-        raise ParamError(f"--method {args.method}: {exc}") from exc
-    print("units: speed rpm, K N/m, C N s/m")
+        raise ParamError(f'--method {args.method}: {exc}') from exc
+    print('units: speed rpm, K N/m, C N s/m')
     print(format_results(results, args.allow_undetermined))
     undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined]
     if args.json:
@@ -152,36 +156,36 @@ def run(args) -> int:
         for r in results:
             d = r.to_dict()
             if not args.allow_undetermined:  # never publish undetermined values as plain numbers
-                for b in d["bearings"]:
-                    for sym in ("K", "C"):
+                for b in d['bearings']:
+                    for sym in ('K', 'C'):
                         b[sym] = [[v if ok else None for v, ok in zip(row, okr)]
-                                  for row, okr in zip(b[sym], b["determined"][sym])]
+                                  for row, okr in zip(b[sym], b['determined'][sym])]
             _add_honesty(d, r)
             out.append(d)
-        Path(args.json).write_text(json.dumps({"method": args.method, "results": out}, indent=1))
+        Path(args.json).write_text(json.dumps({'method': args.method, 'results': out}, indent=1))
     if args.plot:
-        from ..plots import plot_coefficients
         from ..bearings import bearing_fn
+        from ..plots import plot_coefficients
         plot_coefficients(results, args.plot, truth_fn=data.truth or None, theory_fn=bearing_fn(rig),
-                          title=f"method {args.method}")
-        if args.method == "paper":
+                          title=f'method {args.method}')
+        if args.method == 'paper':
             p = bearing_vectors_plot(model, data, results, args.plot)
             if p is not None:
-                print(f"bearing-node vectors plot: {p}")
+                print(f'bearing-node vectors plot: {p}')
     if args.report:
         from .report import build_report
         info = build_report(rig, data.recordings, args.report, data=data, results=results,
                             allow_undetermined=args.allow_undetermined,
-                            command="bearing-id identify " + " ".join(args.inputs) + f" --method {args.method}")
-        print(f"report: {info.path}")
+                            command='bearing-id identify ' + ' '.join(args.inputs) + f' --method {args.method}')
+        print(f'report: {info.path}')
     if undet:
-        print("\nUNDETERMINED by the data (prior/theory-dominated"
-              + (", printed flagged '(prior)'" if args.allow_undetermined else ", not printed") + "):",
+        print('\nUNDETERMINED by the data (prior/theory-dominated'
+              + (", printed flagged '(prior)'" if args.allow_undetermined else ', not printed') + '):',
               file=sys.stderr)
         for rpm, names in undet:
             print(f"  {rpm:.0f} rpm: {', '.join(names)}", file=sys.stderr)
         if not args.allow_undetermined:
-            print("exit 1: add probes or directional-force runs (see the design check), or pass "
-                  "--allow-undetermined to print prior-dominated values flagged", file=sys.stderr)
+            print('exit 1: add probes or directional-force runs (see the design check), or pass '
+                  '--allow-undetermined to print prior-dominated values flagged', file=sys.stderr)
             return 1
     return 0

@@ -1,5 +1,8 @@
-"""The recordings the offline commands read (``identify``, ``diagnose``): ``.npz`` files (``bearing-id simulate``,
-:meth:`bearing_id.rig.Recording.save_npz`), ``.csv`` DAQ exports (:mod:`bearing_id.daq`) or a rosbag2 bag.
+"""
+The recordings the offline commands read (``identify``, ``diagnose``): files or a rosbag2 bag.
+
+``.npz`` files (``bearing-id simulate``, :meth:`bearing_id.rig.Recording.save_npz`), ``.csv`` DAQ exports
+(:mod:`bearing_id.daq`) or a rosbag2 bag.
 
 Every way a file can be wrong -- missing, unreadable, truncated, corrupt, hostile (a zip bomb, a crafted header),
 inconsistent (array sizes that disagree), unusable (NaN samples, no excitation) -- is a :class:`ParamError` (exit 2)
@@ -12,8 +15,8 @@ from pathlib import Path
 
 from ..params import ParamError
 
-RECORDING_SUFFIXES = (".npz", ".csv", ".txt")
-BAG_SUFFIXES = (".mcap", ".db3")
+RECORDING_SUFFIXES = ('.npz', '.csv', '.txt')
+BAG_SUFFIXES = ('.mcap', '.db3')
 
 
 class InputError(ParamError):
@@ -29,31 +32,34 @@ def load_recording_file(path: Path):
     from ..rig import check_recording, load_npz
     suffix = path.suffix.lower()
     try:
-        if suffix == ".npz":
+        if suffix == '.npz':
             return load_npz(path)
-        if suffix in (".csv", ".txt"):
+        if suffix in ('.csv', '.txt'):
             from ..daq import read_csv
             return check_recording(read_csv(path), str(path))
     except ValueError as exc:           # rig / daq errors (DaqError, UnicodeDecodeError are ValueErrors)
         msg = str(exc)
-        raise InputError(msg if str(path) in msg else f"{path}: {msg}") from None
+        raise InputError(msg if str(path) in msg else f'{path}: {msg}') from None
     except MemoryError:
-        raise InputError(f"{path}: too large to read into memory") from None
-    raise InputError(f"{path}: unknown recording format {path.suffix!r} (give .npz, .csv or a bag directory)")
+        raise InputError(f'{path}: too large to read into memory') from None
+    raise InputError(f'{path}: unknown recording format {path.suffix!r} (give .npz, .csv or a bag directory)')
 
 
 def precheck_bag(path: Path) -> dict:
-    """Open a bag (metadata, index) and check it has the topics identification needs, before the (slower) full read
-    and the import of the signal-processing modules; ParamError if not."""
-    from ..io.bags import BagError, bag_topics
+    """
+    Open a bag (metadata, index) and check it has the topics identification needs; ParamError if not.
+
+    Done before the (slower) full read and the import of the signal-processing modules.
+    """
+    from ..io.bags import bag_topics, BagError
     try:
         topics = bag_topics(path)
     except BagError as exc:
         raise InputError(str(exc)) from None
-    need = [t for t in ("/rotor/displacement", "/rotor/excitation") if t not in topics]
+    need = [t for t in ('/rotor/displacement', '/rotor/excitation') if t not in topics]
     if need:
         raise InputError(f"{path}: the bag has no {' and no '.join(need)} (it has {sorted(topics)}); identification "
-                         f"needs the displacement blocks and the excitation of each run")
+                         f'needs the displacement blocks and the excitation of each run')
     return topics
 
 
@@ -64,28 +70,29 @@ def load_bag_recordings(path: Path) -> list:
     from ..rig import check_recording
     try:
         recs = recordings_from_bag(path)
-        return [check_recording(r, f"{path}: run {r.run.id}") for r in recs]
+        return [check_recording(r, f'{path}: run {r.run.id}') for r in recs]
     except (BagError, ValueError) as exc:
         msg = str(exc)
-        raise InputError(msg if str(path) in msg else f"{path}: {msg}") from None
+        raise InputError(msg if str(path) in msg else f'{path}: {msg}') from None
     except MemoryError:
-        raise InputError(f"{path}: too large to read into memory") from None
+        raise InputError(f'{path}: too large to read into memory') from None
 
 
 def load_recordings(inputs, *, one_bag_only: bool = False) -> list:
-    """Recordings from files and bags, in the order given (a bag contributes one per excitation run).
+    """
+    Load the recordings from files and bags, in the order given (a bag contributes one per excitation run).
 
     one_bag_only : a bag must be the only input (``identify``: .npz/.csv files are one run each, a bag holds all).
     """
     paths = [Path(s) for s in inputs]
     if not paths:
-        raise ParamError("no recordings given")
+        raise ParamError('no recordings given')
     for p in paths:
         if not p.exists():
-            raise FileNotFoundError(f"no such file or bag: {p}")
+            raise FileNotFoundError(f'no such file or bag: {p}')
     bags = [p for p in paths if is_bag(p)]
     if one_bag_only and bags and len(paths) != 1:
-        raise InputError("give recording files (.npz/.csv, one per run) or a single bag, not both / not several bags")
+        raise InputError('give recording files (.npz/.csv, one per run) or a single bag, not both / not several bags')
     loaded = {}
     for i, p in enumerate(paths):          # cheap checks of everything first, the full bag reads last
         if is_bag(p):
@@ -103,17 +110,21 @@ def check_probe_nodes(recordings, n_nodes: int) -> None:
     for r in recordings:
         for p in r.probes:
             if not 1 <= p.node <= n_nodes:
-                raise ParamError(f"run {r.run.id}: probe {p.name} is at node {p.node} but the model has nodes "
-                                 f"1..{n_nodes}")
+                raise ParamError(f'run {r.run.id}: probe {p.name} is at node {p.node} but the model has nodes '
+                                 f'1..{n_nodes}')
         for e in r.run.excitation:
             if not 1 <= e.node <= n_nodes:
-                raise ParamError(f"run {r.run.id}: excitation at node {e.node} but the model has nodes 1..{n_nodes}")
+                raise ParamError(f'run {r.run.id}: excitation at node {e.node} but the model has nodes 1..{n_nodes}')
 
 
 def attach_excitation(recordings, rig, *, required: bool) -> list:
-    """A recording that carries no excitation (a CSV DAQ export, an npz without ``ex_*``) takes that of the params'
-    run with the same id (``simulation.runs[].id``).  ``required``: otherwise refuse it (identification needs the
-    known excitation); else leave it as it is."""
+    """
+    Attach the params' excitation to each recording that carries none.
+
+    A recording that carries no excitation (a CSV DAQ export, an npz without ``ex_*``) takes that of the params' run
+    with the same id (``simulation.runs[].id``).  ``required``: otherwise refuse it (identification needs the known
+    excitation); else leave it as it is.
+    """
     import dataclasses
     runs = {r.id: r for r in (rig.simulation.runs if rig.simulation is not None else ())}
     out = []
@@ -122,8 +133,8 @@ def attach_excitation(recordings, rig, *, required: bool) -> list:
             if rec.run.id in runs:
                 rec = dataclasses.replace(rec, run=runs[rec.run.id])
             elif required:
-                raise InputError(f"run {rec.run.id!r} carries no excitation (a DAQ export names only the run) and the "
-                                 f"params file has no run {rec.run.id!r} to take it from (its runs: "
+                raise InputError(f'run {rec.run.id!r} carries no excitation (a DAQ export names only the run) and the '
+                                 f'params file has no run {rec.run.id!r} to take it from (its runs: '
                                  f"{sorted(runs) or 'none'}): add the run's excitation under simulation.runs")
         out.append(rec)
     return out

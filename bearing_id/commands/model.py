@@ -1,5 +1,8 @@
-"""``bearing-id model``: the rotor-bearing model of a params file — natural frequencies, critical speeds, stability
-threshold, bearing coefficients vs speed, Campbell diagram, and the Table-2 model-updating table.
+"""
+``bearing-id model``: the rotor-bearing model of a params file.
+
+Natural frequencies, critical speeds, stability threshold, bearing coefficients vs speed, Campbell diagram, and the
+Table-2 model-updating table.
 
 Prints tables (rpm, Hz, N/m, N s/m) and writes ``campbell.png`` (0.5X / 1X / 2X lines, log-decrement colour,
 labelled critical speeds and stability threshold), ``coefficients.png`` (one panel per coefficient, each bearing in
@@ -16,43 +19,43 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import COEFF_ORDER, rpm_to_rad_s
-from ..params import ParamError, load_rig
+from ..params import load_rig, ParamError
 
 TWO_PI = 2.0 * math.pi
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("model", help="natural frequencies, critical speeds, stability, bearing coefficients, "
-                                     "Campbell diagram and model updating of a rig",
-                       description="Analyse the FE rotor-bearing model described by --params: free-free and "
-                                   "on-bearing natural frequencies, critical speeds, the stability threshold (oil "
+    p = sub.add_parser('model', help='natural frequencies, critical speeds, stability, bearing coefficients, '
+                                     'Campbell diagram and model updating of a rig',
+                       description='Analyse the FE rotor-bearing model described by --params: free-free and '
+                                   'on-bearing natural frequencies, critical speeds, the stability threshold (oil '
                                    "whip), bearing coefficients vs speed, a Campbell diagram, and the paper's "
-                                   "Table-2 model updating against modal_test.measured_hz.")
-    p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--out", default="out/model", help="directory for campbell.png, coefficients.png, "
-                                                      "mode_shapes.png, model.json (default out/model)")
-    p.add_argument("--max-rpm", type=float, default=6000.0,
-                   help="upper end of the speed range for Campbell, critical speeds and stability [rpm] "
+                                   'Table-2 model updating against modal_test.measured_hz.')
+    p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
+    p.add_argument('--out', default='out/model', help='directory for campbell.png, coefficients.png, '
+                                                      'mode_shapes.png, model.json (default out/model)')
+    p.add_argument('--max-rpm', type=float, default=6000.0,
+                   help='upper end of the speed range for Campbell, critical speeds and stability [rpm] '
                         "(default 6000, the rig's maximum)")
-    p.add_argument("--speeds", help="comma-separated speeds [rpm] for the coefficient and mode tables "
-                                    "(default: simulation.speeds_rpm)")
-    p.add_argument("--modes", type=int, default=6, help="number of modes to report (default 6)")
-    p.add_argument("--no-update", action="store_true", help="skip the model updating (Table 2)")
+    p.add_argument('--speeds', help='comma-separated speeds [rpm] for the coefficient and mode tables '
+                                    '(default: simulation.speeds_rpm)')
+    p.add_argument('--modes', type=int, default=6, help='number of modes to report (default 6)')
+    p.add_argument('--no-update', action='store_true', help='skip the model updating (Table 2)')
     return p
 
 
 def _speeds(args, rig):
     if args.speeds:
         try:
-            v = [float(s) for s in args.speeds.split(",") if s.strip()]
+            v = [float(s) for s in args.speeds.split(',') if s.strip()]
         except ValueError:
-            raise ParamError(f"--speeds must be comma-separated rpm values, got {args.speeds!r}") from None
+            raise ParamError(f'--speeds must be comma-separated rpm values, got {args.speeds!r}') from None
     elif rig.simulation is not None:
         v = list(rig.simulation.speeds_rpm)
     else:
         v = list(np.linspace(args.max_rpm / 10, args.max_rpm, 10))
     if not v or any(s <= 0 for s in v):
-        raise ParamError("--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)")
+        raise ParamError('--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)')
     return v
 
 
@@ -65,95 +68,95 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
 
     model = RotorModel.from_params(rig)
     bfn = bearings.bearing_fn(rig)
-    out: dict = {"rig": rig.name, "mass_kg": model.mass,
-                 "static_loads_N": {str(k): v for k, v in static_bearing_loads(model).items()}}
+    out: dict = {'rig': rig.name, 'mass_kg': model.mass,
+                 'static_loads_N': {str(k): v for k, v in static_bearing_loads(model).items()}}
     ff = free_free_frequencies(model, 4)
-    out["free_free_hz"] = (ff / TWO_PI).tolist()
+    out['free_free_hz'] = (ff / TWO_PI).tolist()
     rows = []
     for rpm in speeds_rpm:
         W = float(rpm_to_rad_s(rpm))
         co = bfn(W)
         m = damped_modes(model, W, co, n_modes)
-        rows.append({"speed_rpm": rpm, "speed": W,
-                     "bearings": {str(n): {"K": np.asarray(k).tolist(), "C": np.asarray(c).tolist()}
+        rows.append({'speed_rpm': rpm, 'speed': W,
+                     'bearings': {str(n): {'K': np.asarray(k).tolist(), 'C': np.asarray(c).tolist()}
                                   for n, (k, c) in co.items()},
-                     "modes_hz": (m.frequency / TWO_PI).tolist(), "log_dec": m.log_dec.tolist(),
-                     "whirl": list(m.whirl)})
-    out["speeds"] = rows
+                     'modes_hz': (m.frequency / TWO_PI).tolist(), 'log_dec': m.log_dec.tolist(),
+                     'whirl': list(m.whirl)})
+    out['speeds'] = rows
     lo, hi = float(rpm_to_rad_s(max(50.0, max_rpm / 60))), float(rpm_to_rad_s(max_rpm))
     cd = campbell_data(model, bfn, hi, min_speed=lo, n_modes=n_modes, n_grid=40)
-    out["campbell"] = {"speeds_rpm": cd.speeds_rpm.tolist(), "frequency_hz": cd.frequency_hz.tolist(),
-                       "log_dec": cd.log_dec.tolist(), "whirl": cd.whirl.tolist()}
-    out["critical_speeds_rpm"] = cd.critical_rpm.tolist()
-    out["critical_damping_ratio"] = cd.critical_zeta.tolist()   # of the forward mode crossing 1X (AF ~ 1 / 2 zeta)
-    out["stability_threshold_rpm"] = cd.threshold_rpm
-    out["stability_whirl_ratio"] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
-    out["notes"] = list(cd.notes)
+    out['campbell'] = {'speeds_rpm': cd.speeds_rpm.tolist(), 'frequency_hz': cd.frequency_hz.tolist(),
+                       'log_dec': cd.log_dec.tolist(), 'whirl': cd.whirl.tolist()}
+    out['critical_speeds_rpm'] = cd.critical_rpm.tolist()
+    out['critical_damping_ratio'] = cd.critical_zeta.tolist()   # of the forward mode crossing 1X (AF ~ 1 / 2 zeta)
+    out['stability_threshold_rpm'] = cd.threshold_rpm
+    out['stability_whirl_ratio'] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
+    out['notes'] = list(cd.notes)
     if update and rig.modal_test is not None and rig.modal_test.measured_hz:
         from ..updating import update_model
         res = update_model(rig, rig.modal_test.measured_hz, maxiter=1500)
-        out["updating"] = {"table": res.table(), "factors": res.factors, "initial_hz": res.initial_hz.tolist(),
-                           "measured_hz": res.measured_hz.tolist(), "updated_hz": res.updated_hz.tolist(),
-                           "condition": res.condition,
-                           "paper_initial_hz": list(rig.modal_test.paper_initial_hz),
-                           "paper_updated_hz": list(rig.modal_test.paper_updated_hz)}
+        out['updating'] = {'table': res.table(), 'factors': res.factors, 'initial_hz': res.initial_hz.tolist(),
+                           'measured_hz': res.measured_hz.tolist(), 'updated_hz': res.updated_hz.tolist(),
+                           'condition': res.condition,
+                           'paper_initial_hz': list(rig.modal_test.paper_initial_hz),
+                           'paper_updated_hz': list(rig.modal_test.paper_updated_hz)}
     return out
 
 
 def _print_report(r: dict) -> None:
     print(f"rig {r['rig']}: rotor mass {r['mass_kg']:.3f} kg; static bearing loads "
-          + ", ".join(f"node {k}: {v:.2f} N" for k, v in r["static_loads_N"].items()))
-    print("free-free bending frequencies [Hz]: " + ", ".join(f"{f:.2f}" for f in r["free_free_hz"]))
-    print("\nnatural frequencies on the bearings [Hz] (damped; F forward, B backward whirl; log dec):")
-    for row in r["speeds"]:
-        modes = "  ".join(f"{f:7.2f}{w[0].upper()}({d:+.2f})" for f, w, d in
-                          zip(row["modes_hz"], row["whirl"], row["log_dec"]))
+          + ', '.join(f'node {k}: {v:.2f} N' for k, v in r['static_loads_N'].items()))
+    print('free-free bending frequencies [Hz]: ' + ', '.join(f'{f:.2f}' for f in r['free_free_hz']))
+    print('\nnatural frequencies on the bearings [Hz] (damped; F forward, B backward whirl; log dec):')
+    for row in r['speeds']:
+        modes = '  '.join(f'{f:7.2f}{w[0].upper()}({d:+.2f})' for f, w, d in
+                          zip(row['modes_hz'], row['whirl'], row['log_dec']))
         print(f"  {row['speed_rpm']:7.0f} rpm  {modes}")
-    crit = r["critical_speeds_rpm"]
-    print("\ncritical speeds (forward whirl = 1X) [rpm] (damping ratio; > 0.2 is critically damped, API 684): "
-          + (", ".join(f"{c:.0f} ({z:.2f})" for c, z in zip(crit, r["critical_damping_ratio"])) or "none in range"))
-    thr = r["stability_threshold_rpm"]
-    wr = r.get("stability_whirl_ratio")
-    print("stability threshold (onset of oil whip) [rpm]: " + (f"{thr:.0f}" + (f" (the unstable mode whirls at "
-                                                                              f"{wr:.2f}X)" if wr else "")
-                                                               if thr is not None else "none in range"))
-    for n in r.get("notes", []):
-        print(f"  note: {n}")
-    print("\nbearing coefficients vs speed (K [N/m], C [N s/m], order " + " ".join(COEFF_ORDER) + "):")
-    hdr = f"{'rpm':>7} {'node':>4} " + " ".join(f"{'K' + c:>11}" for c in COEFF_ORDER) + " " + \
-        " ".join(f"{'C' + c:>10}" for c in COEFF_ORDER)
+    crit = r['critical_speeds_rpm']
+    print('\ncritical speeds (forward whirl = 1X) [rpm] (damping ratio; > 0.2 is critically damped, API 684): '
+          + (', '.join(f'{c:.0f} ({z:.2f})' for c, z in zip(crit, r['critical_damping_ratio'])) or 'none in range'))
+    thr = r['stability_threshold_rpm']
+    wr = r.get('stability_whirl_ratio')
+    print('stability threshold (onset of oil whip) [rpm]: ' + (f'{thr:.0f}' + (f' (the unstable mode whirls at '
+                                                                               f'{wr:.2f}X)' if wr else '')
+                                                               if thr is not None else 'none in range'))
+    for n in r.get('notes', []):
+        print(f'  note: {n}')
+    print('\nbearing coefficients vs speed (K [N/m], C [N s/m], order ' + ' '.join(COEFF_ORDER) + '):')
+    hdr = f"{'rpm':>7} {'node':>4} " + ' '.join(f"{'K' + c:>11}" for c in COEFF_ORDER) + ' ' + \
+        ' '.join(f"{'C' + c:>10}" for c in COEFF_ORDER)
     print(hdr)
-    for row in r["speeds"]:
-        for node, kc in row["bearings"].items():
-            K = np.asarray(kc["K"]).ravel()
-            C = np.asarray(kc["C"]).ravel()
-            print(f"{row['speed_rpm']:7.0f} {node:>4} " + " ".join(f"{v:11.4g}" for v in K) + " "
-                  + " ".join(f"{v:10.4g}" for v in C))
-    if "updating" in r:
-        u = r["updating"]
-        print("\nmodel updating against the measured free-free frequencies (paper Table 2 layout):")
-        print(u["table"])
-        if u["paper_initial_hz"]:
+    for row in r['speeds']:
+        for node, kc in row['bearings'].items():
+            K = np.asarray(kc['K']).ravel()
+            C = np.asarray(kc['C']).ravel()
+            print(f"{row['speed_rpm']:7.0f} {node:>4} " + ' '.join(f'{v:11.4g}' for v in K) + ' '
+                  + ' '.join(f'{v:10.4g}' for v in C))
+    if 'updating' in r:
+        u = r['updating']
+        print('\nmodel updating against the measured free-free frequencies (paper Table 2 layout):')
+        print(u['table'])
+        if u['paper_initial_hz']:
             print("paper's own initial / updated model [Hz]: "
-                  + ", ".join(f"{a:.2f}" for a in u["paper_initial_hz"]) + " / "
-                  + ", ".join(f"{a:.2f}" for a in u["paper_updated_hz"])
+                  + ', '.join(f'{a:.2f}' for a in u['paper_initial_hz']) + ' / '
+                  + ', '.join(f'{a:.2f}' for a in u['paper_updated_hz'])
                   + "  (Table 1 geometry gives the 'initial' column above: the paper's rig differs from its table)")
 
 
 def campbell_from_report(r: dict):
-    """The :class:`bearing_id.plots.data.CampbellData` of an :func:`analyse` dict (what campbell.png draws)."""
+    """Return the :class:`bearing_id.plots.data.CampbellData` of an :func:`analyse` dict (what campbell.png draws)."""
     from ..plots.data import CampbellData
-    cb = r["campbell"]
-    rpm = np.array(cb["speeds_rpm"], float)
-    thr = r["stability_threshold_rpm"]
-    return CampbellData(speeds=rpm_to_rad_s(rpm), frequency=np.array(cb["frequency_hz"], float) * TWO_PI,
-                        log_dec=np.array(cb["log_dec"], float), damping_ratio=np.full(np.shape(cb["log_dec"]), np.nan),
-                        whirl=np.array(cb["whirl"], dtype=object),
-                        critical=rpm_to_rad_s(np.array(r["critical_speeds_rpm"], float)),
-                        critical_zeta=np.array(r["critical_damping_ratio"], float),
+    cb = r['campbell']
+    rpm = np.array(cb['speeds_rpm'], float)
+    thr = r['stability_threshold_rpm']
+    return CampbellData(speeds=rpm_to_rad_s(rpm), frequency=np.array(cb['frequency_hz'], float) * TWO_PI,
+                        log_dec=np.array(cb['log_dec'], float), damping_ratio=np.full(np.shape(cb['log_dec']), np.nan),
+                        whirl=np.array(cb['whirl'], dtype=object),
+                        critical=rpm_to_rad_s(np.array(r['critical_speeds_rpm'], float)),
+                        critical_zeta=np.array(r['critical_damping_ratio'], float),
                         threshold=(float(rpm_to_rad_s(thr)) if thr is not None else
-                                   (None if r.get("notes") else math.inf)),
-                        threshold_ratio=r.get("stability_whirl_ratio"), label="theory (nominal params)")
+                                   (None if r.get('notes') else math.inf)),
+                        threshold_ratio=r.get('stability_whirl_ratio'), label='theory (nominal params)')
 
 
 def _plots(r: dict, out: Path, rig=None) -> list[Path]:
@@ -162,17 +165,17 @@ def _plots(r: dict, out: Path, rig=None) -> list[Path]:
     from ..plots.coefficients import theory_coefficients_figure
     from ..plots.common import save_png
     cd = campbell_from_report(r)
-    rows = r["speeds"]
-    paths = [save_png(campbell_figure(cd, measured_rpm=[row["speed_rpm"] for row in rows],
-                                      speeds_label="table speeds (--speeds)",
+    rows = r['speeds']
+    paths = [save_png(campbell_figure(cd, measured_rpm=[row['speed_rpm'] for row in rows],
+                                      speeds_label='table speeds (--speeds)',
                                       title=f"Campbell diagram - {r['rig']} (theory, nominal params)"),
-                      out / "campbell.png", dpi=110)]
-    nodes = list(rows[0]["bearings"])
-    coeffs = {int(n): (np.array([row["bearings"][n]["K"] for row in rows], float),
-                       np.array([row["bearings"][n]["C"] for row in rows], float)) for n in nodes}
+                      out / 'campbell.png', dpi=110)]
+    nodes = list(rows[0]['bearings'])
+    coeffs = {int(n): (np.array([row['bearings'][n]['K'] for row in rows], float),
+                       np.array([row['bearings'][n]['C'] for row in rows], float)) for n in nodes}
     names = {b.node: b.name for b in rig.bearings} if rig is not None else None
-    paths.append(save_png(theory_coefficients_figure([row["speed_rpm"] for row in rows], coeffs, names),
-                          out / "coefficients.png", dpi=110))
+    paths.append(save_png(theory_coefficients_figure([row['speed_rpm'] for row in rows], coeffs, names),
+                          out / 'coefficients.png', dpi=110))
     if rig is not None and cd.critical.size:
         from .. import bearings
         from ..plots.data import critical_mode_index, mode_shapes
@@ -182,24 +185,24 @@ def _plots(r: dict, out: Path, rig=None) -> list[Path]:
         sh = []
         for w in cd.critical[:3]:
             m = mode_shapes(model, bfn, w, 4)
-            sh.append((f"{w * 60 / TWO_PI:.0f} rpm (critical)", m, critical_mode_index(m, w)))
+            sh.append((f'{w * 60 / TWO_PI:.0f} rpm (critical)', m, critical_mode_index(m, w)))
         paths.append(save_png(mode_shapes_figure(sh, bearing_nodes=model.bearing_nodes,
                                                  disc_nodes=[d.node for d in rig.discs]),
-                              out / "mode_shapes.png", dpi=110))
+                              out / 'mode_shapes.png', dpi=110))
     return paths
 
 
 def run(args) -> int:
     rig = load_rig(args.params)
     if args.max_rpm <= 0:
-        raise ParamError("--max-rpm must be > 0")
+        raise ParamError('--max-rpm must be > 0')
     if args.modes < 1:
-        raise ParamError("--modes must be >= 1")
+        raise ParamError('--modes must be >= 1')
     r = analyse(rig, _speeds(args, rig), max_rpm=args.max_rpm, n_modes=args.modes, update=not args.no_update)
     _print_report(r)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     paths = _plots(r, out, rig)
-    (out / "model.json").write_text(json.dumps(r, indent=1, default=float) + "\n")
-    print("\nwrote " + ", ".join(str(p) for p in paths + [out / "model.json"]))
+    (out / 'model.json').write_text(json.dumps(r, indent=1, default=float) + '\n')
+    print('\nwrote ' + ', '.join(str(p) for p in paths + [out / 'model.json']))
     return 0

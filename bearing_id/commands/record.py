@@ -1,4 +1,5 @@
-"""``bearing-id record``: record ROS 2 topics into a rosbag2 bag (mcap or sqlite3), since ``ros2 bag`` is not on PyPI.
+"""
+``bearing-id record``: record ROS 2 topics into a rosbag2 bag (mcap or sqlite3), since ``ros2 bag`` is not on PyPI.
 
 Subscribes to each topic with the nodes' QoS (:mod:`bearing_id.nodes.common`; latched topics as transient-local, so a
 message published before the recorder started is still recorded), takes the raw serialized bytes (no decode, no
@@ -21,38 +22,38 @@ from __future__ import annotations
 import argparse
 import collections
 import hashlib
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 DEFAULT_TOPICS = {
-    "/rotor/displacement": "bearing_id_msgs/msg/DisplacementBlock",
-    "/rotor/speed": "bearing_id_msgs/msg/RotorSpeed",
-    "/rotor/excitation": "bearing_id_msgs/msg/Excitation",
-    "/bearing_id/bearing_displacement": "bearing_id_msgs/msg/DisplacementBlock",
-    "/bearing_id/innovation": "bearing_id_msgs/msg/DisplacementBlock",
-    "/bearing_id/coefficients": "bearing_id_msgs/msg/BearingCoefficients",
-    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    '/rotor/displacement': 'bearing_id_msgs/msg/DisplacementBlock',
+    '/rotor/speed': 'bearing_id_msgs/msg/RotorSpeed',
+    '/rotor/excitation': 'bearing_id_msgs/msg/Excitation',
+    '/bearing_id/bearing_displacement': 'bearing_id_msgs/msg/DisplacementBlock',
+    '/bearing_id/innovation': 'bearing_id_msgs/msg/DisplacementBlock',
+    '/bearing_id/coefficients': 'bearing_id_msgs/msg/BearingCoefficients',
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("record", help="record ROS 2 topics into a bag (raw bytes; mcap or sqlite3; survives kill -9)",
+    p = sub.add_parser('record', help='record ROS 2 topics into a bag (raw bytes; mcap or sqlite3; survives kill -9)',
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("bag", help="output bag directory (must not exist unless --overwrite); with --recover the "
-                               "unfinished bag to repair")
-    p.add_argument("--topics", nargs="+", metavar="TOPIC[:TYPE]",
-                   help="topics to record (default: all bearing_id topics); TYPE like pkg/msg/Name for others")
-    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
-    p.add_argument("--duration", type=float, help="stop after this many seconds")
-    p.add_argument("--idle", type=float, help="stop after this many seconds without a message (once one arrived)")
-    p.add_argument("--flush", type=float, default=1.0, metavar="SECONDS",
-                   help="make what was received durable at least this often (default 1 s: a kill -9 loses at most "
-                        "that much)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing bag directory")
-    p.add_argument("--recover", action="store_true",
-                   help="do not record: turn the unfinished bag BAG (recorder killed, no metadata.yaml) into a "
-                        "complete one, keeping the original as BAG.unfinished")
+    p.add_argument('bag', help='output bag directory (must not exist unless --overwrite); with --recover the '
+                               'unfinished bag to repair')
+    p.add_argument('--topics', nargs='+', metavar='TOPIC[:TYPE]',
+                   help='topics to record (default: all bearing_id topics); TYPE like pkg/msg/Name for others')
+    p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    p.add_argument('--duration', type=float, help='stop after this many seconds')
+    p.add_argument('--idle', type=float, help='stop after this many seconds without a message (once one arrived)')
+    p.add_argument('--flush', type=float, default=1.0, metavar='SECONDS',
+                   help='make what was received durable at least this often (default 1 s: a kill -9 loses at most '
+                        'that much)')
+    p.add_argument('--overwrite', action='store_true', help='replace an existing bag directory')
+    p.add_argument('--recover', action='store_true',
+                   help='do not record: turn the unfinished bag BAG (recorder killed, no metadata.yaml) into a '
+                        'complete one, keeping the original as BAG.unfinished')
     return p
 
 
@@ -61,10 +62,10 @@ def parse_topics(items) -> dict:
         return dict(DEFAULT_TOPICS)
     out = {}
     for it in items:
-        topic, _, typ = it.partition(":")
+        topic, _, typ = it.partition(':')
         typ = typ or DEFAULT_TOPICS.get(topic)
         if not typ:
-            raise ValueError(f"--topics: give the type of {topic} as {topic}:pkg/msg/Name")
+            raise ValueError(f'--topics: give the type of {topic} as {topic}:pkg/msg/Name')
         out[topic] = typ
     return out
 
@@ -74,17 +75,17 @@ def recover(path: Path) -> int:
     try:
         out, sv, backup = recover_bag(path)
     except BagError as exc:
-        print(f"bearing-id record --recover: {exc}", file=sys.stderr)
+        print(f'bearing-id record --recover: {exc}', file=sys.stderr)
         return 2
     counts = {t.topic: t.count for t in sv.topics.values()}
-    print(f"bearing-id record --recover: wrote {sv.message_count} message(s) to {out} ({sv.storage}): {counts}; "
-          f"read {sv.valid_bytes} of {sv.total_bytes} bytes of {sv.storage_file.name} ({sv.stopped}); the unfinished "
-          f"original is kept as {backup}")
+    print(f'bearing-id record --recover: wrote {sv.message_count} message(s) to {out} ({sv.storage}): {counts}; '
+          f'read {sv.valid_bytes} of {sv.total_bytes} bytes of {sv.storage_file.name} ({sv.stopped}); the unfinished '
+          f'original is kept as {backup}')
     return 0
 
 
 def publisher_qos(node, topic: str) -> list:
-    """The QoS every publisher of ``topic`` offers, as rosbags ``Qos`` (empty when none is known)."""
+    """Return the QoS every publisher of ``topic`` offers, as rosbags ``Qos`` (empty when none is known)."""
     from ..io.bags import qos_from_rclpy
     try:
         return [qos_from_rclpy(i.qos_profile) for i in node.get_publishers_info_by_topic(topic)]
@@ -99,21 +100,21 @@ def run(args) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from ..io.bags import BagError, BagWriter, default_qos, typestore
-    from ..nodes.common import StopFlag, qos_stream, subscribe_latched
     from .play import LATCHED, msg_class
+    from ..io.bags import BagError, BagWriter, default_qos, typestore
+    from ..nodes.common import qos_stream, StopFlag, subscribe_latched
     try:
         topics = parse_topics(args.topics)
     except ValueError as exc:
-        print(f"bearing-id record: {exc}", file=sys.stderr)
+        print(f'bearing-id record: {exc}', file=sys.stderr)
         return 2
     if not args.flush > 0:
-        print("bearing-id record: --flush must be > 0 s", file=sys.stderr)
+        print('bearing-id record: --flush must be > 0 s', file=sys.stderr)
         return 2
     if path.exists() and not args.overwrite:
-        print(f"bearing-id record: {path} exists (use --overwrite)", file=sys.stderr)
+        print(f'bearing-id record: {path} exists (use --overwrite)', file=sys.stderr)
         return 2
-    unknown = [f"{t} ({ty})" for t, ty in topics.items() if ty not in typestore().types]
+    unknown = [f'{t} ({ty})' for t, ty in topics.items() if ty not in typestore().types]
     if unknown:
         print(f"bearing-id record: unknown message type(s): {', '.join(unknown)}", file=sys.stderr)
         return 2
@@ -122,16 +123,16 @@ def run(args) -> int:
         try:
             classes[topic] = msg_class(typ)
         except (ImportError, AttributeError, ValueError) as exc:
-            print(f"bearing-id record: no rclpy class for {typ} ({exc})", file=sys.stderr)
+            print(f'bearing-id record: no rclpy class for {typ} ({exc})', file=sys.stderr)
             return 2
     try:
         writer = BagWriter(path, args.storage, overwrite=args.overwrite, flush_period=args.flush)
     except BagError as exc:
-        print(f"bearing-id record: {exc}", file=sys.stderr)
+        print(f'bearing-id record: {exc}', file=sys.stderr)
         return 2
     stop = StopFlag().install()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("bearing_id_record")
+    node = rclpy.create_node('bearing_id_record')
     last = [None]
     failure = []
 
@@ -158,7 +159,7 @@ def run(args) -> int:
         if topic in LATCHED:       # transient-local AND volatile subscriptions: a plain `ros2 bag play` is heard too
             subscribe_latched(node, classes[topic], topic, cb_for(topic, typ), raw=True)
             continue
-        qos = 10 if topic == "/diagnostics" else qos_stream()
+        qos = 10 if topic == '/diagnostics' else qos_stream()
         node.create_subscription(classes[topic], topic, cb_for(topic, typ), qos, raw=True)
     t0 = time.monotonic()
     from rclpy.executors import SingleThreadedExecutor
@@ -178,14 +179,14 @@ def run(args) -> int:
         rclpy.try_shutdown()
     if failure:
         writer.abort()
-        print(f"bearing-id record: stopped: {failure[0]}; {writer.message_count} message(s) are in {path}, "
-              f"`bearing-id record --recover {path}` finishes it", file=sys.stderr)
+        print(f'bearing-id record: stopped: {failure[0]}; {writer.message_count} message(s) are in {path}, '
+              f'`bearing-id record --recover {path}` finishes it', file=sys.stderr)
         return 2
     try:
         writer.close()
     except BagError as exc:
-        print(f"bearing-id record: {exc}", file=sys.stderr)
+        print(f'bearing-id record: {exc}', file=sys.stderr)
         return 2
-    print(f"bearing-id record: wrote {writer.message_count} message(s) to {path} ({args.storage}): "
-          f"{dict(writer.counts)}")
+    print(f'bearing-id record: wrote {writer.message_count} message(s) to {path} ({args.storage}): '
+          f'{dict(writer.counts)}')
     return 0

@@ -1,4 +1,5 @@
-"""``bearing-id report``: one self-contained HTML page per run of the machine -- the pictures a rotordynamicist reads.
+"""
+``bearing-id report``: one self-contained HTML page per run of the machine -- the pictures a rotordynamicist reads.
 
 The page (``report.html`` in ``--out``; images embedded as base64 PNG, no network) holds the machine summary and
 every figure the data support: Campbell diagram (0.5X / 1X / 2X, log decrement, critical speeds, stability
@@ -13,34 +14,34 @@ already computed.  Exit codes: 0 page written, 2 bad input.
 from __future__ import annotations
 
 import argparse
-import math
-import time
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
+import time
 
 import numpy as np
 
-from ..params import ParamError, load_rig
+from ..params import load_rig, ParamError
 
-REPORT_NAME = "report.html"
-METHOD_CHOICES = ("physical", "direct", "paper", "conventional", "none")
+REPORT_NAME = 'report.html'
+METHOD_CHOICES = ('physical', 'direct', 'paper', 'conventional', 'none')
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("report", help="write one self-contained HTML report (Campbell, mode shapes, Bode, polar, "
-                                      "orbits, spectra, centreline, coefficients) for recordings",
-                       description="Analyse recordings (.npz / .csv per run, or a bag) against the model of --params "
-                                   "and write DIR/report.html: the machine summary, every figure the data support "
-                                   "and the tables the CLI prints, images embedded (the page needs no network).")
-    p.add_argument("inputs", nargs="+", help=".npz or .csv recordings (one per run) or bag directories")
-    p.add_argument("--out", default="out/report", help="output directory (default out/report)")
-    p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--method", default="physical", choices=METHOD_CHOICES,
-                   help="identification method for the coefficients and the identified model curves "
-                        "(default physical; none = theory only)")
-    p.add_argument("--max-rpm", type=float, default=None,
-                   help="upper end of the Campbell diagram [rpm] (default: max(6000, 1.5 x the highest test speed))")
-    p.add_argument("--png", action="store_true", help="also write every figure as a PNG file next to the page")
+    p = sub.add_parser('report', help='write one self-contained HTML report (Campbell, mode shapes, Bode, polar, '
+                                      'orbits, spectra, centreline, coefficients) for recordings',
+                       description='Analyse recordings (.npz / .csv per run, or a bag) against the model of --params '
+                                   'and write DIR/report.html: the machine summary, every figure the data support '
+                                   'and the tables the CLI prints, images embedded (the page needs no network).')
+    p.add_argument('inputs', nargs='+', help='.npz or .csv recordings (one per run) or bag directories')
+    p.add_argument('--out', default='out/report', help='output directory (default out/report)')
+    p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
+    p.add_argument('--method', default='physical', choices=METHOD_CHOICES,
+                   help='identification method for the coefficients and the identified model curves '
+                        '(default physical; none = theory only)')
+    p.add_argument('--max-rpm', type=float, default=None,
+                   help='upper end of the Campbell diagram [rpm] (default: max(6000, 1.5 x the highest test speed))')
+    p.add_argument('--png', action='store_true', help='also write every figure as a PNG file next to the page')
     return p
 
 
@@ -48,23 +49,28 @@ def run(args) -> int:
     from .inputs import attach_excitation, check_probe_nodes, load_recordings
     rig = load_rig(args.params)
     if args.max_rpm is not None and not args.max_rpm > 0:
-        raise ParamError("--max-rpm must be > 0")
+        raise ParamError('--max-rpm must be > 0')
     recs = attach_excitation(load_recordings(args.inputs), rig, required=False)
     check_probe_nodes(recs, rig.shaft.n_nodes)
     info = build_report(rig, recs, args.out, method=args.method, max_rpm=args.max_rpm, write_png=args.png,
-                        command="bearing-id report " + " ".join(args.inputs)
-                                + (f" --method {args.method}" if args.method != "physical" else ""))
+                        command='bearing-id report ' + ' '.join(args.inputs)
+                                + (f' --method {args.method}' if args.method != 'physical' else ''))
     for n in info.notes:
-        print(f"note: {n}")
-    print(f"wrote {info.path} ({info.n_figures} figures, {info.seconds:.1f} s)")
+        print(f'note: {n}')
+    print(f'wrote {info.path} ({info.n_figures} figures, {info.seconds:.1f} s)')
     return 0
 
 
 # ------------------------------------------------------------------------------------------------ helpers
 @dataclass
 class ReportInfo:
-    """What :func:`build_report` wrote: ``path`` of the page, figure count, wall time [s], notes (what the data did
-    not support), per-step timings, and the figure data for tests (``figures``: name -> Figure)."""
+    """
+    What :func:`build_report` wrote.
+
+    ``path`` of the page, figure count, wall time [s], notes (what the data did not support), per-step timings, and the
+    figure data for tests (``figures``: name -> Figure).
+    """
+
     path: Path
     n_figures: int
     seconds: float
@@ -82,16 +88,16 @@ def _rpm(w):
 def _excitation_text(run) -> str:
     parts = []
     for e in run.excitation:
-        if e.kind == "unbalance":
-            parts.append(f"unbalance {e.magnitude * 1e6:.3g} g·mm at node {e.node}, {math.degrees(e.phase):.0f}°")
+        if e.kind == 'unbalance':
+            parts.append(f'unbalance {e.magnitude * 1e6:.3g} g·mm at node {e.node}, {math.degrees(e.phase):.0f}°')
         else:
-            parts.append(f"{e.magnitude:.3g} N force ({e.direction}) at node {e.node}, {math.degrees(e.phase):.0f}°"
-                         + (f", {e.frequency_ratio:g}X" if e.frequency_ratio != 1.0 else ""))
-    return "; ".join(parts) or "none known"
+            parts.append(f'{e.magnitude:.3g} N force ({e.direction}) at node {e.node}, {math.degrees(e.phase):.0f}°'
+                         + (f', {e.frequency_ratio:g}X' if e.frequency_ratio != 1.0 else ''))
+    return '; '.join(parts) or 'none known'
 
 
 def _fmt(v, digits=4) -> str:
-    return "nan" if v is None or not np.isfinite(v) else f"{v:.{digits}g}"
+    return 'nan' if v is None or not np.isfinite(v) else f'{v:.{digits}g}'
 
 
 def _has_forcing(run, n_nodes) -> bool:
@@ -119,42 +125,48 @@ class _Timer:
 
 
 def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, list]:
-    """(header, rows) of the identified coefficients: one row per speed and bearing, 'value ± 1σ' per coefficient;
-    a coefficient the data do not determine is shown as 'undetermined' (never as a plain number)."""
+    """
+    Return (header, rows) of the identified coefficients: one row per speed and bearing, 'value ± 1σ' per coefficient.
+
+    A coefficient the data do not determine is shown as 'undetermined' (never as a plain number).
+    """
     from ..conventions import COEFF_ORDER
-    header = ["rpm", "bearing"] + [f"K{c} [N/m]" for c in COEFF_ORDER] + [f"C{c} [N s/m]" for c in COEFF_ORDER] \
-        + ["rank", "condition", "flags"]
+    header = ['rpm', 'bearing'] + [f'K{c} [N/m]' for c in COEFF_ORDER] + [f'C{c} [N s/m]' for c in COEFF_ORDER] \
+        + ['rank', 'condition', 'flags']
     rows = []
     for r in sorted(results, key=lambda r: r.speed):
         for b, name in enumerate(r.bearings):
-            row = [f"{r.speed_rpm:.0f}", name]
-            for sym in ("K", "C"):
-                v, s, d = getattr(r, sym)[b], getattr(r, sym + "_std")[b], getattr(r, sym + "_determined")[b]
+            row = [f'{r.speed_rpm:.0f}', name]
+            for sym in ('K', 'C'):
+                v, s, d = getattr(r, sym)[b], getattr(r, sym + '_std')[b], getattr(r, sym + '_determined')[b]
                 for k in range(4):
                     i, j = divmod(k, 2)
                     if d[i, j]:
-                        row.append(f"{v[i, j]:.4g} ± {_fmt(s[i, j], 2)}")
+                        row.append(f'{v[i, j]:.4g} ± {_fmt(s[i, j], 2)}')
                     elif allow_undetermined and np.isfinite(v[i, j]):
-                        row.append((f"{v[i, j]:.4g} (prior)", "undet"))
+                        row.append((f'{v[i, j]:.4g} (prior)', 'undet'))
                     else:
-                        row.append(("undetermined", "undet"))
-            flags = ", ".join(r.flags) or ("" if r.fully_determined else "not all determined")
-            row += [f"{r.rank} of {r.unknowns}", _fmt(r.condition, 3), (flags or "ok", "warn" if flags else "ok")]
+                        row.append(('undetermined', 'undet'))
+            flags = ', '.join(r.flags) or ('' if r.fully_determined else 'not all determined')
+            row += [f'{r.rank} of {r.unknowns}', _fmt(r.condition, 3), (flags or 'ok', 'warn' if flags else 'ok')]
             rows.append(row)
     return header, rows
 
 
 def modes_rows(model, bearing_fn, speeds, n_modes: int = 6) -> tuple[list, list]:
-    """(header, rows): damped natural frequencies [Hz] with whirl (F/B) and log decrement at each speed -- the
-    table ``bearing-id model`` prints."""
+    """
+    Return (header, rows): damped natural frequencies [Hz] with whirl (F/B) and log decrement at each speed.
+
+    This is the table ``bearing-id model`` prints.
+    """
     from ..rotor.modal import damped_modes
     rows = []
     for w in speeds:
         m = damped_modes(model, w, bearing_fn(w), n_modes)
-        rows.append([f"{_rpm(w):.0f}"] + [f"{f / (2 * math.pi):.2f} {wh[0].upper()} ({d:+.2f})"
-                                           for f, wh, d in zip(m.frequency, m.whirl, m.log_dec)])
+        rows.append([f'{_rpm(w):.0f}'] + [f'{f / (2 * math.pi):.2f} {wh[0].upper()} ({d:+.2f})'
+                                          for f, wh, d in zip(m.frequency, m.whirl, m.log_dec)])
     n = max((len(r) for r in rows), default=1) - 1
-    return ["rpm"] + [f"mode {k + 1}: Hz F/B (log dec)" for k in range(n)], rows
+    return ['rpm'] + [f'mode {k + 1}: Hz F/B (log dec)' for k in range(n)], rows
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -176,16 +188,24 @@ _SHARED: list = []      # the recordings, inherited by the forked workers (passe
 
 
 def _run_vectors(i: int) -> list:
-    """The 1X window vectors of recording ``i`` of :data:`_SHARED` (runs in a worker), without the window samples."""
+    """
+    Return the 1X window vectors of recording ``i`` of :data:`_SHARED`, without the window samples.
+
+    Runs in a worker.
+    """
     import dataclasses
+
     from ..identify.harmonics import recording_vectors
     return [dataclasses.replace(v, window=None) for v in recording_vectors(_SHARED[i])]
 
 
 class _Renderer:
-    """Figures -> PNG bytes in forked worker processes when there are spare cores (the page is assembled in order
-    from the futures), else in this process.  ``keep``: render here and keep the Figure objects (tests read the
-    drawn data back)."""
+    """
+    Figures -> PNG bytes in forked worker processes when there are spare cores, else in this process.
+
+    The page is assembled in order from the futures.  ``keep``: render here and keep the Figure objects (tests read the
+    drawn data back).
+    """
 
     def __init__(self, workers: int, keep: bool = False, shared=()):
         self.keep = keep
@@ -194,9 +214,9 @@ class _Renderer:
         if workers > 0 and not keep:
             _SHARED[:] = list(shared)
             try:
-                import multiprocessing
                 from concurrent.futures import ProcessPoolExecutor
-                self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
+                import multiprocessing
+                self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context('fork'))
             except (ValueError, OSError, ImportError):     # no fork on this platform: render here
                 self.pool = None
 
@@ -211,8 +231,11 @@ class _Renderer:
         return _Done(png_bytes(fig))
 
     def start_vectors(self, recordings):
-        """Submit the per-run 1X window fits of ``recordings`` to the workers (from this thread: the pool forks
-        here); None when they are to be computed here (one run, no workers, or runs with different channels)."""
+        """
+        Submit the per-run 1X window fits of ``recordings`` to the workers (from this thread: the pool forks here).
+
+        Return None when they are to be computed here (one run, no workers, or runs with different channels).
+        """
         recs = list(recordings)
         same = len(recs) == len(_SHARED) and all(a is b for a, b in zip(recs, _SHARED))
         key = {tuple((p.node, p.direction) for p in r.probes) for r in recs}
@@ -222,10 +245,13 @@ class _Renderer:
 
     @staticmethod
     def harmonic_data(recordings, futures=None):
-        """:func:`bearing_id.identify.harmonics.from_recordings` of ``recordings``; with ``futures`` from
-        :meth:`start_vectors`, assembled from the workers' per-run vectors exactly as ``from_recordings`` does
-        (:func:`harmonics.recording_vectors` per run, :func:`harmonics.common_speeds`; test/test_report.py checks
-        that the two are equal)."""
+        """
+        Return :func:`bearing_id.identify.harmonics.from_recordings` of ``recordings``.
+
+        With ``futures`` from :meth:`start_vectors`, assembled from the workers' per-run vectors exactly as
+        ``from_recordings`` does (:func:`harmonics.recording_vectors` per run, :func:`harmonics.common_speeds`;
+        test/test_report.py checks that the two are equal).
+        """
         from ..identify import harmonics
         recs = list(recordings)
         if futures is None:
@@ -233,7 +259,7 @@ class _Renderer:
         per_run = [f.result() for f in futures]
         speeds, picks = harmonics.common_speeds(per_run, harmonics.DEFAULT_TOL_REL)
         if not speeds:
-            raise ValueError("no steady speed is common to all runs")
+            raise ValueError('no steady speed is common to all runs')
         nr, ns, nch = len(recs), len(speeds), len(recs[0].probes)
         X = np.zeros((nr, ns, nch), dtype=complex)
         Xs = np.zeros((nr, ns, nch))
@@ -244,7 +270,7 @@ class _Renderer:
                 X[r, si], Xs[r, si], windows[r][si] = v.X, v.X_std, (v.i0, v.i1)
         truth = {}
         for rec in recs:
-            truth.update(rec.truth.get("coefficients", {}) if rec.truth else {})
+            truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
         return harmonics.HarmonicData(np.array(speeds), tuple(recs[0].probes), tuple(r.run for r in recs), X, Xs,
                                       recs, windows, truth)
 
@@ -258,7 +284,7 @@ class _Renderer:
 def default_workers() -> int:
     """Worker processes for figures: ``BEARING_ID_REPORT_WORKERS`` (0 = none), else 2 on a machine with 2+ cores."""
     import os
-    v = os.environ.get("BEARING_ID_REPORT_WORKERS")
+    v = os.environ.get('BEARING_ID_REPORT_WORKERS')
     if v is not None and v.strip().isdigit():
         return int(v)
     return 2 if (os.cpu_count() or 1) >= 2 else 0
@@ -266,42 +292,43 @@ def default_workers() -> int:
 
 # ------------------------------------------------------------------------------------------------ the page
 CAPTIONS = {
-    "campbell": "Damped natural frequencies vs speed (▲ forward, ▼ backward whirl), coloured by logarithmic decrement "
-                "(red: unstable). Lines 0.5X (oil whirl / whip), 1X (unbalance: a critical speed where a forward mode "
-                "crosses it, circled) and 2X. Red line: the stability threshold; star: the mode that goes unstable "
-                "there. Green ticks: the steady speeds of these recordings.",
-    "modes": "The four lowest damped modes at each critical speed. Blue: x plane, orange: y plane, each drawn against "
-             "its largest node with the sign of its phase; grey: orbit semi-major axis; ▲ bearings, grey bands discs. "
-             "F/B: forward / backward whirl; δ: logarithmic decrement. The framed panel is the mode the critical "
-             "speed excites.",
-    "bode": "1X amplitude and phase vs speed, one colour per run: measured vectors ±1σ (dots), the identified model "
+    'campbell': 'Damped natural frequencies vs speed (▲ forward, ▼ backward whirl), coloured by logarithmic decrement '
+                '(red: unstable). Lines 0.5X (oil whirl / whip), 1X (unbalance: a critical speed where a forward mode '
+                'crosses it, circled) and 2X. Red line: the stability threshold; star: the mode that goes unstable '
+                'there. Green ticks: the steady speeds of these recordings.',
+    'modes': 'The four lowest damped modes at each critical speed. Blue: x plane, orange: y plane, each drawn against '
+             'its largest node with the sign of its phase; grey: orbit semi-major axis; ▲ bearings, grey bands discs. '
+             'F/B: forward / backward whirl; δ: logarithmic decrement. The framed panel is the mode the critical '
+             'speed excites.',
+    'bode': '1X amplitude and phase vs speed, one colour per run: measured vectors ±1σ (dots), the identified model '
             "(solid) and the theory (dashed) as continuous curves; dotted: the model's critical speed. Phase = arg X "
-            "of x(t) = Re{X e^{jφ}}, φ the keyphasor angle.",
-    "polar": "1X polar plot, one panel per run: measured vectors with 1σ circles and rpm labels, the model curves "
-             "(arrow: increasing speed); the frame fits the measured points. Angles counter-clockwise from +Re.",
-    "orbits": "Orbits at one probe station per speed, one colour per run: thin the last 3 revolutions unfiltered "
-              "(window mean removed), thick the 1X orbit with its keyphasor dot and the direction of travel; hollow "
-              "dots: keyphasor on the unfiltered signal. Each panel has its own scale (equal axes); F/B = forward / "
-              "backward 1X whirl.",
-    "spectrum": "The amplitude spectrum (Hann window) of each steady window on a baseline at its speed, with the "
+            'of x(t) = Re{X e^{jφ}}, φ the keyphasor angle.',
+    'polar': '1X polar plot, one panel per run: measured vectors with 1σ circles and rpm labels, the model curves '
+             '(arrow: increasing speed); the frame fits the measured points. Angles counter-clockwise from +Re.',
+    'orbits': 'Orbits at one probe station per speed, one colour per run: thin the last 3 revolutions unfiltered '
+              '(window mean removed), thick the 1X orbit with its keyphasor dot and the direction of travel; hollow '
+              'dots: keyphasor on the unfiltered signal. Each panel has its own scale (equal axes); F/B = forward / '
+              'backward 1X whirl.',
+    'spectrum': 'The amplitude spectrum (Hann window) of each steady window on a baseline at its speed, with the '
                 "0.5X, 1X and 2X lines (an x/y pair: the first run's cascades; sub-synchronous whirl does not depend "
-                "on the unbalance); below, the highest speed of every run on a log scale (sub-synchronous lines and "
-                "the noise floor).",
-    "centreline": "Journal centre inside the clearance circle vs speed (computed from the bearing model at the static "
-                  "load: eccentricity and attitude angle; labels: test speeds in rpm), and the eccentricity ratio. Not "
-                  "measured: that needs DC-coupled probes at the bearings.",
-    "coefficients": "Identified K [N/m] and C [N s/m] of each bearing vs speed: determined values with ±1σ error bars "
-                    "and band; hollow grey markers are coefficients the data do NOT determine (prior values, not "
-                    "results); dashed: the theory (nominal params); green: the truth when the recordings carry it "
-                    "(simulated rig).",
+                'on the unbalance); below, the highest speed of every run on a log scale (sub-synchronous lines and '
+                'the noise floor).',
+    'centreline': 'Journal centre inside the clearance circle vs speed (computed from the bearing model at the static '
+                  'load: eccentricity and attitude angle; labels: test speeds in rpm), and the eccentricity ratio. Not '
+                  'measured: that needs DC-coupled probes at the bearings.',
+    'coefficients': 'Identified K [N/m] and C [N s/m] of each bearing vs speed: determined values with ±1σ error bars '
+                    'and band; hollow grey markers are coefficients the data do NOT determine (prior values, not '
+                    'results); dashed: the theory (nominal params); green: the truth when the recordings carry it '
+                    '(simulated rig).',
 }
 
 
-def build_report(rig, recordings, outdir, *, data=None, results=None, method: str = "physical", options=None,
+def build_report(rig, recordings, outdir, *, data=None, results=None, method: str = 'physical', options=None,
                  diagnosis=None, reidentification=None, cli_text: str | None = None, command: str | None = None,
                  max_rpm: float | None = None, write_png: bool = False, allow_undetermined: bool = False,
                  keep_figures: bool = False, workers: int | None = None) -> ReportInfo:
-    """Write ``outdir/report.html`` for ``recordings`` (rig.Recording list) on ``rig``.
+    """
+    Write ``outdir/report.html`` for ``recordings`` (rig.Recording list) on ``rig``.
 
     data : the HarmonicData of the recordings when already computed (else :func:`harmonics.from_recordings`).
     results : identification results when already computed (else ``method`` is run; 'none' = no identification).
@@ -329,9 +356,9 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     from ..plots.campbell import campbell_figure, mode_shapes_figure
     from ..plots.centreline import centreline_figure
     from ..plots.coefficients import coefficients_figure
-    from ..plots.html import Page, esc
+    from ..plots.html import esc, Page
     from ..plots.orbits import orbits_figure
-    from ..plots.response import Curve, bode_figure, polar_figure
+    from ..plots.response import bode_figure, Curve, polar_figure
     from ..plots.spectrum import waterfall_figure
     from ..rotor.assembly import RotorModel
     tm = _Timer()
@@ -343,24 +370,24 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     model = RotorModel.from_params(rig)
     theory = bmod.bearing_fn(rig)
     recordings = list(recordings or [])
-    if rig.extra and rig.extra.get("effects"):
-        notes.append("the params carry extra.effects (an augmented model): the model curves here use the rotor and "
-                     "bearings only, without those effects")
+    if rig.extra and rig.extra.get('effects'):
+        notes.append('the params carry extra.effects (an augmented model): the model curves here use the rotor and '
+                     'bearings only, without those effects')
     # the Campbell range, known before the 1X vectors: from the recorded speeds
     top_rec = max((float(np.nanmax(np.abs(r.speed))) for r in recordings if r.speed.size), default=0.0)
     hi_rpm = max_rpm or max(6000.0, 1.5 * _rpm(top_rec))
     hi = float(rpm_to_rad_s(hi_rpm))
-    tm.lap("set-up")
+    tm.lap('set-up')
     # ---------------------------------------------------------------- measured 1X (in the workers), theory Campbell
     futs = R.start_vectors(recordings) if data is None and recordings else None
-    cd_theory = fd.campbell_data(model, theory, hi, label="theory (nominal params)")
-    tm.lap("Campbell (theory)")
+    cd_theory = fd.campbell_data(model, theory, hi, label='theory (nominal params)')
+    tm.lap('Campbell (theory)')
     if data is None and recordings:
         try:
             data = R.harmonic_data(recordings, futs)
         except ValueError as exc:
-            notes.append(f"no 1X vectors from these recordings: {exc}")
-    tm.lap("1X vectors")
+            notes.append(f'no 1X vectors from these recordings: {exc}')
+    tm.lap('1X vectors')
     test_speeds = np.asarray(data.speeds, float) if data is not None else np.zeros(0)
     test_rpm = _rpm(test_speeds)
     probes = tuple(data.probes) if data is not None else (tuple(recordings[0].probes) if recordings else ())
@@ -380,15 +407,15 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
                                      test_speeds[s]) if data.windows[r][s] is not None else None
                        for r, rec in enumerate(data.recordings)]
                 panels.append(row)
-            fdata.setdefault("orbits", []).append(panels)
+            fdata.setdefault('orbits', []).append(panels)
             px, py = probes[ix], probes[iy]
-            name = f"orbits_node{px.node}"
+            name = f'orbits_node{px.node}'
             sec_orbits.append((name, R.figure(name, orbits_figure, panels, run_labels,
-                                              title=f"orbits at node {px.node} ({px.name}, {py.name}); x right, y up, "
-                                                    "rotation counter-clockwise"),
-                               f"Node {px.node}. " + CAPTIONS["orbits"]))
+                                              title=f'orbits at node {px.node} ({px.name}, {py.name}); x right, y up, '
+                                                    'rotation counter-clockwise'),
+                               f'Node {px.node}. ' + CAPTIONS['orbits']))
     elif probes:
-        notes.append("no orbit plots: orbits need an x and a y probe at the same node")
+        notes.append('no orbit plots: orbits need an x and a y probe at the same node')
     # ---------------------------------------------------------------- spectra
     sec_spectra = []
     if data is not None and data.windows:
@@ -396,40 +423,40 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         fmax = 2.6 * float(test_speeds.max()) / (2 * math.pi)
         spec = {c: [fd.waterfall_data(data, r, c, fmax) for r in range(len(data.recordings))]
                 for c in range(len(probes))}
-        fdata["spectra"] = {p.name: [(run_labels[r], spec[c][r]) for r in range(len(runs))]
+        fdata['spectra'] = {p.name: [(run_labels[r], spec[c][r]) for r in range(len(runs))]
                             for c, p in enumerate(probes)}
         paired = {i for pr in pairs for i in pr}
         groups = [list(pr) for pr in pairs] + [[c] for c in range(len(probes)) if c not in paired]
         for grp in groups:
             if len(grp) == 2:         # an x/y pair: the first run's cascade of each, every run's top speed below
-                casc = [(f"{probes[c].name}, run {run_labels[0]}", 0, spec[c][0]) for c in grp]
-                name = f"spectrum_node{probes[grp[0]].node}"
-                head = (f"spectrum cascade at node {probes[grp[0]].node} ({probes[grp[0]].name}, "
-                        f"{probes[grp[1]].name})")
+                casc = [(f'{probes[c].name}, run {run_labels[0]}', 0, spec[c][0]) for c in grp]
+                name = f'spectrum_node{probes[grp[0]].node}'
+                head = (f'spectrum cascade at node {probes[grp[0]].node} ({probes[grp[0]].name}, '
+                        f'{probes[grp[1]].name})')
             else:                     # a single probe: one cascade per run
-                casc = [(f"run {run_labels[r]}", r, spec[grp[0]][r]) for r in range(len(runs))]
-                name = f"spectrum_{probes[grp[0]].name}"
-                head = f"spectrum cascade, probe {probe_text(probes[grp[0]])}"
-            logs = [(f"{probes[c].name} run {run_labels[r]}", r, i, spec[c][r][-1])
+                casc = [(f'run {run_labels[r]}', r, spec[grp[0]][r]) for r in range(len(runs))]
+                name = f'spectrum_{probes[grp[0]].name}'
+                head = f'spectrum cascade, probe {probe_text(probes[grp[0]])}'
+            logs = [(f'{probes[c].name} run {run_labels[r]}', r, i, spec[c][r][-1])
                     for i, c in enumerate(grp) for r in range(len(runs)) if spec[c][r]]
             sec_spectra.append((name, R.figure(name, waterfall_figure, casc, logs, fmax=fmax, title=head),
-                                head + ". " + CAPTIONS["spectrum"]))
+                                head + '. ' + CAPTIONS['spectrum']))
     forced = [_has_forcing(r, model.n_nodes) for r in runs]
-    if results is None and data is not None and method not in (None, "none"):
+    if results is None and data is not None and method not in (None, 'none'):
         from ..identify import identify
         if not all(forced):
-            notes.append(f"identification ({method}) skipped: run(s) "
+            notes.append(f'identification ({method}) skipped: run(s) '
                          f"{', '.join(str(r.id) for r, f in zip(runs, forced) if not f)} carry no known excitation")
         else:
             try:
                 results = identify(method, model, rig, data, options=options)
             except ValueError as exc:
-                notes.append(f"identification ({method}) not possible on these data: {exc}")
+                notes.append(f'identification ({method}) not possible on these data: {exc}')
     results = list(results or [])
-    tm.lap("identification")
-    ident, why = fd.identified_bearing_fn(results, rig) if results else (None, "no identification")
+    tm.lap('identification')
+    ident, why = fd.identified_bearing_fn(results, rig) if results else (None, 'no identification')
     if results and ident is None:
-        notes.append(f"no identified model curve: {why}")
+        notes.append(f'no identified model curve: {why}')
     # ---------------------------------------------------------------- 1X response (continuous model curves)
     sec_response = []
     if data is not None:
@@ -437,44 +464,44 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         curves = []
         if any(forced):
             gt, Yt = fd.response_curves_adaptive(model, theory, runs, probes, test_speeds, lo_c, hi_c)
-            curves.append(("theory (nominal bearings)", gt, Yt, "theory"))
+            curves.append(('theory (nominal bearings)', gt, Yt, 'theory'))
             if ident is not None:
                 a, b = ident.speed_range or (lo_c, hi_c)
                 gi, Yi = fd.response_curves_adaptive(model, ident.fn, runs, probes, test_speeds, max(a, lo_c),
                                                      min(b, hi_c))
-                curves.insert(0, (ident.label, gi, Yi, "identified"))
+                curves.insert(0, (ident.label, gi, Yi, 'identified'))
         else:
-            notes.append("no run carries a known synchronous excitation: Bode / polar plots show the measurement only")
-        fdata["response_curves"] = curves
-        fdata["curves_by_probe"] = []
+            notes.append('no run carries a known synchronous excitation: Bode / polar plots show the measurement only')
+        fdata['response_curves'] = curves
+        fdata['curves_by_probe'] = []
         for c, p in enumerate(probes):
             cl = [Curve(lab, _rpm(g), Y[:, :, c], kind) for lab, g, Y, kind in curves]
-            fdata["curves_by_probe"].append(cl)
-            sec_response.append((f"bode_{p.name}", None, f"Probe {p.name}. " + CAPTIONS["bode"]))  # after Campbell
-            sec_response.append((f"polar_{p.name}", R.figure(f"polar_{p.name}", polar_figure, p, test_rpm,
-                                                              data.X[:, :, c], data.X_std[:, :, c], run_labels, cl),
-                                 f"Probe {p.name}. " + CAPTIONS["polar"]))
-    tm.lap("response curves")
+            fdata['curves_by_probe'].append(cl)
+            sec_response.append((f'bode_{p.name}', None, f'Probe {p.name}. ' + CAPTIONS['bode']))  # after Campbell
+            sec_response.append((f'polar_{p.name}', R.figure(f'polar_{p.name}', polar_figure, p, test_rpm,
+                                                             data.X[:, :, c], data.X_std[:, :, c], run_labels, cl),
+                                 f'Probe {p.name}. ' + CAPTIONS['polar']))
+    tm.lap('response curves')
     # ---------------------------------------------------------------- coefficients
     sec_coeff = []
     if results:
         truth = data.truth if data is not None and data.truth else None
-        sec_coeff.append(("coefficients", R.figure("coefficients", coefficients_figure, results, truth_fn=truth,
-                                                   theory_fn=theory, title="identified bearing coefficients, method "
-                                                                           f"{results[0].method}"),
-                          CAPTIONS["coefficients"]))
+        sec_coeff.append(('coefficients', R.figure('coefficients', coefficients_figure, results, truth_fn=truth,
+                                                   theory_fn=theory, title='identified bearing coefficients, method '
+                                                                           f'{results[0].method}'),
+                          CAPTIONS['coefficients']))
     # ---------------------------------------------------------------- centreline
     sec_centre = []
     if test_speeds.size:
         g = fd.curve_speeds(test_speeds, max(0.5 * test_speeds.min(), 5.0), 1.2 * test_speeds.max(), 40)
-        cl = [("theory", "theory", _rpm(g), fd.journal_positions(theory, g))]
-        if ident is not None and ident.kind == "physical":
-            cl.insert(0, ("identified", "identified", _rpm(g), fd.journal_positions(ident.fn, g)))
+        cl = [('theory', 'theory', _rpm(g), fd.journal_positions(theory, g))]
+        if ident is not None and ident.kind == 'physical':
+            cl.insert(0, ('identified', 'identified', _rpm(g), fd.journal_positions(ident.fn, g)))
         cl = [c for c in cl if c[3]]
-        fdata["centreline"] = cl
+        fdata['centreline'] = cl
         if cl:
-            sec_centre.append(("centreline", R.figure("centreline", centreline_figure, cl, label_rpm=test_rpm),
-                               CAPTIONS["centreline"]))
+            sec_centre.append(('centreline', R.figure('centreline', centreline_figure, cl, label_rpm=test_rpm),
+                               CAPTIONS['centreline']))
     # ---------------------------------------------------------------- diagnosis
     sec_diag, dc = [], None
     if diagnosis is not None:
@@ -482,211 +509,215 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         try:
             dc = fd.diagnosis_curves(diagnosis)
         except (AttributeError, IndexError, KeyError, TypeError, ValueError) as exc:
-            notes.append(f"diagnosis before/after curves not available: {type(exc).__name__}: {exc}")
+            notes.append(f'diagnosis before/after curves not available: {type(exc).__name__}: {exc}')
         if dc is not None:
-            fdata["diagnosis"] = dc
-            for pnl in dc["panels"]:
+            fdata['diagnosis'] = dc
+            for pnl in dc['panels']:
                 name = f"diagnosis_{pnl['run']}_{pnl['probe'].name}"
                 sec_diag.append((name, R.figure(name, diagnosis_bode_figure, pnl),
                                  f"Run {pnl['run']}, probe {pnl['probe'].name}: measured 1X ±1σ against the nominal "
-                                 "model, the model with refitted bearings and no effect, and the augmented model "
-                                 "with the effects found (the diagnosis predicts at the test speeds: markers, joined "
-                                 "by thin lines that are not a model curve)."))
-            sec_diag.append(("diagnosis_residual", R.figure("diagnosis_residual", residual_orders_figure, dc),
-                             "RMS residual (measured minus model) per harmonic order, all probes and speeds, before "
-                             "and after."))
-    tm.lap("figure data")
+                                 'model, the model with refitted bearings and no effect, and the augmented model '
+                                 'with the effects found (the diagnosis predicts at the test speeds: markers, joined '
+                                 'by thin lines that are not a model curve).'))
+            sec_diag.append(('diagnosis_residual', R.figure('diagnosis_residual', residual_orders_figure, dc),
+                             'RMS residual (measured minus model) per harmonic order, all probes and speeds, before '
+                             'and after.'))
+    tm.lap('figure data')
     # ---------------------------------------------------------------- Campbell, critical speeds, mode shapes
     cd_ident = None
     if ident is not None and ident.speed_range is None:
         cd_ident = fd.campbell_data(model, ident.fn, hi, label=ident.label)
-    tm.lap("Campbell (identified)")
+    tm.lap('Campbell (identified)')
     cd = cd_ident or cd_theory
-    fdata["campbell"], fdata["campbell_theory"] = cd, cd_theory
-    tm.lap("Campbell")
+    fdata['campbell'], fdata['campbell_theory'] = cd, cd_theory
+    tm.lap('Campbell')
     sec_campbell = []
-    for c_, tag in ((cd_theory, "theory"), (cd_ident, "identified")):
+    for c_, tag in ((cd_theory, 'theory'), (cd_ident, 'identified')):
         if c_ is not None:
-            sec_campbell.append((f"campbell_{tag}", R.figure(f"campbell_{tag}", campbell_figure, c_, here=True,
-                                                               measured_rpm=test_rpm,
-                                                               title=f"Campbell diagram - {c_.label}"),
-                                 f"Bearings: {c_.label}. " + CAPTIONS["campbell"]))
+            sec_campbell.append((f'campbell_{tag}', R.figure(f'campbell_{tag}', campbell_figure, c_, here=True,
+                                                             measured_rpm=test_rpm,
+                                                             title=f'Campbell diagram - {c_.label}'),
+                                 f'Bearings: {c_.label}. ' + CAPTIONS['campbell']))
     crit_speeds = list(cd.critical) or ([float(test_speeds.max())] if test_speeds.size else [])
     rows = []
     for w in crit_speeds[:3]:
         shapes = fd.mode_shapes(model, ident.fn if cd_ident is not None else theory, w, 4)
-        lab = f"{_rpm(w):.0f} rpm" + (" (critical)" if cd.critical.size else " (highest test speed)")
+        lab = f'{_rpm(w):.0f} rpm' + (' (critical)' if cd.critical.size else ' (highest test speed)')
         rows.append((lab, shapes, fd.critical_mode_index(shapes, w) if cd.critical.size else None))
-    fdata["mode_shapes"] = rows
+    fdata['mode_shapes'] = rows
     if rows:
-        sec_campbell.append(("mode_shapes", R.figure("mode_shapes", mode_shapes_figure, rows, here=True,
+        sec_campbell.append(('mode_shapes', R.figure('mode_shapes', mode_shapes_figure, rows, here=True,
                                                      bearing_nodes=model.bearing_nodes,
                                                      disc_nodes=[d.node for d in rig.discs]),
-                             f"Bearings: {cd.label}. " + CAPTIONS["modes"]))
+                             f'Bearings: {cd.label}. ' + CAPTIONS['modes']))
     # the Bode plots mark the critical speeds of the model drawn (identified when there is one)
     for k, (name, fut, cap) in enumerate(sec_response):
         if fut is None:
             c = [p.name for p in probes].index(name[5:])
             sec_response[k] = (name, R.figure(name, bode_figure, probes[c], test_rpm, data.X[:, :, c],
-                                              data.X_std[:, :, c], run_labels, fdata["curves_by_probe"][c],
+                                              data.X_std[:, :, c], run_labels, fdata['curves_by_probe'][c],
                                               critical_rpm=list(cd.critical_rpm)), cap)
-    tm.lap("mode shapes")
+    tm.lap('mode shapes')
 
     # ================================================================ assemble the page (in order)
-    page = Page(f"bearing_id report - {rig.name}")
-    page.section("Machine summary", "summary")
-    kv = [("rig", rig.name), ("rotor", f"{model.mass:.3f} kg, {model.n_nodes} nodes, shaft "
-                                       f"{rig.shaft.diameter * 1e3:.2f} mm x {rig.shaft.length:.3f} m")]
-    kv.append(("bearings", "; ".join(f"{b.name} at node {b.node}: D {b.diameter * 1e3:.2f} mm, L {b.length * 1e3:.2f} "
-                                     f"mm, c {b.clearance * 1e6:.1f} µm, µ {b.viscosity:.4g} Pa s, {b.model} model, "
-                                     f"load {theory.loads[b.node]:.2f} N" for b in rig.bearings)))
-    kv.append(("discs", "; ".join(f"node {d.node}: {d.outer_diameter * 1e3:.0f} x {d.thickness * 1e3:.0f} mm"
-                                  for d in rig.discs) or "none"))
+    page = Page(f'bearing_id report - {rig.name}')
+    page.section('Machine summary', 'summary')
+    kv = [('rig', rig.name), ('rotor', f'{model.mass:.3f} kg, {model.n_nodes} nodes, shaft '
+                                       f'{rig.shaft.diameter * 1e3:.2f} mm x {rig.shaft.length:.3f} m')]
+    kv.append(('bearings', '; '.join(f'{b.name} at node {b.node}: D {b.diameter * 1e3:.2f} mm, L {b.length * 1e3:.2f} '
+                                     f'mm, c {b.clearance * 1e6:.1f} µm, µ {b.viscosity:.4g} Pa s, {b.model} model, '
+                                     f'load {theory.loads[b.node]:.2f} N' for b in rig.bearings)))
+    kv.append(('discs', '; '.join(f'node {d.node}: {d.outer_diameter * 1e3:.0f} x {d.thickness * 1e3:.0f} mm'
+                                  for d in rig.discs) or 'none'))
     if recordings:
-        kv.append(("probes", ", ".join(f"{p.name} (node {p.node} {p.direction})" for p in recordings[0].probes)))
+        kv.append(('probes', ', '.join(f'{p.name} (node {p.node} {p.direction})' for p in recordings[0].probes)))
         for rec in recordings:
             dur = rec.samples.shape[0] / rec.sample_rate
-            kv.append((f"run {rec.run.id}", f"{_excitation_text(rec.run)}; {dur:.1f} s at {rec.sample_rate:.0f} Hz"))
+            kv.append((f'run {rec.run.id}', f'{_excitation_text(rec.run)}; {dur:.1f} s at {rec.sample_rate:.0f} Hz'))
     if test_rpm.size:
-        kv.append(("steady test speeds [rpm]", ", ".join(f"{v:.0f}" for v in test_rpm)))
+        kv.append(('steady test speeds [rpm]', ', '.join(f'{v:.0f}' for v in test_rpm)))
 
     def crit_text(c):
         if not c.critical.size:
-            return f"none below {hi_rpm:.0f} rpm"
-        return "; ".join(f"{v:.0f} rpm (ζ {z:.3f}, amplification ≈ {1 / (2 * z) if z > 0 else np.inf:.0f})"
+            return f'none below {hi_rpm:.0f} rpm'
+        return '; '.join(f'{v:.0f} rpm (ζ {z:.3f}, amplification ≈ {1 / (2 * z) if z > 0 else np.inf:.0f})'
                          for v, z in zip(c.critical_rpm, c.critical_zeta))
 
     def thr_text(c):
         if c.threshold_rpm is None:
-            return (f"stable up to {hi_rpm:.0f} rpm" if c.threshold is not None else
-                    "; ".join(c.notes) or "not computed")
-        s = f"{c.threshold_rpm:.0f} rpm (the unstable mode whirls at {c.threshold_ratio:.2f}X)"
+            return (f'stable up to {hi_rpm:.0f} rpm' if c.threshold is not None else
+                    '; '.join(c.notes) or 'not computed')
+        s = f'{c.threshold_rpm:.0f} rpm (the unstable mode whirls at {c.threshold_ratio:.2f}X)'
         if test_rpm.size:
-            s += f"; highest test speed {test_rpm.max():.0f} rpm = {100 * test_rpm.max() / c.threshold_rpm:.0f} % of it"
+            s += f'; highest test speed {test_rpm.max():.0f} rpm = {100 * test_rpm.max() / c.threshold_rpm:.0f} % of it'
         return s
 
-    kv.append(("critical speeds, theory", crit_text(cd_theory)))
-    kv.append(("stability threshold, theory", thr_text(cd_theory)))
+    kv.append(('critical speeds, theory', crit_text(cd_theory)))
+    kv.append(('stability threshold, theory', thr_text(cd_theory)))
     if cd_ident is not None:
-        kv.append(("critical speeds, identified", crit_text(cd_ident)))
-        kv.append(("stability threshold, identified", thr_text(cd_ident)))
+        kv.append(('critical speeds, identified', crit_text(cd_ident)))
+        kv.append(('stability threshold, identified', thr_text(cd_ident)))
     if results:
         nd = sum(int(np.sum(r.K_determined) + np.sum(r.C_determined)) for r in results)
         ntot = sum(r.K.size + r.C.size for r in results)
-        mis = [f"{r.speed_rpm:.0f}" for r in results if r.misfit]
-        kv.append((f"identification ({results[0].method})",
-                   f"{nd} of {ntot} coefficients determined by the data over {len(results)} speeds"
-                   + (f"; MISFIT at {', '.join(mis)} rpm (1σ is a lower bound)" if mis else "")))
-        fit = results[0].extra.get("fit") if isinstance(results[0].extra, dict) else None
-        if fit is not None and hasattr(fit, "note"):
-            kv.append(("fitted bearing parameters", fit.note()))
+        mis = [f'{r.speed_rpm:.0f}' for r in results if r.misfit]
+        kv.append((f'identification ({results[0].method})',
+                   f'{nd} of {ntot} coefficients determined by the data over {len(results)} speeds'
+                   + (f"; MISFIT at {', '.join(mis)} rpm (1σ is a lower bound)" if mis else '')))
+        fit = results[0].extra.get('fit') if isinstance(results[0].extra, dict) else None
+        if fit is not None and hasattr(fit, 'note'):
+            kv.append(('fitted bearing parameters', fit.note()))
     if diagnosis is not None:
-        kv.append(("diagnosis verdict", str(diagnosis.verdict)))
-    page.table(None, [[k, v] for k, v in kv], cls="kv")
+        kv.append(('diagnosis verdict', str(diagnosis.verdict)))
+    page.table(None, [[k, v] for k, v in kv], cls='kv')
     for n in notes:
-        page.paragraph("note: " + n, cls="muted")
+        page.paragraph('note: ' + n, cls='muted')
 
     def put(items):
         for name, fut, cap in items:
             page.image(fut, cap, alt=name)
             figs.append((name, fut))
 
-    page.section("Campbell diagram and mode shapes", "campbell")
-    camp = [x for x in sec_campbell if x[0].startswith("campbell_")]
+    page.section('Campbell diagram and mode shapes', 'campbell')
+    camp = [x for x in sec_campbell if x[0].startswith('campbell_')]
     if len(camp) > 1:
         page.row_start()
         put(camp)
         page.row_end()
     else:
         put(camp)
-    put([x for x in sec_campbell if not x[0].startswith("campbell_")])
+    put([x for x in sec_campbell if not x[0].startswith('campbell_')])
     if not cd.critical.size:
-        page.paragraph(f"No synchronous critical speed below {hi_rpm:.0f} rpm; mode shapes at the highest test speed.",
-                       cls="muted")
+        page.paragraph(f'No synchronous critical speed below {hi_rpm:.0f} rpm; mode shapes at the highest test speed.',
+                       cls='muted')
     if sec_response:
-        page.section("1X response: Bode and polar plots", "response")
+        page.section('1X response: Bode and polar plots', 'response')
         put(sec_response)
     if sec_orbits:
-        page.section("Orbits", "orbits")
+        page.section('Orbits', 'orbits')
         put(sec_orbits)
     if sec_spectra:
-        page.section("Spectra", "spectra")
+        page.section('Spectra', 'spectra')
         put(sec_spectra)
     if sec_centre:
-        page.section("Shaft centreline", "centreline")
+        page.section('Shaft centreline', 'centreline')
         put(sec_centre)
     if results:
-        page.section("Bearing coefficients vs speed", "coefficients")
+        page.section('Bearing coefficients vs speed', 'coefficients')
         put(sec_coeff)
         h, rws = coefficient_rows(results, allow_undetermined)
         page.table(h, rws, left_cols=2)
         if cli_text is None:
             from .identify import format_results
-            cli_text = "units: speed rpm, K N/m, C N s/m\n" + format_results(results, allow_undetermined)
+            cli_text = 'units: speed rpm, K N/m, C N s/m\n' + format_results(results, allow_undetermined)
     if diagnosis is not None:
-        page.section("Diagnosis: before / after", "diagnosis")
-        page.paragraph(f"verdict: {diagnosis.verdict}")
+        page.section('Diagnosis: before / after', 'diagnosis')
+        page.paragraph(f'verdict: {diagnosis.verdict}')
         page.bullets(diagnosis.sentences)
         put(sec_diag)
         if diagnosis.mismatch:
-            page.table(["where", "order", "size [µm]", "significance [σ]", "speeds [rpm]"],
-                       [[m.where, m.order, f"{m.size * 1e6:.3g}", f"{m.significance:.1f}",
-                         ", ".join(f"{s:.0f}" for s in m.speeds_rpm)] for m in diagnosis.mismatch[:12]],
-                       caption="located mismatch (largest first)", left_cols=2)
-        hyp = [h for h in diagnosis.hypotheses if h.get("step") == 0][:10]
+            page.table(['where', 'order', 'size [µm]', 'significance [σ]', 'speeds [rpm]'],
+                       [[m.where, m.order, f'{m.size * 1e6:.3g}', f'{m.significance:.1f}',
+                         ', '.join(f'{s:.0f}' for s in m.speeds_rpm)] for m in diagnosis.mismatch[:12]],
+                       caption='located mismatch (largest first)', left_cols=2)
+        hyp = [h for h in diagnosis.hypotheses if h.get('step') == 0][:10]
         if hyp:
-            page.table(["effect", "where", "ΔBIC", "explains", "validated"],
-                       [[h["effect"], h["where"], f"{h['delta_bic']:.1f}", f"{h['explained_fraction']:.1%}",
-                         str(h["validated"])] for h in hyp], caption="hypotheses (first step, best BIC first)",
+            page.table(['effect', 'where', 'ΔBIC', 'explains', 'validated'],
+                       [[h['effect'], h['where'], f"{h['delta_bic']:.1f}", f"{h['explained_fraction']:.1%}",
+                         str(h['validated'])] for h in hyp], caption='hypotheses (first step, best BIC first)',
                        left_cols=2)
         if reidentification is not None:
             try:
                 from ..diagnose.reidentify import format_table
-                page.pre("\n".join(format_table(reidentification)))
+                page.pre('\n'.join(format_table(reidentification)))
             except Exception as exc:   # noqa: BLE001 - a table we cannot format is left out, not fatal
-                page.paragraph(f"re-identification table not available: {exc}", cls="muted")
-    page.section("Tables", "tables")
+                page.paragraph(f're-identification table not available: {exc}', cls='muted')
+    page.section('Tables', 'tables')
     if test_speeds.size:
-        page.subsection("natural frequencies on the bearings at the test speeds (theory, as `bearing-id model`)")
+        page.subsection('natural frequencies on the bearings at the test speeds (theory, as `bearing-id model`)')
         h, rws = modes_rows(model, theory, test_speeds)
         page.table(h, rws)
         if ident is not None:
-            page.subsection(f"natural frequencies at the test speeds ({ident.label})")
+            page.subsection(f'natural frequencies at the test speeds ({ident.label})')
             h, rws = modes_rows(model, ident.fn, test_speeds)
             page.table(h, rws)
     if data is not None:
-        page.subsection("measured 1X vectors (amplitude [µm] ± 1σ, phase [deg])")
-        hdr = ["run", "rpm"] + [p.name for p in probes]
+        page.subsection('measured 1X vectors (amplitude [µm] ± 1σ, phase [deg])')
+        hdr = ['run', 'rpm'] + [p.name for p in probes]
         rws = []
         for r, run in enumerate(runs):
             for s in range(test_speeds.size):
-                rws.append([str(run.id), f"{test_rpm[s]:.0f}"] + [
-                    f"{abs(data.X[r, s, c]) * 1e6:.4g} ± {data.X_std[r, s, c] * 1e6:.2g} ∠ "
-                    f"{math.degrees(np.angle(data.X[r, s, c])):.1f}°" for c in range(len(probes))])
+                rws.append([str(run.id), f'{test_rpm[s]:.0f}'] + [
+                    f'{abs(data.X[r, s, c]) * 1e6:.4g} ± {data.X_std[r, s, c] * 1e6:.2g} ∠ '
+                    f'{math.degrees(np.angle(data.X[r, s, c])):.1f}°' for c in range(len(probes))])
         page.table(hdr, rws, left_cols=2)
     if cli_text:
         page.pre(cli_text, summary="the command's printed output")
-    tm.lap("tables")
+    tm.lap('tables')
     for name, fut in figs:               # wait for the figures (rendered in parallel)
         png = fut.result()
         if write_png:
-            (out / f"{name}.png").write_bytes(png)
-    tm.lap("figures (waiting)")
-    footer = (f"written by bearing_id in {tm.total:.1f} s"
-              + (f"; command: {command}" if command else "")
-              + "; SI inside, rpm / µm / degrees for people; conventions: bearing_id/conventions.py")
-    header_html = f'<p class="muted">{esc(command)}</p>' if command else ""
+            (out / f'{name}.png').write_bytes(png)
+    tm.lap('figures (waiting)')
+    footer = (f'written by bearing_id in {tm.total:.1f} s'
+              + (f'; command: {command}' if command else '')
+              + '; SI inside, rpm / µm / degrees for people; conventions: bearing_id/conventions.py')
+    header_html = f'<p class="muted">{esc(command)}</p>' if command else ''
     path = page.write(out / REPORT_NAME, header_html=header_html, footer_text=footer)
     return ReportInfo(path=path, n_figures=page.n_images, seconds=tm.total, notes=notes, timings=dict(tm.steps),
                       figures=dict(R.figures), data=fdata)
 
 
-def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification=None, method: str = "physical",
+def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification=None, method: str = 'physical',
                          cli_text: str | None = None, command: str | None = None) -> ReportInfo:
-    """The page for ``bearing-id diagnose --report DIR``: :func:`build_report` with the diagnosis' before / after."""
+    """
+    Return the page for ``bearing-id diagnose --report DIR``.
+
+    It is :func:`build_report` with the diagnosis' before / after.
+    """
     return build_report(rig, recordings, outdir, method=method, diagnosis=diagnosis,
                         reidentification=reidentification, cli_text=cli_text, command=command)
 
 
-__all__ = ["add_parser", "run", "build_report", "report_for_diagnosis", "ReportInfo", "coefficient_rows",
-           "modes_rows", "REPORT_NAME"]
+__all__ = ['add_parser', 'run', 'build_report', 'report_for_diagnosis', 'ReportInfo', 'coefficient_rows',
+           'modes_rows', 'REPORT_NAME']

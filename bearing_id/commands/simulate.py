@@ -4,35 +4,35 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..params import ParamError, Probe, load_rig
+from ..params import load_rig, ParamError, Probe
 
 
 def parse_probes(text: str) -> tuple[Probe, ...]:
     """'6x,6y,3x' -> probes p6x, p6y, p3x (node numbers 1-based, direction x or y)."""
     out = []
-    for tok in filter(None, (s.strip() for s in text.split(","))):
+    for tok in filter(None, (s.strip() for s in text.split(','))):
         node, direction = tok[:-1], tok[-1]
-        if direction not in ("x", "y") or not node.isdigit():
+        if direction not in ('x', 'y') or not node.isdigit():
             raise ParamError(f"--probes: '{tok}' is not NODE followed by x or y (e.g. 6x)")
-        out.append(Probe(f"p{node}{direction}", int(node), direction))
+        out.append(Probe(f'p{node}{direction}', int(node), direction))
     if not out:
-        raise ParamError("--probes: no probe given")
+        raise ParamError('--probes: no probe given')
     return tuple(out)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("simulate", help="record the simulated rig (truth bearings != theory) to .npz files",
-                       description="Simulate the rig described by --params and write one .npz per excitation run "
-                                   "(samples in metres, speed in rad/s, keyphasor angle in rad).")
-    p.add_argument("--params", help="rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--scenario", default="default",
-                   help="default (the runs in the params file), paper_table3, paper_table4 or force")
-    p.add_argument("--speeds", help="comma-separated speeds in rpm (default: simulation.speeds_rpm)")
-    p.add_argument("--dwell", type=float, help="seconds at each speed (default: simulation.dwell)")
-    p.add_argument("--noise", type=float, help="noise std as a fraction of channel RMS (default: simulation.noise)")
-    p.add_argument("--probes", help="probe list like 6x,6y (default: the params' probes)")
-    p.add_argument("--truth-model", choices=("short", "finite"), help="bearing model of the truth bearings")
-    p.add_argument("--out", default="out/sim", help="output directory (default out/sim)")
+    p = sub.add_parser('simulate', help='record the simulated rig (truth bearings != theory) to .npz files',
+                       description='Simulate the rig described by --params and write one .npz per excitation run '
+                                   '(samples in metres, speed in rad/s, keyphasor angle in rad).')
+    p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
+    p.add_argument('--scenario', default='default',
+                   help='default (the runs in the params file), paper_table3, paper_table4 or force')
+    p.add_argument('--speeds', help='comma-separated speeds in rpm (default: simulation.speeds_rpm)')
+    p.add_argument('--dwell', type=float, help='seconds at each speed (default: simulation.dwell)')
+    p.add_argument('--noise', type=float, help='noise std as a fraction of channel RMS (default: simulation.noise)')
+    p.add_argument('--probes', help="probe list like 6x,6y (default: the params' probes)")
+    p.add_argument('--truth-model', choices=('short', 'finite'), help='bearing model of the truth bearings')
+    p.add_argument('--out', default='out/sim', help='output directory (default out/sim)')
     return p
 
 
@@ -40,28 +40,28 @@ def run(args) -> int:
     from .. import rig as rigmod
     rig = load_rig(args.params)
     if rig.simulation is None:
-        raise ParamError("the params file has no simulation section")
+        raise ParamError('the params file has no simulation section')
     if args.truth_model:
         rig = rigmod.with_truth(rig, bearing_model=args.truth_model)
-    runs = rig.simulation.runs if args.scenario == "default" else rigmod.scenario(args.scenario)
+    runs = rig.simulation.runs if args.scenario == 'default' else rigmod.scenario(args.scenario)
     speeds = None
     if args.speeds:
         try:
-            speeds = [float(s) for s in args.speeds.split(",")]
+            speeds = [float(s) for s in args.speeds.split(',')]
         except ValueError:
-            raise ParamError(f"--speeds must be comma-separated rpm values, got {args.speeds!r}") from None
+            raise ParamError(f'--speeds must be comma-separated rpm values, got {args.speeds!r}') from None
         if any(s <= 0 for s in speeds):
-            raise ParamError("--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)")
+            raise ParamError('--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)')
     if args.dwell is not None and args.dwell <= 0:
-        raise ParamError("--dwell must be > 0 s")
+        raise ParamError('--dwell must be > 0 s')
     if args.noise is not None and not 0 <= args.noise <= 1:
-        raise ParamError("--noise is a fraction of the RMS signal, 0..1")
+        raise ParamError('--noise is a fraction of the RMS signal, 0..1')
     probes = parse_probes(args.probes) if args.probes else None
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for r in runs:
         rec = rigmod.simulate_run(rig, r, speeds_rpm=speeds, dwell=args.dwell, noise=args.noise, probes=probes)
-        path = rec.save_npz(out / f"run_{r.id}.npz")
-        print(f"wrote {path}  ({rec.samples.shape[0]} samples x {rec.samples.shape[1]} channels at "
-              f"{rec.sample_rate:.0f} Hz, run {r.id})")
+        path = rec.save_npz(out / f'run_{r.id}.npz')
+        print(f'wrote {path}  ({rec.samples.shape[0]} samples x {rec.samples.shape[1]} channels at '
+              f'{rec.sample_rate:.0f} Hz, run {r.id})')
     return 0

@@ -1,4 +1,5 @@
-"""Bearing-coefficient identification: four methods, one result type, one experiment-design check.
+"""
+Bearing-coefficient identification: four methods, one result type, one experiment-design check.
 
 Every method returns ``list[IdentResult]`` (one per speed, :mod:`bearing_id.identify.result`), with K, C (nb, 2, 2)
 in N/m and N s/m, 1-sigma std, ``K_determined`` / ``C_determined`` masks, rank, unknowns, condition and residual.
@@ -28,23 +29,26 @@ from __future__ import annotations
 
 import importlib
 
-from .result import IdentResult, eq38_error
+from .result import eq38_error, IdentResult
 
-METHODS = ("paper", "conventional", "direct", "physical")
+METHODS = ('paper', 'conventional', 'direct', 'physical')
 
 
 def get_method(name: str):
-    """The identification function ``identify_<name>`` (see the module docstring for its signature)."""
+    """Return the identification function ``identify_<name>`` (see the module docstring for its signature)."""
     if name not in METHODS:
-        raise ValueError(f"unknown identification method {name!r}: one of {METHODS}")
-    mod = importlib.import_module(f"bearing_id.identify.{name}")
-    return getattr(mod, f"identify_{name}")
+        raise ValueError(f'unknown identification method {name!r}: one of {METHODS}')
+    mod = importlib.import_module(f'bearing_id.identify.{name}')
+    return getattr(mod, f'identify_{name}')
 
 
 def identify(method: str, model, rig, data, probes=None, runs=None, options=None) -> list[IdentResult]:
-    """Run ``method`` on harmonic ``data`` (probes and runs default to the data's own), then the physical
-    plausibility gates (:mod:`bearing_id.identify.plausibility`: stability threshold, orbit vs clearance, live
-    channels) -- a speed that fails one is returned not determined, with the reason in its notes."""
+    """
+    Run ``method`` on harmonic ``data``, then the physical plausibility gates.
+
+    Probes and runs default to the data's own.  The gates (:mod:`bearing_id.identify.plausibility`: stability threshold,
+    orbit vs clearance, live channels): a speed that fails one is returned not determined, with the reason in its notes.
+    """
     from .plausibility import gate
     fn = get_method(method)
     probes = tuple(probes if probes is not None else data.probes)
@@ -52,4 +56,4 @@ def identify(method: str, model, rig, data, probes=None, runs=None, options=None
     return gate(fn(model, rig, data, probes, runs, options), model, rig, data, runs, probes)
 
 
-__all__ = ["IdentResult", "eq38_error", "METHODS", "get_method", "identify"]
+__all__ = ['IdentResult', 'eq38_error', 'METHODS', 'get_method', 'identify']

@@ -1,4 +1,5 @@
-"""The conventional two-probe method (De Santiago & San Andres 2007, as used by Kang et al. 2020 for comparison).
+"""
+The conventional two-probe method (De Santiago & San Andres 2007, as used by Kang et al. 2020 for comparison).
 
 For each bearing and direction, the shaft displacement at the bearing node is the straight-line interpolation (or
 extrapolation) along the shaft axis of two probes in that direction:
@@ -30,8 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lsq import (DEFAULT_MAX_REL_STD, DEFAULT_RTOL, bearing_dofs, build_result, coefficient_labels,
-                  coefficient_scales, coeffs_to_theta, forces_at, noise_rel_of, probe_pairs, solve_coefficients,
+from .lsq import (bearing_dofs, build_result, coefficient_labels, coefficient_scales, coeffs_to_theta,
+                  DEFAULT_MAX_REL_STD, DEFAULT_RTOL, forces_at, noise_rel_of, probe_pairs, solve_coefficients,
                   theta_to_KC)
 from .result import IdentResult
 
@@ -46,7 +47,7 @@ def interpolate(model, probes, X, X_std=None, pairs=None):
     z = np.zeros(X.shape[:-1] + (nb, 2), dtype=complex)
     zs = np.zeros(X.shape[:-1] + (nb, 2))
     for b, n in enumerate(model.bearing_nodes):
-        for i, d in enumerate(("x", "y")):
+        for i, d in enumerate(('x', 'y')):
             (ca, wa), (cb, wb) = pp[(n, d)]
             z[..., b, i] = wa * X[..., ca] + wb * X[..., cb]
             if X_std is not None:
@@ -55,7 +56,8 @@ def interpolate(model, probes, X, X_std=None, pairs=None):
 
 
 def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=None, *, rtol=DEFAULT_RTOL):
-    """(bias (8 nb,), z_B error): the method's own error on the theory model's noise-free response at ``speed``.
+    """
+    (bias (8 nb,), z_B error): the method's own error on the theory model's noise-free response at ``speed``.
 
     bias = |theta_conventional - theta_theory| / group size (:func:`bearing_id.identify.design.coefficient_scales`),
     theta = [K; Omega C] as in :func:`bearing_id.identify.paper.coeffs_to_theta`; z_B error = ||z_interp - z_B|| /
@@ -73,59 +75,61 @@ def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=
 
 
 def identify_conventional(model, rig, data, probes, runs, options=None) -> list[IdentResult]:
-    """Two probes per bearing and direction, interpolated to the bearing node, then the paper's solve.
+    """
+    Two probes per bearing and direction, interpolated to the bearing node, then the paper's solve.
 
     options : 'pairs' ({bearing_node: (node_a, node_b)}), 'bearing_fn' (theory for the data check; default the
     nominal bearings), 'rtol', 'max_rel_std'.
     """
     opts = dict(options or {})
-    bad = set(opts) - {"pairs", "bearing_fn", "rtol", "max_rel_std"}
+    bad = set(opts) - {'pairs', 'bearing_fn', 'rtol', 'max_rel_std'}
     if bad:
-        raise ValueError(f"identify_conventional: unknown option(s) {sorted(bad)}")
-    bfn = opts.get("bearing_fn")
+        raise ValueError(f'identify_conventional: unknown option(s) {sorted(bad)}')
+    bfn = opts.get('bearing_fn')
     if bfn is None:
         from ..rig import nominal_bearing_fn
         bfn = nominal_bearing_fn(rig)
-    pp = probe_pairs(model, probes, opts.get("pairs"))
+    pp = probe_pairs(model, probes, opts.get('pairs'))
     used = sorted({probes[c].node for v in pp.values() for c, _ in v})
-    zB_all, zs_all = interpolate(model, probes, data.X, data.X_std, opts.get("pairs"))
+    zB_all, zs_all = interpolate(model, probes, data.X, data.X_std, opts.get('pairs'))
     out = []
     for s, w in enumerate(data.speeds):
         w = float(w)
         F = forces_at(model, runs, w)
         sol = solve_coefficients(model, w, zB_all[:, s], F, z_B_std=zs_all[:, s],
-                                 rtol=opts.get("rtol", DEFAULT_RTOL))
-        notes = [f"bearing displacements interpolated from probe nodes {used} (straight line along the shaft)"]
+                                 rtol=opts.get('rtol', DEFAULT_RTOL))
+        notes = [f'bearing displacements interpolated from probe nodes {used} (straight line along the shaft)']
         theory = bfn(w)
-        thr = opts.get("max_rel_std") or DEFAULT_MAX_REL_STD
-        bias, zerr = interpolation_bias(model, probes, w, theory, F, opts.get("pairs"),
-                                        rtol=opts.get("rtol", DEFAULT_RTOL))
+        thr = opts.get('max_rel_std') or DEFAULT_MAX_REL_STD
+        bias, zerr = interpolation_bias(model, probes, w, theory, F, opts.get('pairs'),
+                                        rtol=opts.get('rtol', DEFAULT_RTOL))
         flag = bias > thr
         # the bias depends on the coefficients (mode shapes): evaluated at the theory AND at the estimate, the larger
         bias_abs = bias * coefficient_scales(theory, w, model.bearing_nodes)
         try:
             K_e, C_e = theta_to_KC(sol.theta, w, len(model.bearing_nodes))
             est = {n: (K_e[i], C_e[i]) for i, n in enumerate(model.bearing_nodes)}
-            b_e, _ = interpolation_bias(model, probes, w, est, F, opts.get("pairs"), rtol=opts.get("rtol", DEFAULT_RTOL))
+            b_e, _ = interpolation_bias(model, probes, w, est, F, opts.get('pairs'),
+                                        rtol=opts.get('rtol', DEFAULT_RTOL))
             bias_abs = np.fmax(bias_abs, b_e * coefficient_scales(est, w, model.bearing_nodes))
         except (np.linalg.LinAlgError, ValueError):
             pass
         labels = coefficient_labels(model.bearing_nodes)
         notes.append(f"interpolation bias (the method on the theory model's noise-free response): bearing "
-                     f"displacements off by {100 * zerr:.1f} %, coefficients by {100 * np.min(bias):.1f} ... "
-                     f"{100 * np.max(bias):.0f} % of their group size")
+                     f'displacements off by {100 * zerr:.1f} %, coefficients by {100 * np.min(bias):.1f} ... '
+                     f'{100 * np.max(bias):.0f} % of their group size')
         if flag.any():
-            notes.append(f"{int(flag.sum())} of {flag.size} coefficients carry an interpolation bias above "
-                         f"{100 * thr:g} % -- not determined: " + ", ".join(l for l, f in zip(labels, flag) if f))
+            notes.append(f'{int(flag.sum())} of {flag.size} coefficients carry an interpolation bias above '
+                         f'{100 * thr:g} % -- not determined: ' + ', '.join(lab for lab, f in zip(labels, flag) if f))
         if np.isfinite(sol.consistency):
-            notes.append(f"consistency: residual-based std / noise-propagated std = {sol.consistency:.2f}")
-        out.append(build_result("conventional", model, rig, w, sol, probes=probes, forces=list(F),
+            notes.append(f'consistency: residual-based std / noise-propagated std = {sol.consistency:.2f}')
+        out.append(build_result('conventional', model, rig, w, sol, probes=probes, forces=list(F),
                                 X_std_rel=noise_rel_of(data, s), theory=theory, truth=data.truth_at(w),
-                                max_rel_std=opts.get("max_rel_std"), notes=notes,
-                                extra={"z_B": zB_all[:, s], "interpolation_bias": bias, "z_B_interp_error": zerr,
-                                       "consistency": sol.consistency}, not_determined=flag,
+                                max_rel_std=opts.get('max_rel_std'), notes=notes,
+                                extra={'z_B': zB_all[:, s], 'interpolation_bias': bias, 'z_B_interp_error': zerr,
+                                       'consistency': sol.consistency}, not_determined=flag,
                                 bias=bias_abs))
     return out
 
 
-__all__ = ["probe_pairs", "interpolate", "interpolation_bias", "identify_conventional", "CONSISTENCY_FLAG"]
+__all__ = ['probe_pairs', 'interpolate', 'interpolation_bias', 'identify_conventional', 'CONSISTENCY_FLAG']

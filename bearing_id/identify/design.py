@@ -1,4 +1,5 @@
-"""Experiment-design check: what can a probe set and an excitation plan determine, per speed, and what to add.
+"""
+Experiment-design check: what can a probe set and an excitation plan determine, per speed, and what to add.
 
 Data-driven information (all methods see the same measurements)
     The measured 1X vectors are X[r, c] = S_c q_r with q_r = Z(beta)^-1 F_r.  Their Jacobian with respect to the 16
@@ -28,21 +29,33 @@ Noise model
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
+from .determined import judge
+from .lsq import (  # noqa: F401
+    analyse,
+    coefficient_jacobian,
+    coefficient_labels,
+    coefficient_scales,
+    coeffs_to_theta,
+    DEFAULT_MAX_REL_STD,
+    Identifiability,
+    ls_system,
+    NULL_FRACTION,
+    probe_pairs,
+    STRUCTURAL_RTOL,
+    whitened_jacobian,
+)
 from ..conventions import dof_index, rad_s_to_rpm
 from ..params import ExcitationEntry, Probe, Run
-from .determined import judge
-from .lsq import (DEFAULT_MAX_REL_STD, NULL_FRACTION, STRUCTURAL_RTOL, Identifiability, analyse,  # noqa: F401
-                  coefficient_jacobian, coefficient_labels, coefficient_scales, coeffs_to_theta, ls_system,
-                  probe_pairs, whitened_jacobian)
 
 
 def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> float:
-    """Std of Re (or Im) of a fitted 1X vector relative to the amplitude, for sample noise ``sample_noise`` x RMS.
+    """
+    Std of Re (or Im) of a fitted 1X vector relative to the amplitude, for sample noise ``sample_noise`` x RMS.
 
     A sinusoid of amplitude a has RMS a/sqrt(2); the least-squares cos/sin coefficients over N samples have std
     sigma sqrt(2/N); so std / a = sample_noise / sqrt(N).
@@ -53,6 +66,7 @@ def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> fl
 @dataclass
 class DesignReport:
     """Design check at one speed.  ``methods`` maps a method name to its Identifiability (or a reason string)."""
+
     speed: float
     data: Identifiability
     methods: dict
@@ -65,23 +79,23 @@ class DesignReport:
         return float(rad_s_to_rpm(self.speed))
 
     def summary(self) -> str:
-        lines = [f"{self.speed_rpm:7.0f} rpm: data rank {self.data.rank} of {self.data.unknowns} "
-                 f"(structural {self.data.structural_rank}), condition {self.data.condition:.3g}"]
+        lines = [f'{self.speed_rpm:7.0f} rpm: data rank {self.data.rank} of {self.data.unknowns} '
+                 f'(structural {self.data.structural_rank}), condition {self.data.condition:.3g}']
         for m, v in self.methods.items():
-            lines.append(f"    {m:12s}: " + (v if isinstance(v, str) else
-                                            f"rank {v.rank} of {v.unknowns}, condition {v.condition:.3g}"))
+            lines.append(f'    {m:12s}: ' + (v if isinstance(v, str) else
+                                             f'rank {v.rank} of {v.unknowns}, condition {v.condition:.3g}'))
         if self.rule_determined is not None:
             nd = int(np.count_nonzero(self.rule_determined))
-            lines.append(f"    identification rule (estimable, |value| >= 3 predicted sigma; direct fit, no prior): "
-                         f"{nd} of {self.rule_determined.size} determined"
-                         + ("" if nd in (0, self.rule_determined.size) else " -- not: " + ", ".join(
+            lines.append(f'    identification rule (estimable, |value| >= 3 predicted sigma; direct fit, no prior): '
+                         f'{nd} of {self.rule_determined.size} determined'
+                         + ('' if nd in (0, self.rule_determined.size) else ' -- not: ' + ', '.join(
                              lab for lab, d in zip(self.labels, self.rule_determined) if not d)[:200]))
         if self.data.undetermined_combinations:
-            lines.append("    undetermined combinations: " + "; ".join(self.data.undetermined_combinations[:4])
-                         + (" ..." if len(self.data.undetermined_combinations) > 4 else ""))
+            lines.append('    undetermined combinations: ' + '; '.join(self.data.undetermined_combinations[:4])
+                         + (' ...' if len(self.data.undetermined_combinations) > 4 else ''))
         for a in self.advice:
-            lines.append(f"    advice: {a}")
-        return "\n".join(lines)
+            lines.append(f'    advice: {a}')
+        return '\n'.join(lines)
 
 
 def _forces(runs, speed, n_nodes):
@@ -103,7 +117,8 @@ def _score(model, speed, coeffs, probes, forces, noise_rel, max_rel_std):
 
 def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT_MAX_REL_STD, max_steps=4,
            force_magnitude=2.0, disc_nodes=None) -> list[str]:
-    """Greedy advice: add the probe (node, x|y) or directional-force run (disc node, x|y) that raises the rank most.
+    """
+    Greedy advice: add the probe (node, x|y) or directional-force run (disc node, x|y) that raises the rank most.
 
     Ties on rank are broken by the log-determinant of the information (sum of log singular values).  Stops at full
     rank or after ``max_steps`` additions.  Returns human-readable lines.
@@ -118,15 +133,15 @@ def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT
         if rank >= a.unknowns:
             break
         best = None
-        cand = [("probe", Probe(f"p{n}{d}", n, d)) for n in range(1, model.n_nodes + 1) for d in ("x", "y")
+        cand = [('probe', Probe(f'p{n}{d}', n, d)) for n in range(1, model.n_nodes + 1) for d in ('x', 'y')
                 if (n, d) not in have]
-        cand += [("force", Run(f"F{n}{d}", (ExcitationEntry("force", n, force_magnitude, 0.0, d, 1.0),)))
-                 for n in disc_nodes for d in ("x", "y")
-                 if not any(e.kind == "force" and e.node == n and e.direction == d for r in runs
+        cand += [('force', Run(f'F{n}{d}', (ExcitationEntry('force', n, force_magnitude, 0.0, d, 1.0),)))
+                 for n in disc_nodes for d in ('x', 'y')
+                 if not any(e.kind == 'force' and e.node == n and e.direction == d for r in runs
                             for e in r.excitation)]
         for kind, c in cand:
-            pr = probes + [c] if kind == "probe" else probes
-            rn = runs + [c] if kind == "force" else runs
+            pr = probes + [c] if kind == 'probe' else probes
+            rn = runs + [c] if kind == 'force' else runs
             r2, ld2, a2 = _score(model, speed, coeffs, pr, _forces(rn, speed, model.n_nodes), noise_rel,
                                  max_rel_std)
             key = (r2, ld2)
@@ -135,21 +150,22 @@ def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT
         if best is None or best[0][0] <= rank and best[0][1] <= logdet:
             break
         (rank, logdet), kind, c, a = best
-        if kind == "probe":
+        if kind == 'probe':
             probes.append(c)
             have.add((c.node, c.direction))
-            out.append(f"add a probe at node {c.node} direction {c.direction} -> rank {rank} of {a.unknowns}")
+            out.append(f'add a probe at node {c.node} direction {c.direction} -> rank {rank} of {a.unknowns}')
         else:
             runs.append(c)
             e = c.excitation[0]
-            out.append(f"add a run with a {force_magnitude:g} N synchronous force in {e.direction} at node {e.node} "
-                       f"-> rank {rank} of {a.unknowns}")
+            out.append(f'add a run with a {force_magnitude:g} N synchronous force in {e.direction} at node {e.node} '
+                       f'-> rank {rank} of {a.unknowns}')
     return out
 
 
 def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sample_noise=0.01, n_samples=20480,
                  max_rel_std=DEFAULT_MAX_REL_STD, advice=True, max_steps=4) -> list[DesignReport]:
-    """Rank and condition per speed [rad/s] for ``probes`` (params.Probe) and ``runs`` (params.Run), with advice.
+    """
+    Rank and condition per speed [rad/s] for ``probes`` (params.Probe) and ``runs`` (params.Run), with advice.
 
     bearing_fn : speed -> {node: (K, C)}, the coefficients to linearise at (theory, or an identified result).
     noise_rel : std of Re/Im of each 1X vector relative to the run's RMS amplitude (default
@@ -169,23 +185,23 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
         forces = _forces(runs, w, model.n_nodes)
         Jw, scale = whitened_jacobian(model, w, coeffs, probes, forces, noise_rel)
         data = analyse(Jw, labels, max_rel_std=max_rel_std)
-        methods = {"direct": data}
+        methods = {'direct': data}
         # the eqs 33-37 system itself, on the model's bearing displacements (its own algebraic rank)
         from ..rotor.assembly import harmonic_response
         zb = []
         for F in forces:
             q = harmonic_response(model, w, w, F, coeffs)
-            zb.append([[q[dof_index(n, "x", model.n_nodes)], q[dof_index(n, "y", model.n_nodes)]] for n in nodes])
+            zb.append([[q[dof_index(n, 'x', model.n_nodes)], q[dof_index(n, 'y', model.n_nodes)]] for n in nodes])
         A, _ = ls_system(np.array(zb), np.zeros((len(forces), len(nodes), 2), dtype=complex))
         s = np.linalg.svd(A * scale[None, :], compute_uv=False)
         ls_rank = int(np.count_nonzero(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
-        methods["paper"] = (f"rank {min(ls_rank, data.rank)} of {data.unknowns} (eqs 33-37 system rank {ls_rank}; "
-                            f"the KF adds no information beyond the data rank {data.rank})")
+        methods['paper'] = (f'rank {min(ls_rank, data.rank)} of {data.unknowns} (eqs 33-37 system rank {ls_rank}; '
+                            f'the KF adds no information beyond the data rank {data.rank})')
         try:
             probe_pairs(model, probes)
-            methods["conventional"] = methods["paper"]
+            methods['conventional'] = methods['paper']
         except ValueError as exc:
-            methods["conventional"] = f"not applicable: {exc}"
+            methods['conventional'] = f'not applicable: {exc}'
         adv = advise(model, w, coeffs, probes, runs, noise_rel, max_rel_std=max_rel_std, max_steps=max_steps) \
             if advice and data.rank < data.unknowns else []
         value = coeffs_to_theta(coeffs, w, nodes)
@@ -194,6 +210,6 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
     return out
 
 
-__all__ = ["harmonic_noise_rel", "coefficient_labels", "coefficient_scales", "coefficient_jacobian", "analyse",
-           "whitened_jacobian", "Identifiability", "DesignReport", "advise", "check_design", "STRUCTURAL_RTOL",
-           "NULL_FRACTION", "DEFAULT_MAX_REL_STD"]
+__all__ = ['harmonic_noise_rel', 'coefficient_labels', 'coefficient_scales', 'coefficient_jacobian', 'analyse',
+           'whitened_jacobian', 'Identifiability', 'DesignReport', 'advise', 'check_design', 'STRUCTURAL_RTOL',
+           'NULL_FRACTION', 'DEFAULT_MAX_REL_STD']

@@ -1,4 +1,5 @@
-"""One rule for "determined" and one misfit test, shared by every identification method (issue 11).
+"""
+One rule for "determined" and one misfit test, shared by every identification method (issue 11).
 
 What "determined" means
     A coefficient is *determined* -- shown to a person as a plain number with its 1-sigma -- only when the data alone
@@ -39,8 +40,8 @@ The quantile is computed with ``scipy.special.chdtri``, imported when first need
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -52,9 +53,9 @@ ESTIMABLE_LEAK = 1e-6       # default: a coefficient is estimable when its null-
 
 
 def chi2_quantile(p: float, dof: float) -> float:
-    """The ``p`` quantile of chi-square with ``dof`` degrees of freedom (scipy.special.chdtri, lazily imported)."""
+    """Get the ``p`` quantile of chi-square with ``dof`` degrees of freedom (scipy.special.chdtri, lazily imported)."""
     if not (0.0 < p < 1.0) or not dof > 0:
-        raise ValueError(f"chi2_quantile needs 0 < p < 1 and dof > 0, got p={p!r}, dof={dof!r}")
+        raise ValueError(f'chi2_quantile needs 0 < p < 1 and dof > 0, got p={p!r}, dof={dof!r}')
     from scipy.special import chdtri
     return float(chdtri(float(dof), 1.0 - float(p)))
 
@@ -66,12 +67,14 @@ def misfit_threshold(dof: float, level: float = MISFIT_LEVEL) -> float:
 
 @dataclass(frozen=True)
 class FitQuality:
-    """Goodness of fit of a weighted least-squares fit.
+    """
+    Goodness of fit of a weighted least-squares fit.
 
     chi2 : weighted residual sum of squares.   dof : equations - estimable unknowns (0: no test possible).
     level : quantile of the test.   threshold : chi2/dof limit (NaN when dof <= 0).   misfit : chi2/dof > threshold.
     birge : factor every 1-sigma is multiplied by (sqrt(chi2/dof) on a misfit, else 1).
     """
+
     chi2: float
     dof: int
     level: float
@@ -90,26 +93,26 @@ class FitQuality:
     def to_dict(self) -> dict:
         def num(v):
             return float(v) if math.isfinite(v) else None
-        return {"chi2": num(self.chi2), "dof": int(self.dof), "chi2_dof": num(self.chi2_dof),
-                "threshold_chi2_dof": num(self.threshold), "level": float(self.level), "misfit": bool(self.misfit),
-                "sigma_scale": float(self.birge)}
+        return {'chi2': num(self.chi2), 'dof': int(self.dof), 'chi2_dof': num(self.chi2_dof),
+                'threshold_chi2_dof': num(self.threshold), 'level': float(self.level), 'misfit': bool(self.misfit),
+                'sigma_scale': float(self.birge)}
 
     def summary(self) -> str:
         if not self.testable:
-            return f"chi2 = {self.chi2:.3g} with 0 degrees of freedom (no misfit test possible)"
-        return (f"chi2/dof = {self.chi2_dof:.3g} at {self.dof} dof (misfit above {self.threshold:.3g}, the "
-                f"{100 * self.level:g} % point of chi-square({self.dof})/{self.dof})")
+            return f'chi2 = {self.chi2:.3g} with 0 degrees of freedom (no misfit test possible)'
+        return (f'chi2/dof = {self.chi2_dof:.3g} at {self.dof} dof (misfit above {self.threshold:.3g}, the '
+                f'{100 * self.level:g} % point of chi-square({self.dof})/{self.dof})')
 
-    def misfit_note(self, what: str = "the model") -> str:
-        """The note every printer shows for a misfit ('MODEL MISFIT: ...')."""
-        return (f"MODEL MISFIT: chi2/dof = {self.chi2_dof:.3g} > {self.threshold:.3g} (the {100 * self.level:g} % "
-                f"point at {self.dof} dof): {what} does not reproduce these data within their noise, so the result "
-                f"carries a bias no noise-based 1-sigma covers; every 1-sigma shown is scaled by sqrt(chi2/dof) = "
-                f"{self.birge:.3g} and is still a LOWER BOUND")
+    def misfit_note(self, what: str = 'the model') -> str:
+        """Return the note every printer shows for a misfit ('MODEL MISFIT: ...')."""
+        return (f'MODEL MISFIT: chi2/dof = {self.chi2_dof:.3g} > {self.threshold:.3g} (the {100 * self.level:g} % '
+                f'point at {self.dof} dof): {what} does not reproduce these data within their noise, so the result '
+                f'carries a bias no noise-based 1-sigma covers; every 1-sigma shown is scaled by sqrt(chi2/dof) = '
+                f'{self.birge:.3g} and is still a LOWER BOUND')
 
 
 def fit_quality(chi2: float, dof: int, level: float = MISFIT_LEVEL) -> FitQuality:
-    """The misfit test of the module docstring for a fit with weighted residual ``chi2`` and ``dof`` dof."""
+    """Return the misfit test of the module docstring for a fit with weighted residual ``chi2`` and ``dof`` dof."""
     chi2 = float(chi2)
     dof = int(dof)
     if dof <= 0 or not math.isfinite(chi2):
@@ -121,11 +124,13 @@ def fit_quality(chi2: float, dof: int, level: float = MISFIT_LEVEL) -> FitQualit
 
 @dataclass
 class Verdict:
-    """Per-coefficient outcome of :func:`judge` (all arrays (n,)).
+    """
+    Per-coefficient outcome of :func:`judge` (all arrays (n,)).
 
     determined : the conditions hold.   estimable, significant, data_led, unbiased : each condition.
     z : |value| / sigma (NaN where sigma is not finite).   pull : the prior's pull used (0 without a prior).
     """
+
     determined: np.ndarray
     estimable: np.ndarray
     significant: np.ndarray
@@ -142,40 +147,41 @@ class Verdict:
         n = self.determined.size
         if self.count() == n:
             return None
-        labels = list(labels) if labels is not None else [f"p{k}" for k in range(n)]
+        labels = list(labels) if labels is not None else [f'p{k}' for k in range(n)]
         parts = []
         ne = ~self.estimable
         if ne.any():
             parts.append(f"{int(ne.sum())} not estimable from these data (outside the data's row space)")
         ns = self.estimable & ~self.significant
         if ns.any():
-            parts.append(f"{int(ns.sum())} with |value| < {K_SIGMA:g} x its 1-sigma ("
-                         + ", ".join(f"{labels[k]} {self.z[k]:.2g} sigma" if math.isfinite(self.z[k])
-                                     else f"{labels[k]} no sigma" for k in np.nonzero(ns)[0][:6])
-                         + (" ..." if ns.sum() > 6 else "") + ")")
+            parts.append(f'{int(ns.sum())} with |value| < {K_SIGMA:g} x its 1-sigma ('
+                         + ', '.join(f'{labels[k]} {self.z[k]:.2g} sigma' if math.isfinite(self.z[k])
+                                     else f'{labels[k]} no sigma' for k in np.nonzero(ns)[0][:6])
+                         + (' ...' if ns.sum() > 6 else '') + ')')
         npl = self.estimable & self.significant & ~self.data_led
         if npl.any():
-            parts.append(f"{int(npl.sum())} pulled by the prior/theory by more than {MAX_PRIOR_PULL:g} ("
-                         + ", ".join(f"{labels[k]} {self.pull[k]:.2f}" for k in np.nonzero(npl)[0][:6])
-                         + (" ..." if npl.sum() > 6 else "") + ")")
+            parts.append(f'{int(npl.sum())} pulled by the prior/theory by more than {MAX_PRIOR_PULL:g} ('
+                         + ', '.join(f'{labels[k]} {self.pull[k]:.2f}' for k in np.nonzero(npl)[0][:6])
+                         + (' ...' if npl.sum() > 6 else '') + ')')
         if self.unbiased is not None:
             nb = self.estimable & self.significant & self.data_led & ~self.unbiased
             if nb.any():
-                parts.append(f"{int(nb.sum())} with a known method bias above {MAX_BIAS_SIGMA:g} sigma ("
-                             + ", ".join(labels[k] for k in np.nonzero(nb)[0][:6]) + (" ..." if nb.sum() > 6 else "")
-                             + ")")
+                parts.append(f'{int(nb.sum())} with a known method bias above {MAX_BIAS_SIGMA:g} sigma ('
+                             + ', '.join(labels[k] for k in np.nonzero(nb)[0][:6]) + (' ...' if nb.sum() > 6 else '')
+                             + ')')
         rest = self.estimable & self.significant & self.data_led & \
             (self.unbiased if self.unbiased is not None else True) & ~self.determined
         if np.any(rest):
             parts.append(f"{int(np.sum(rest))} vetoed by the method's own check (see the notes)")
-        return (f"{n - self.count()} of {n} coefficients not determined by the data (rule: estimable, |value| >= "
-                f"{K_SIGMA:g} sigma, prior pull <= {MAX_PRIOR_PULL:g}, known bias <= {MAX_BIAS_SIGMA:g} sigma): "
-                + "; ".join(parts))
+        return (f'{n - self.count()} of {n} coefficients not determined by the data (rule: estimable, |value| >= '
+                f'{K_SIGMA:g} sigma, prior pull <= {MAX_PRIOR_PULL:g}, known bias <= {MAX_BIAS_SIGMA:g} sigma): '
+                + '; '.join(parts))
 
 
 def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_sigma: float = K_SIGMA,
           max_pull: float = MAX_PRIOR_PULL, max_bias: float = MAX_BIAS_SIGMA) -> Verdict:
-    """Apply the rule of the module docstring to coefficients ``value`` with data-only 1-sigma ``sigma``.
+    """
+    Apply the rule of the module docstring to coefficients ``value`` with data-only 1-sigma ``sigma``.
 
     value, sigma : (n,) (sigma NaN/inf where none exists; Birge-scaled by the caller on a misfit).
     estimable : (n,) bool (default: sigma finite).   pull : (n,) prior pull d(estimate)/d(prior mean) (default 0).
@@ -188,7 +194,7 @@ def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_si
     s = np.asarray(sigma, dtype=float).ravel()
     est = np.isfinite(s) if estimable is None else (np.asarray(estimable, bool).ravel() & np.isfinite(s))
     est &= np.isfinite(v)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide='ignore', invalid='ignore'):
         z = np.where(est, np.abs(v) / s, np.nan)
     sig = est & (np.abs(v) >= k_sigma * s)
     pl = np.zeros_like(v) if pull is None else np.asarray(pull, dtype=float).ravel()
@@ -208,10 +214,10 @@ def prior_pull(var_post, var_data) -> np.ndarray:
     """Shrinkage 1 - var_post / var_data per coefficient (inf where the data alone give no finite variance)."""
     vp = np.asarray(var_post, dtype=float)
     vd = np.asarray(var_data, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide='ignore', invalid='ignore'):
         out = np.where(np.isfinite(vd) & (vd > 0), 1.0 - vp / vd, np.where(vd == 0, 0.0, np.inf))
     return np.clip(out, 0.0, np.inf)
 
 
-__all__ = ["K_SIGMA", "MAX_PRIOR_PULL", "MAX_BIAS_SIGMA", "MISFIT_LEVEL", "chi2_quantile", "misfit_threshold", "FitQuality",
-           "fit_quality", "Verdict", "judge", "prior_pull"]
+__all__ = ['K_SIGMA', 'MAX_PRIOR_PULL', 'MAX_BIAS_SIGMA', 'MISFIT_LEVEL', 'chi2_quantile', 'misfit_threshold',
+           'FitQuality', 'fit_quality', 'Verdict', 'judge', 'prior_pull']

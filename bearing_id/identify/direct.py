@@ -1,4 +1,5 @@
-"""``direct`` method: output-error fit of both bearings' K and C to the measured 1X phasors through the FE model.
+"""
+``direct`` method: output-error fit of both bearings' K and C to the measured 1X phasors through the FE model.
 
 Model (per speed Omega, synchronous excitation, conventions of :mod:`bearing_id.conventions`)::
 
@@ -45,17 +46,17 @@ bias in the 1X vectors; the notes say so (``extra['redundancy']`` = equations - 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from .determined import fit_quality, judge, prior_pull
+from .result import empty_result, IdentResult
 from ..conventions import COEFF_ORDER, dof_index
 from ..excitation import harmonic_forces
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
-from .determined import fit_quality, judge, prior_pull
-from .result import IdentResult, empty_result
 
 RANK_RTOL = 1e-8          # singular values of the weighted Jacobian below this x the largest count as zero
 LEAK_TOL = 1e-6           # a coefficient is estimable when |projection of e_k onto the null space| < this
@@ -66,13 +67,15 @@ C_SCALE_DEFAULT = 1e2     # N s/m
 
 @dataclass
 class Case:
-    """One excitation run at one speed: the data the output-error fit sees.
+    """
+    One excitation run at one speed: the data the output-error fit sees.
 
     F : complex (ndof,) force phasors [N] at the rotor speed (the synchronous component).
     probes : sequence of params.Probe (or (node, direction)), one per channel.
     X : complex (nch,) measured 1X phasors [m].
     X_std : (nch,) 1-sigma of Re X and of Im X [m].
     """
+
     F: np.ndarray
     probes: tuple
     X: np.ndarray
@@ -87,7 +90,7 @@ def coeffs_to_beta(coeffs: dict, nodes) -> np.ndarray:
 
 
 def beta_to_coeffs(beta: np.ndarray, nodes) -> dict:
-    """beta (8 nb,) -> {node: (K (2,2), C (2,2))}."""
+    """Convert beta (8 nb,) -> {node: (K (2,2), C (2,2))}."""
     beta = np.asarray(beta, float)
     return {int(n): (beta[8 * i:8 * i + 4].reshape(2, 2).copy(), beta[8 * i + 4:8 * i + 8].reshape(2, 2).copy())
             for i, n in enumerate(nodes)}
@@ -108,22 +111,33 @@ def default_scale(nodes, theory: dict | None = None) -> np.ndarray:
 
 
 def _bearing_dofs(model, nodes) -> np.ndarray:
-    return np.array([[dof_index(n, "x", model.n_nodes), dof_index(n, "y", model.n_nodes)] for n in nodes])
+    return np.array([[dof_index(n, 'x', model.n_nodes), dof_index(n, 'y', model.n_nodes)] for n in nodes])
 
 
 # ------------------------------------------------------------------------------------------------ forward model
 def response_and_jacobian(model, speed: float, cases, beta: np.ndarray, nodes, *, Z0=None):
-    """Predicted probe phasors and their derivatives w.r.t. beta at one speed.
+    """
+    Predicted probe phasors and their derivatives w.r.t. beta at one speed.
 
     Parameters
     ----------
-    model : rotor.assembly.RotorModel (no bearings).   speed : rad/s (the excitation frequency is the speed: 1X).
-    cases : list of :class:`Case`.   beta : (8 nb,) bearing coefficients in SI (see :func:`coeffs_to_beta`).
-    nodes : 1-based bearing nodes (nb,).   Z0 : optional precomputed rotor dynamic stiffness at this speed.
+    model
+        rotor.assembly.RotorModel (no bearings).
+    speed
+        rad/s (the excitation frequency is the speed: 1X).
+    cases
+        list of :class:`Case`.
+    beta
+        (8 nb,) bearing coefficients in SI (see :func:`coeffs_to_beta`).
+    nodes
+        1-based bearing nodes (nb,).
+    Z0
+        optional precomputed rotor dynamic stiffness at this speed.
 
     Returns
     -------
     y : list of complex (nch_r,) predicted phasors [m];  dy : list of complex (nch_r, 8 nb) d y / d beta.
+
     """
     if Z0 is None:
         Z0 = dynamic_stiffness(model, speed, speed, {})
@@ -163,8 +177,12 @@ AUG_FD_STEP = 1e-6        # central-difference step of the augmented-model Jacob
 
 
 def response_and_jacobian_augmented(model, speed: float, cases, beta: np.ndarray, nodes, augment, scale):
-    """As :func:`response_and_jacobian` but through an augmented-model hook ``augment.dynamic_stiffness(speed,
-    omega, coeffs)``; d y / d beta by central differences (step ``AUG_FD_STEP`` x ``scale`` per unknown)."""
+    """
+    Do as :func:`response_and_jacobian` but through an augmented-model hook.
+
+    The hook is ``augment.dynamic_stiffness(speed, omega, coeffs)``; d y / d beta by central differences (step
+    ``AUG_FD_STEP`` x ``scale`` per unknown).
+    """
     P = [probe_matrix(model, c.probes) for c in cases]
     F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
 
@@ -186,15 +204,16 @@ def response_and_jacobian_augmented(model, speed: float, cases, beta: np.ndarray
 
 # ------------------------------------------------------------------------------------------------ information analysis
 def information_analysis(J: np.ndarray):
-    """SVD analysis of a weighted Jacobian J (m, n): rank, condition, pseudo-inverse information, leakage per unknown.
+    """
+    SVD analysis of a weighted Jacobian J (m, n): rank, condition, pseudo-inverse information, leakage per unknown.
 
     Returns dict: rank, condition (inf if rank < n), condition_range (s_max / s_rank: conditioning of what is
     determined), singular (s,), cov_pinv (n, n) = (J^T J)^+, leakage (n,) = norm of e_k's projection on the null space.
     """
     n = J.shape[1]
     if J.shape[0] == 0:
-        return dict(rank=0, condition=math.inf, condition_range=math.inf, singular=np.zeros(0),
-                    cov_pinv=np.full((n, n), np.nan), leakage=np.ones(n))
+        return {'rank': 0, 'condition': math.inf, 'condition_range': math.inf, 'singular': np.zeros(0),
+                'cov_pinv': np.full((n, n), np.nan), 'leakage': np.ones(n)}
     U, s, Vt = np.linalg.svd(J, full_matrices=True)
     smax = s[0] if s.size else 0.0
     rank = int(np.count_nonzero(s > RANK_RTOL * smax)) if smax > 0 else 0
@@ -204,7 +223,7 @@ def information_analysis(J: np.ndarray):
     leak = np.linalg.norm(V0, axis=1) if V0.size else np.zeros(n)
     cond = float(smax / s[n - 1]) if rank == n else math.inf
     cond_r = float(smax / s[rank - 1]) if rank else math.inf
-    return dict(rank=rank, condition=cond, condition_range=cond_r, singular=s, cov_pinv=cov, leakage=leak)
+    return {'rank': rank, 'condition': cond, 'condition_range': cond_r, 'singular': s, 'cov_pinv': cov, 'leakage': leak}
 
 
 def _sigma(c: Case) -> np.ndarray:
@@ -231,7 +250,8 @@ PROFILE_SIGMAS = 3.0      # the profile check looks at value +- this many linear
 
 def profile_widening(fun_jac, theta, cov, k: int, chi2_min: float, birge: float = 1.0, *,
                      n_sigma: float = PROFILE_SIGMAS, max_nfev: int = 200) -> float:
-    """Factor (>= 1) by which the profile chi2 says the linearised 1-sigma of unknown ``k`` is too small.
+    """
+    Factor (>= 1) by which the profile chi2 says the linearised 1-sigma of unknown ``k`` is too small.
 
     fun_jac(theta) -> (weighted residual, Jacobian) of the fit (prior rows included); theta its minimum; cov the
     (Birge-scaled) covariance; chi2_min = |residual|^2 at theta.  Unknown k is fixed at theta_k +- n_sigma sigma_k
@@ -259,7 +279,7 @@ def profile_widening(fun_jac, theta, cov, k: int, chi2_min: float, birge: float 
         t0 = np.delete(theta + sgn * n_sigma * cov[:, k] / sk, k)
         m = f(t0).size
         try:
-            sol = least_squares(f, t0, jac=jac, method="lm" if m >= n - 1 else "trf", xtol=1e-10, ftol=1e-10,
+            sol = least_squares(f, t0, jac=jac, method='lm' if m >= n - 1 else 'trf', xtol=1e-10, ftol=1e-10,
                                 gtol=1e-12, max_nfev=max_nfev)
         except (ValueError, np.linalg.LinAlgError):
             return math.inf
@@ -272,38 +292,63 @@ def profile_widening(fun_jac, theta, cov, k: int, chi2_min: float, birge: float 
 
 # ------------------------------------------------------------------------------------------------ one speed
 def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, start: dict | None = None,
-              prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = "direct",
+              prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = 'direct',
               max_nfev: int = 200, max_rel_std: float | None = MAX_REL_STD, augment=None,
               profile_check: bool = True) -> IdentResult:
-    """Output-error fit of the 8 nb bearing coefficients at one speed.
+    """
+    Output-error fit of the 8 nb bearing coefficients at one speed.
 
     Parameters
     ----------
-    model : RotorModel without bearings.   speed : rad/s.   cases : list of :class:`Case` (runs at this speed).
-    nodes : 1-based bearing nodes.   theory : {node: (K, C)} theory (scale, start and prior mean).
-    start : {node: (K, C)} start of the iteration (default: theory).
-    prior_weight : w >= 0; prior 1-sigma = scale / sqrt(w) per coefficient (0 = no prior).
-    scale : (8 nb,) scale of the unknowns (default :func:`default_scale`).
-    augment : augmented-model hook (``dynamic_stiffness(speed, omega, coeffs) -> Z``; e.g. a flexible support in
+    model
+        RotorModel without bearings.
+    speed
+        rad/s.
+    cases
+        list of :class:`Case` (runs at this speed).
+    nodes
+        1-based bearing nodes.
+    theory
+        {node: (K, C)} theory (scale, start and prior mean).
+    start
+        {node: (K, C)} start of the iteration (default: theory).
+    prior_weight
+        w >= 0; prior 1-sigma = scale / sqrt(w) per coefficient (0 = no prior).
+    scale
+        (8 nb,) scale of the unknowns (default :func:`default_scale`).
+    bearings
+        bearing names for the result (default ``bearing1``, ``bearing2``, ...).
+    method_name
+        the result's method name (default 'direct').
+    max_nfev
+        evaluation limit of the least-squares fit (and of each profile in the nonlinearity check).
+    max_rel_std
+        optional extra bound on the 1-sigma relative to the scale (default :data:`MAX_REL_STD`; None = only the
+        one rule).
+    augment
+        augmented-model hook (``dynamic_stiffness(speed, omega, coeffs) -> Z``; e.g. a flexible support in
         series with the film) or None.  With it the prediction is P Z_aug(beta)^-1 F and the Jacobian is taken by
         central differences in the scaled unknowns (relative step 1e-6).
+    profile_check
+        run the nonlinearity check (profile chi2, module docstring) on the determined coefficients (default True).
 
     Returns
     -------
     IdentResult (method 'direct'); ``extra`` holds theta covariance, singular values, chi2 and the prior used.
+
     """
     nodes = tuple(int(n) for n in nodes)
     nb = len(nodes)
     n = 8 * nb
-    names = bearings or tuple(f"bearing{i + 1}" for i in range(nb))
+    names = bearings or tuple(f'bearing{i + 1}' for i in range(nb))
     if prior_weight < 0 or not math.isfinite(prior_weight):
-        raise ValueError(f"prior_weight must be a finite number >= 0, got {prior_weight!r}")
+        raise ValueError(f'prior_weight must be a finite number >= 0, got {prior_weight!r}')
     if prior_weight > 0 and theory is None:
-        raise ValueError("a prior (prior_weight > 0) needs the theory coefficients")
+        raise ValueError('a prior (prior_weight > 0) needs the theory coefficients')
     res = empty_result(speed, method_name, names, nodes)
     cases = [c for c in cases if np.all(np.isfinite(np.asarray(c.X)))]
     if not cases:
-        res.notes.append("no finite measurements at this speed")
+        res.notes.append('no finite measurements at this speed')
         return res
     scale = np.asarray(scale if scale is not None else default_scale(nodes, theory), float)
     beta0 = coeffs_to_beta(start if start is not None else theory, nodes) if (start or theory) is not None \
@@ -327,17 +372,17 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     cache = {}
 
     def f(theta):
-        cache["rj"] = fun_jac(theta)
-        cache["x"] = theta.copy()
-        return cache["rj"][0]
+        cache['rj'] = fun_jac(theta)
+        cache['x'] = theta.copy()
+        return cache['rj'][0]
 
     def jac(theta):
-        if "x" not in cache or not np.array_equal(cache["x"], theta):
+        if 'x' not in cache or not np.array_equal(cache['x'], theta):
             f(theta)
-        return cache["rj"][1]
+        return cache['rj'][1]
 
     m = f(theta0).size
-    sol = least_squares(f, theta0, jac=jac, method="lm" if m >= n else "trf", x_scale=1.0, xtol=1e-12, ftol=1e-12,
+    sol = least_squares(f, theta0, jac=jac, method='lm' if m >= n else 'trf', x_scale=1.0, xtol=1e-12, ftol=1e-12,
                         gtol=1e-12, max_nfev=max_nfev)
     theta = sol.x
     beta = theta * scale
@@ -345,19 +390,19 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
                if augment is not None else response_and_jacobian(model, speed, cases, beta, nodes, Z0=Z0))
     r_data, J_data = weighted_stack(cases, ys, dys, scale)
     info = information_analysis(J_data)
-    redundancy = int(r_data.size - info["rank"])
+    redundancy = int(r_data.size - info['rank'])
     dof = max(redundancy, 1)
     chi2 = float(r_data @ r_data)
     fq = fit_quality(chi2, redundancy)
-    estimable = info["leakage"] < LEAK_TOL
-    var_data = np.where(estimable, np.clip(np.diag(info["cov_pinv"]), 0, None), np.inf)
+    estimable = info['leakage'] < LEAK_TOL
+    var_data = np.where(estimable, np.clip(np.diag(info['cov_pinv']), 0, None), np.inf)
     if sw > 0:
         cov_theta = np.linalg.inv(J_data.T @ J_data + prior_weight * np.eye(n))
         var_post = np.diag(cov_theta)
         pull = prior_pull(var_post, var_data)
         std_theta = np.sqrt(var_post)
     else:
-        cov_theta = info["cov_pinv"]
+        cov_theta = info['cov_pinv']
         pull = None
         std_theta = np.where(estimable, np.sqrt(var_data), np.nan)
     if fq.misfit:              # Birge: the residual shows more noise than the stated 1X std
@@ -367,7 +412,7 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     veto = None
     if max_rel_std is not None:
         veto = ~(np.sqrt(var_data) * fq.birge < float(max_rel_std))
-    labels = [f"{names[i]}.{sym}{lab}" for i in range(nb) for sym in ("K", "C") for lab in COEFF_ORDER]
+    labels = [f'{names[i]}.{sym}{lab}' for i in range(nb) for sym in ('K', 'C') for lab in COEFF_ORDER]
     verdict = judge(theta * scale, sigma_data, estimable=estimable, pull=pull, veto=veto)
     # nonlinearity: the linearised sigma must describe the 3-sigma interval (profile chi2, module docstring)
     widen = np.ones(n)
@@ -392,31 +437,31 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
         res.C_std[i] = std[8 * i + 4:8 * i + 8].reshape(2, 2)
         res.K_determined[i] = determined[8 * i:8 * i + 4].reshape(2, 2)
         res.C_determined[i] = determined[8 * i + 4:8 * i + 8].reshape(2, 2)
-    res.rank, res.unknowns, res.condition = info["rank"], n, info["condition"]
+    res.rank, res.unknowns, res.condition = info['rank'], n, info['condition']
     res.residual = num / den if den > 0 else math.nan
-    res.notes.append(f"direct output-error fit: {len(cases)} run(s), {r_data.size} real equations, rank "
+    res.notes.append(f'direct output-error fit: {len(cases)} run(s), {r_data.size} real equations, rank '
                      f"{info['rank']} of {n}; " + fq.summary())
     if redundancy <= 0:
         res.notes.append(f"no redundancy: {r_data.size} real equations for {info['rank']} estimable unknowns, so "
-                         f"the fit reproduces the data exactly and its residual cannot reveal a bias in the 1X "
-                         f"vectors or a model error; the std rests entirely on the stated 1X std (add a probe or a "
-                         f"run to make the residual a check)")
+                         f'the fit reproduces the data exactly and its residual cannot reveal a bias in the 1X '
+                         f'vectors or a model error; the std rests entirely on the stated 1X std (add a probe or a '
+                         f'run to make the residual a check)')
     vn = verdict.note(labels)
     if vn:
-        res.notes.append(vn + ("; values of undetermined coefficients are prior-dominated" if sw > 0 else
+        res.notes.append(vn + ('; values of undetermined coefficients are prior-dominated' if sw > 0 else
                                "; values of undetermined coefficients are not the data's (start / minimum norm)"))
     if np.any(widen > 1.05):
-        res.notes.append(f"nonlinearity: the profile chi2 at +-{PROFILE_SIGMAS:g} sigma of {int(np.sum(widen > 1.05))} "
-                         f"coefficient(s) rose less than the linearised fit predicts; their 1-sigma were widened to the "
-                         f"profile's (by up to x{np.max(widen):.2g}) before the rule was applied")
+        res.notes.append(f'nonlinearity: the profile chi2 at +-{PROFILE_SIGMAS:g} sigma of {int(np.sum(widen > 1.05))} '
+                         f'coefficient(s) rose less than the linearised fit predicts; their 1-sigma were widened to '
+                         f"the profile's (by up to x{np.max(widen):.2g}) before the rule was applied")
     if fq.misfit:
-        res.notes.append(fq.misfit_note("the FE rotor model with linear bearings" + (" (augmented)" if augment
-                                                                                      is not None else "")))
-        res.set_flag("misfit")
+        res.notes.append(fq.misfit_note('the FE rotor model with linear bearings'
+                                        + (' (augmented)' if augment is not None else '')))
+        res.set_flag('misfit')
     if not sol.success:
-        res.notes.append(f"least_squares did not converge: {sol.message}")
-    res.extra.update(theta=theta, scale=scale, cov_theta=cov_theta, singular=info["singular"],
-                     condition_range=info["condition_range"], leakage=info["leakage"], chi2=chi2, dof=dof,
+        res.notes.append(f'least_squares did not converge: {sol.message}')
+    res.extra.update(theta=theta, scale=scale, cov_theta=cov_theta, singular=info['singular'],
+                     condition_range=info['condition_range'], leakage=info['leakage'], chi2=chi2, dof=dof,
                      prior_weight=prior_weight, theory=theory, nfev=sol.nfev, redundancy=redundancy,
                      fit_quality=fq, verdict=verdict, prior_pull=pull, profile_widening=widen)
     return res
@@ -424,10 +469,12 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
 
 # ------------------------------------------------------------------------------------------------ all speeds
 def cases_from_data(model, data, probes, runs, i_speed: int, augment=None) -> list[Case]:
-    """The :class:`Case` list of speed index ``i_speed`` from harmonic data (X (nr, ns, nch), X_std alike).
+    """
+    Return the :class:`Case` list of speed index ``i_speed`` from harmonic data (X (nr, ns, nch), X_std alike).
 
     ``augment`` : augmented-model hook; its ``extra_forces(speed)[1.0]`` (a residual unbalance, a bow: the same
-    machine in every run) is added to every run's known synchronous force."""
+    machine in every run) is added to every run's known synchronous force.
+    """
     W = float(data.speeds[i_speed])
     extra = augment.extra_forces(W).get(1.0) if augment is not None else None
     out = []
@@ -444,20 +491,27 @@ def cases_from_data(model, data, probes, runs, i_speed: int, augment=None) -> li
     return out
 
 
-OPTIONS = {"prior_weight": 0.0, "theory": None, "bearing_model": None, "max_nfev": 200, "max_rel_std": MAX_REL_STD,
-           "augment": None}
+OPTIONS = {'prior_weight': 0.0, 'theory': None, 'bearing_model': None, 'max_nfev': 200, 'max_rel_std': MAX_REL_STD,
+           'augment': None}
 
 
 def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
-    """``direct`` identification at every speed of ``data`` (see the module docstring).
+    """
+    ``direct`` identification at every speed of ``data`` (see the module docstring).
 
     Parameters
     ----------
-    model : rotor.assembly.RotorModel (no bearings).   rig : params.RigParams (bearing nodes/names, theory).
-    data : harmonic data with ``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]
+    model
+        rotor.assembly.RotorModel (no bearings).
+    rig
+        params.RigParams (bearing nodes/names, theory).
+    data
+        harmonic data with ``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]
         (1-sigma of Re and Im), ``probes``, ``runs``.
-    probes, runs : override data.probes / data.runs.
-    options / keywords : ``prior_weight`` (>= 0, default 0 = no prior), ``theory`` (bearing_fn speed -> coeffs;
+    probes, runs
+        override data.probes / data.runs.
+    options, kw
+        options / keywords: ``prior_weight`` (>= 0, default 0 = no prior), ``theory`` (bearing_fn speed -> coeffs;
         default the nominal theory of ``rig`` with ``bearing_model``), ``bearing_model`` ('short'/'finite'/None =
         the rig's), ``max_nfev``, ``max_rel_std`` (None: an optional extra bound on the 1-sigma relative
         to the block scale, on top of the one rule), ``augment`` (augmented-model hook, see :func:`fit_speed`
@@ -466,31 +520,32 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
     Returns
     -------
     list of IdentResult (one per speed), method 'direct'.
+
     """
     opts = dict(OPTIONS)
     for k, v in {**(options or {}), **kw}.items():
         if k not in OPTIONS:
-            raise ValueError(f"direct: unknown option {k!r} (known: {sorted(OPTIONS)})")
+            raise ValueError(f'direct: unknown option {k!r} (known: {sorted(OPTIONS)})')
         opts[k] = v
     probes = tuple(probes if probes is not None else data.probes)
     runs = tuple(runs if runs is not None else data.runs)
-    theory_fn = opts["theory"]
+    theory_fn = opts['theory']
     if theory_fn is None:
         from .. import bearings
-        theory_fn = bearings.bearing_fn(rig, model=opts["bearing_model"])
+        theory_fn = bearings.bearing_fn(rig, model=opts['bearing_model'])
     nodes = tuple(b.node for b in rig.bearings)
     names = tuple(b.name for b in rig.bearings)
     out = []
     for i, W in enumerate(np.asarray(data.speeds, float)):
-        cases = cases_from_data(model, data, probes, runs, i, augment=opts["augment"])
+        cases = cases_from_data(model, data, probes, runs, i, augment=opts['augment'])
         th = theory_fn(float(W))
-        out.append(fit_speed(model, float(W), cases, nodes, theory=th, prior_weight=float(opts["prior_weight"]),
-                             bearings=names, max_nfev=int(opts["max_nfev"]),
-                             max_rel_std=(None if opts["max_rel_std"] is None else float(opts["max_rel_std"])),
-                             augment=opts["augment"]))
+        out.append(fit_speed(model, float(W), cases, nodes, theory=th, prior_weight=float(opts['prior_weight']),
+                             bearings=names, max_nfev=int(opts['max_nfev']),
+                             max_rel_std=(None if opts['max_rel_std'] is None else float(opts['max_rel_std'])),
+                             augment=opts['augment']))
     return out
 
 
-__all__ = ["Case", "coeffs_to_beta", "beta_to_coeffs", "default_scale", "response_and_jacobian",
-           "response_and_jacobian_augmented",
-           "information_analysis", "weighted_stack", "fit_speed", "cases_from_data", "identify_direct"]
+__all__ = ['Case', 'coeffs_to_beta', 'beta_to_coeffs', 'default_scale', 'response_and_jacobian',
+           'response_and_jacobian_augmented',
+           'information_analysis', 'weighted_stack', 'fit_speed', 'cases_from_data', 'identify_direct']

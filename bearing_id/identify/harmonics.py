@@ -1,4 +1,5 @@
-"""Collect the measured 1X harmonic vectors per excitation run and per steady speed, from recordings or a bag.
+"""
+Collect the measured 1X harmonic vectors per excitation run and per steady speed, from recordings or a bag.
 
 Rule for each run
     The speed record is split into steady windows (:func:`bearing_id.signals.steady_windows`, speed constant within
@@ -16,13 +17,13 @@ real and of the imaginary part (each) [m]; ``speeds`` (n_speeds,) rad/s.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
 from ..params import Run
-from ..signals import SteadyWindowTracker, harmonic_vectors, speed_from_angle
+from ..signals import harmonic_vectors, speed_from_angle, SteadyWindowTracker
 
 DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
@@ -32,11 +33,13 @@ DEFAULT_MAX_WINDOW = 120.0  # s: a longer steady window is fitted in pieces of t
 
 @dataclass
 class HarmonicData:
-    """Measured 1X phasors per run and speed (see module docstring for shapes and units).
+    """
+    Measured 1X phasors per run and speed (see module docstring for shapes and units).
 
     windows[r][s] = (i0, i1) sample range of run r used at speed s (into ``recordings[r]``), or None.
     truth = {speed [rad/s]: {node: (K, C)}} when the recordings carry it (simulated rig), else {}.
     """
+
     speeds: np.ndarray
     probes: tuple
     runs: tuple
@@ -51,14 +54,14 @@ class HarmonicData:
         return self.X.shape[0]
 
     def truth_at(self, speed: float, tol_rel: float = DEFAULT_TOL_REL):
-        """The true coefficients {node: (K, C)} nearest ``speed`` [rad/s], or None."""
+        """Return the true coefficients {node: (K, C)} nearest ``speed`` [rad/s], or None."""
         if not self.truth:
             return None
         s = min(self.truth, key=lambda k: abs(k - speed))
         return self.truth[s] if abs(s - speed) <= tol_rel * max(abs(speed), 1e-12) else None
 
-    def select(self, speeds_idx) -> "HarmonicData":
-        """A copy holding only the speeds at the given indices."""
+    def select(self, speeds_idx) -> 'HarmonicData':
+        """Return a copy holding only the speeds at the given indices."""
         idx = list(speeds_idx)
         return HarmonicData(self.speeds[idx], self.probes, self.runs, self.X[:, idx], self.X_std[:, idx],
                             self.recordings, [[w[i] for i in idx] for w in self.windows] if self.windows else [],
@@ -68,7 +71,8 @@ class HarmonicData:
 # ------------------------------------------------------------------------------------------ the one route to 1X
 @dataclass
 class ClosedWindow:
-    """The raw data of one steady window cut from a run's sample stream (SI).
+    """
+    The raw data of one steady window cut from a run's sample stream (SI).
 
     i0, i1 : its sample range, counted over everything fed to the run's :class:`RunStream` (for a whole recording:
     indices into it); samples (n, nch) [m]; angle (n,) [rad]; speed (n,) [rad/s] (from the angle);
@@ -78,6 +82,7 @@ class ClosedWindow:
     stamp : time of its first sample [s] when the stream was stamped, else None; seqs : (first, last) block
     sequence numbers when fed block by block, else None.
     """
+
     run: Run
     probes: tuple
     sample_rate: float
@@ -98,8 +103,13 @@ class ClosedWindow:
 
 @dataclass
 class WindowVector:
-    """The 1X vector of one steady window: speed [rad/s] (median over the fitted part), X complex (nch,) [m], X_std
-    (nch,) [m] (1-sigma of the real and of the imaginary part), the fitted sample range [i0, i1) and the window."""
+    """
+    The 1X vector of one steady window.
+
+    Fields: speed [rad/s] (median over the fitted part), X complex (nch,) [m], X_std (nch,) [m] (1-sigma of the real and
+    of the imaginary part), the fitted sample range [i0, i1) and the window.
+    """
+
     speed: float
     X: np.ndarray
     X_std: np.ndarray
@@ -109,7 +119,8 @@ class WindowVector:
 
 
 class RunStream:
-    """One excitation run's sample stream, cut into steady windows as it arrives -- the route every 1X vector takes.
+    """
+    One excitation run's sample stream, cut into steady windows as it arrives -- the route every 1X vector takes.
 
     ``feed(samples (n, nch), angle (n,), contiguous=True)`` appends a chunk (a whole recording, or one
     DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window.
@@ -124,7 +135,7 @@ class RunStream:
     def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
                  max_duration: float = DEFAULT_MAX_WINDOW):
         if not (math.isfinite(sample_rate) and sample_rate > 0):
-            raise ValueError(f"sample_rate must be a positive number of Hz, got {sample_rate}")
+            raise ValueError(f'sample_rate must be a positive number of Hz, got {sample_rate}')
         self.run, self.probes, self.fs = run, tuple(probes), float(sample_rate)
         self.tracker = SteadyWindowTracker(tol_rel)
         self.max_len = max(2, int(max_duration * self.fs)) if math.isfinite(max_duration) else None
@@ -141,9 +152,9 @@ class RunStream:
         x = x[:, None] if x.ndim == 1 else x
         a = np.asarray(angle, dtype=float).reshape(-1)
         if x.shape[0] != a.size:
-            raise ValueError(f"{x.shape[0]} sample rows but {a.size} angles")
+            raise ValueError(f'{x.shape[0]} sample rows but {a.size} angles')
         if x.ndim != 2 or x.shape[1] != len(self.probes):
-            raise ValueError(f"samples shape {x.shape} does not match {len(self.probes)} probes")
+            raise ValueError(f'samples shape {x.shape} does not match {len(self.probes)} probes')
         out = [] if contiguous else self._gap()
         if not a.size:
             return out
@@ -224,7 +235,8 @@ STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this ma
 
 def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_duration: float = 0.2,
                   transients: int = DEFAULT_TRANSIENTS) -> WindowVector | None:
-    """The 1X vector of a steady window, or None when the window is too short to use.
+    """
+    Return the 1X vector of a steady window, or None when the window is too short to use.
 
     The rule: windows shorter than ``min_duration`` [s] are not used; the first ``settle`` fraction is discarded
     (the transient after the speed change); the rest (at least 16 samples) is fitted over whole revolutions jointly
@@ -248,8 +260,10 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
 
 
 def stationarity_excess(x, angle, sample_rate: float, fit=None) -> np.ndarray:
-    """Extra variance [m^2] per channel (per real/imaginary part) when a window (x (n, nch), angle (n,)) is not
-    stationary.
+    """
+    Return the extra variance [m^2] per channel (per real/imaginary part) when a window is not stationary.
+
+    The window: x (n, nch), angle (n,).
 
     The 1X vector is fitted on each half of the window, after subtracting the decaying components that ``fit``
     (the window's transient-aware fit, if given) found.  When the halves differ by more than ``STATIONARITY_SIGMA``
@@ -280,11 +294,14 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
 def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
                       transients: int = DEFAULT_TRANSIENTS, max_window: float = DEFAULT_MAX_WINDOW
                       ) -> list[WindowVector]:
-    """The 1X vectors of every steady window of one recording (fed whole to a :class:`RunStream`, split at its
-    ``gaps``); the pieces of a dwell split by a gap or by the ``max_window`` [s] length limit are combined
-    (:func:`combine_vectors`)."""
+    """
+    Return the 1X vectors of every steady window of one recording.
+
+    The recording is fed whole to a :class:`RunStream`, split at its ``gaps``; the pieces of a dwell split by a gap or
+    by the ``max_window`` [s] length limit are combined (:func:`combine_vectors`).
+    """
     stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel, max_duration=max_window)
-    cuts = [0] + sorted(int(g) for g in getattr(rec, "gaps", ()) if 0 < g < rec.samples.shape[0]) + \
+    cuts = [0] + sorted(int(g) for g in getattr(rec, 'gaps', ()) if 0 < g < rec.samples.shape[0]) + \
         [rec.samples.shape[0]]
     wins = []
     for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
@@ -303,11 +320,15 @@ def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, mi
 
 
 def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list]:
-    """Speeds present in every run: per_run[r] = list of objects with ``.speed`` (or tuples whose first item is the
-    speed) in the run's order.  Returns (speeds of the first run, picks) with picks[s][r] the index into per_run[r]
-    of the first entry within ``tol_rel`` of speed s.  A speed repeated in the first run counts once."""
+    """
+    Find the speeds present in every run.
+
+    per_run[r] = list of objects with ``.speed`` (or tuples whose first item is the speed) in the run's order.  Returns
+    (speeds of the first run, picks) with picks[s][r] the index into per_run[r] of the first entry within ``tol_rel`` of
+    speed s.  A speed repeated in the first run counts once.
+    """
     def sp(v):
-        return float(v.speed) if hasattr(v, "speed") else float(v[0])
+        return float(v.speed) if hasattr(v, 'speed') else float(v[0])
     speeds, picks = [], []
     for v0 in per_run[0] if per_run else []:
         w = sp(v0)
@@ -326,23 +347,24 @@ def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list
 
 def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
                     transients: int = DEFAULT_TRANSIENTS) -> HarmonicData:
-    """1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
+    """
+    1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
 
     ``transients``: decaying components allowed in each window's fit (module docstring); 0 = the plain fit.
     """
     recordings = list(recordings)
     if not recordings:
-        raise ValueError("no recordings given")
+        raise ValueError('no recordings given')
     probes = tuple(recordings[0].probes)
     for r in recordings[1:]:
         if tuple((p.node, p.direction) for p in r.probes) != tuple((p.node, p.direction) for p in probes):
-            raise ValueError(f"run {r.run.id} has channels {r.channels}, run {recordings[0].run.id} has "
-                             f"{recordings[0].channels}: all runs must use the same probes")
+            raise ValueError(f'run {r.run.id} has channels {r.channels}, run {recordings[0].run.id} has '
+                             f'{recordings[0].channels}: all runs must use the same probes')
     per_run = [recording_vectors(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration,
                                  transients=transients) for r in recordings]
     speeds, picks = common_speeds(per_run, tol_rel)
     if not speeds:
-        raise ValueError("no steady speed is common to all runs")
+        raise ValueError('no steady speed is common to all runs')
     nr, ns, nch = len(recordings), len(speeds), len(probes)
     X = np.zeros((nr, ns, nch), dtype=complex)
     Xs = np.zeros((nr, ns, nch))
@@ -353,7 +375,7 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
             X[r, s], Xs[r, s], windows[r][s] = v.X, v.X_std, (v.i0, v.i1)
     truth = {}
     for rec in recordings:
-        truth.update(rec.truth.get("coefficients", {}) if rec.truth else {})
+        truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
     return HarmonicData(np.array(speeds), probes, tuple(r.run for r in recordings), X, Xs, recordings, windows,
                         truth)
 
@@ -365,7 +387,8 @@ def from_npz(paths, **kw) -> HarmonicData:
 
 
 def recordings_from_bag(path) -> list:
-    """One rig.Recording per excitation run from a bag (topics /rotor/displacement and /rotor/excitation).
+    """
+    One rig.Recording per excitation run from a bag (topics /rotor/displacement and /rotor/excitation).
 
     A block belongs to the run its ``run_id`` names, or (no run_id) to the run of the last /rotor/excitation before
     it; re-sent copies of an excitation are ignored.  The angle of every sample is the block's ``sample_angles``
@@ -379,11 +402,11 @@ def recordings_from_bag(path) -> list:
     runs: dict = {}
     order: list = []
     cur = None
-    for topic, _, _, msg in read_bag(path, topics=["/rotor/displacement", "/rotor/excitation"]):
-        if topic == "/rotor/excitation":
+    for topic, _, _, msg in read_bag(path, topics=['/rotor/displacement', '/rotor/excitation']):
+        if topic == '/rotor/excitation':
             run = excitation_from_msg(msg)
             if run.id not in runs:
-                runs[run.id] = {"run": run, "blocks": []}
+                runs[run.id] = {'run': run, 'blocks': []}
                 order.append(run.id)
             cur = run.id
             continue
@@ -391,10 +414,10 @@ def recordings_from_bag(path) -> list:
         rid = b.run_id or cur
         if rid is None or rid not in runs:
             continue            # no excitation known for it: not usable for identification
-        runs[rid]["blocks"].append(b)
+        runs[rid]['blocks'].append(b)
     recs = []
     for rid in order:
-        bl = runs[rid]["blocks"]
+        bl = runs[rid]['blocks']
         if not bl:
             continue
         chans = bl[0].probes
@@ -402,16 +425,16 @@ def recordings_from_bag(path) -> list:
         gaps, n = [], 0
         for i, b in enumerate(bl):
             if b.probes != chans:
-                raise ValueError(f"{path}: run {rid}: channels change from {chans} to {b.probes}")
+                raise ValueError(f'{path}: run {rid}: channels change from {chans} to {b.probes}')
             if i and (b.sequence - bl[i - 1].sequence) % 2**32 != 1:
                 gaps.append(n)
             n += b.n_samples
         x = np.vstack([b.samples for b in bl])
         angle = np.concatenate([b.angles() for b in bl])
         recs.append(Recording(sample_rate=fs, t=np.arange(x.shape[0]) / fs, speed=speed_from_angle(angle, fs),
-                              angle=angle, probes=chans, samples=x, run=runs[rid]["run"], gaps=tuple(gaps)))
+                              angle=angle, probes=chans, samples=x, run=runs[rid]['run'], gaps=tuple(gaps)))
     if not recs:
-        raise ValueError(f"{path}: no displacement blocks after an excitation message")
+        raise ValueError(f'{path}: no displacement blocks after an excitation message')
     return recs
 
 
@@ -421,7 +444,8 @@ def from_bag(path, **kw) -> HarmonicData:
 
 
 def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=None, model=None) -> HarmonicData:
-    """Noise-free (or analytic-noise) 1X phasors straight from the truth system -- no time series (tests, design).
+    """
+    Noise-free (or analytic-noise) 1X phasors straight from the truth system -- no time series (tests, design).
 
     X[r, s] = S q with q = Z(speed)^-1 F_r the steady response of the truth bearings ``bearing_fn`` (default the rig's
     truth); with ``noise`` > 0 a complex Gaussian error of std ``noise * |X| / sqrt(2)`` per Re/Im is NOT added here
@@ -430,7 +454,7 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
     from ..conventions import rpm_to_rad_s
     from ..excitation import harmonic_forces
     from ..rig import truth_bearing_fn
-    from ..rotor.assembly import RotorModel, harmonic_response, probe_matrix
+    from ..rotor.assembly import harmonic_response, probe_matrix, RotorModel
     model = model or RotorModel.from_params(rig)
     probes = tuple(probes if probes is not None else rig.probes)
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
@@ -449,7 +473,7 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
     return HarmonicData(speeds, probes, tuple(runs), X, Xs, [], [], truth)
 
 
-__all__ = ["HarmonicData", "ClosedWindow", "WindowVector", "RunStream", "window_vector", "stationarity_excess",
-           "combine_vectors", "recording_vectors", "common_speeds", "from_recordings", "from_npz", "from_bag",
-           "recordings_from_bag", "simulate_data", "DEFAULT_SETTLE", "DEFAULT_TOL_REL", "DEFAULT_TRANSIENTS",
-           "DEFAULT_MAX_WINDOW"]
+__all__ = ['HarmonicData', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector', 'stationarity_excess',
+           'combine_vectors', 'recording_vectors', 'common_speeds', 'from_recordings', 'from_npz', 'from_bag',
+           'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE', 'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS',
+           'DEFAULT_MAX_WINDOW']

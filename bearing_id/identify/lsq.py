@@ -1,4 +1,5 @@
-"""Least-squares helpers shared by the paper, conventional and design modules (one place, no import circle).
+"""
+Least-squares helpers shared by the paper, conventional and design modules (one place, no import circle).
 
 Import graph inside :mod:`bearing_id.identify` (checked by test/test_honest_numbers.py)::
 
@@ -25,14 +26,14 @@ Rules of :func:`solve_coefficients` (eqs 33-37 solved by SVD)
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
-from ..conventions import COEFF_ORDER, dof_index
 from .determined import fit_quality, judge
-from .result import IdentResult, eq38_error
+from .result import eq38_error, IdentResult
+from ..conventions import COEFF_ORDER, dof_index
 
 DEFAULT_RTOL = 1e-8
 STRUCTURAL_RTOL = 1e-9
@@ -44,11 +45,12 @@ DEFAULT_MAX_REL_STD = 0.05
 def bearing_dofs(model, nodes=None) -> np.ndarray:
     """0-based DOF indices [x_B1, y_B1, x_B2, y_B2, ...] of the bearing nodes (the reordered 'b' block)."""
     nodes = model.bearing_nodes if nodes is None else nodes
-    return np.array([dof_index(n, d, model.n_nodes) for n in nodes for d in ("x", "y")])
+    return np.array([dof_index(n, d, model.n_nodes) for n in nodes for d in ('x', 'y')])
 
 
 def bearing_forces(model, speed: float, z_B, forces) -> np.ndarray:
-    """Eqs 30-32: bearing forces f_B (n_runs, nb, 2) [N] from bearing-node phasors z_B (n_runs, nb, 2) [m].
+    """
+    Eqs 30-32: bearing forces f_B (n_runs, nb, 2) [N] from bearing-node phasors z_B (n_runs, nb, 2) [m].
 
     forces : complex (n_runs, ndof) 1X excitation phasors [N].  H_R is the rotor without bearings at 1X.
     """
@@ -66,7 +68,8 @@ def bearing_forces(model, speed: float, z_B, forces) -> np.ndarray:
 
 
 def ls_system(z_B, f_B) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs 33-36 as a real system A theta = d over all runs; theta = [K_b (xx,xy,yx,yy) per bearing; Omega C_b].
+    """
+    Eqs 33-36 as a real system A theta = d over all runs; theta = [K_b (xx,xy,yx,yy) per bearing; Omega C_b].
 
     z_B, f_B complex (n_runs, nb, 2).  Rows: for each run, bearing, row i in (x, y): Re then Im parts.
     Returns A (2 n_runs 2 nb, 8 nb) [m] and d (same rows,) [N].
@@ -87,11 +90,13 @@ def ls_system(z_B, f_B) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class LSSolution:
-    """Solution of the eqs 33-37 system at one speed (theta = [K; Omega C] flat, bearings in model order).
+    """
+    Solution of the eqs 33-37 system at one speed (theta = [K; Omega C] flat, bearings in model order).
 
     determined : LS-estimable (at most 1 % of the unit vector in the null space).   chi2, dof : the misfit statistic
     of the module docstring (NaN / 0 when it cannot be formed).
     """
+
     theta: np.ndarray
     theta_std: np.ndarray
     determined: np.ndarray
@@ -119,7 +124,8 @@ _svd_solve = svd_solve      # old private name
 
 
 def solve_coefficients(model, speed: float, z_B, forces, *, z_B_std=None, rtol: float = DEFAULT_RTOL) -> LSSolution:
-    """Eqs 30-37 at one ``speed`` [rad/s]: bearing coefficients from bearing-node phasors of every run.
+    """
+    Eqs 30-37 at one ``speed`` [rad/s]: bearing coefficients from bearing-node phasors of every run.
 
     z_B complex (n_runs, nb, 2) [m]; forces complex (n_runs, ndof) [N]; z_B_std (n_runs, nb, 2) 1-sigma of the Re
     and of the Im part of z_B [m] (optional, for the propagated std and the misfit statistic).  See the module
@@ -193,7 +199,7 @@ def solve_coefficients(model, speed: float, z_B, forces, *, z_B_std=None, rtol: 
 
 
 def theta_to_KC(theta, speed: float, nb: int) -> tuple[np.ndarray, np.ndarray]:
-    """theta = [K flat; Omega C flat] -> K (nb, 2, 2) [N/m], C (nb, 2, 2) [N s/m]."""
+    """Split theta = [K flat; Omega C flat] into K (nb, 2, 2) [N/m], C (nb, 2, 2) [N s/m]."""
     theta = np.asarray(theta, dtype=float)
     return theta[:4 * nb].reshape(nb, 2, 2), theta[4 * nb:].reshape(nb, 2, 2) / speed
 
@@ -224,19 +230,20 @@ def forces_at(model, runs, speed: float) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------ data information
 def coefficient_labels(nodes) -> list[str]:
     """Names of the 8 nb unknowns in the order used here: K of each bearing, then C of each bearing."""
-    out = [f"node{n}.K{c}" for n in nodes for c in COEFF_ORDER]
-    return out + [f"node{n}.C{c}" for n in nodes for c in COEFF_ORDER]
+    out = [f'node{n}.K{c}' for n in nodes for c in COEFF_ORDER]
+    return out + [f'node{n}.C{c}' for n in nodes for c in COEFF_ORDER]
 
 
 def coefficient_scales(coeffs: dict, speed: float, nodes) -> np.ndarray:
-    """Reference size (8 nb,) [N/m] of each unknown (K, then Omega C) from the coefficients ``coeffs``."""
+    """Return the reference size (8 nb,) [N/m] of each unknown (K, then Omega C) from the coefficients ``coeffs``."""
     sk = [max(np.linalg.norm(coeffs[n][0]) / 2, 1e-300) for n in nodes]
     sc = [max(speed * np.linalg.norm(coeffs[n][1]) / 2, 1e-300) for n in nodes]
     return np.array([s for s in sk for _ in range(4)] + [s for s in sc for _ in range(4)])
 
 
 def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> tuple[np.ndarray, np.ndarray]:
-    """(J, X): J complex (n_runs * nch, 8 nb) d X / d beta [m per N/m] and X complex (n_runs * nch,) [m].
+    """
+    (J, X): J complex (n_runs * nch, 8 nb) d X / d beta [m per N/m] and X complex (n_runs * nch,) [m].
 
     forces : list of complex (ndof,) 1X force phasors [N], one per run; probes : params.Probe list.
     beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.
@@ -252,7 +259,7 @@ def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> t
     nch, nr = S.shape[0], F.shape[1]
     J = np.zeros((nr, nch, 8 * nb), dtype=complex)
     for b, n in enumerate(nodes):
-        ix = dof_index(n, "x", model.n_nodes)
+        ix = dof_index(n, 'x', model.n_nodes)
         for i in range(2):
             for j in range(2):
                 col = -W[:, ix + i][None, :] * Q[ix + j, :][:, None]   # (nr, nch)
@@ -264,13 +271,15 @@ def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> t
 
 @dataclass
 class Identifiability:
-    """SVD analysis of a whitened, scaled information matrix (see :mod:`bearing_id.identify.design`).
+    """
+    SVD analysis of a whitened, scaled information matrix (see :mod:`bearing_id.identify.design`).
 
     rel_std : 1-sigma relative to the coefficient scale over the noise-limited rank (NaN if undetermined there);
     data_rel_std : 1-sigma relative to the scale over the whole structural row space (the data-only sigma the one
     rule of :mod:`.determined` uses; inf where the coefficient is not structurally estimable); estimable : at most
     NULL_FRACTION of the unit vector in the structural null space.
     """
+
     singular_values: np.ndarray
     Vh: np.ndarray
     rank: int
@@ -285,7 +294,7 @@ class Identifiability:
 
 
 def analyse(Jw: np.ndarray, labels=None, *, max_rel_std=DEFAULT_MAX_REL_STD) -> Identifiability:
-    """Identifiability of a real, whitened and scaled Jacobian ``Jw`` (m, n) (columns = scaled unknowns)."""
+    """Return the identifiability of a real, whitened and scaled Jacobian ``Jw`` (m, n) (columns = scaled unknowns)."""
     Jw = np.asarray(Jw, dtype=float)
     n = Jw.shape[1]
     _, s, Vh = np.linalg.svd(Jw, full_matrices=True)
@@ -299,20 +308,20 @@ def analyse(Jw: np.ndarray, labels=None, *, max_rel_std=DEFAULT_MAX_REL_STD) -> 
     leak = np.sum(null**2, axis=0)
     det = leak <= NULL_FRACTION
     Vr = Vh[:rank]
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide='ignore'):
         var = np.sum((Vr / sv[:rank, None]) ** 2, axis=0) if rank else np.zeros(n)
     rel_std = np.where(det, np.sqrt(var), np.nan)
     est = np.sum(Vh[structural:] ** 2, axis=0) <= NULL_FRACTION
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide='ignore'):
         var_s = np.sum((Vh[:structural] / sv[:structural, None]) ** 2, axis=0) if structural else np.full(n, np.inf)
     data_rel = np.where(est, np.sqrt(var_s), np.inf)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
     combos = []
-    labels = labels or [f"p{k}" for k in range(n)]
+    labels = labels or [f'p{k}' for k in range(n)]
     for v in null:
         big = np.argsort(-np.abs(v))
-        terms = [f"{v[k]:+.2f} {labels[k]}" for k in big if abs(v[k]) >= 0.1][:6]
-        combos.append(" ".join(terms))
+        terms = [f'{v[k]:+.2f} {labels[k]}' for k in big if abs(v[k]) >= 0.1][:6]
+        combos.append(' '.join(terms))
     return Identifiability(sv, Vh, rank, structural, n, cond, det, rel_std, combos, data_rel, est)
 
 
@@ -331,7 +340,8 @@ def whitened_jacobian(model, speed, coeffs, probes, forces, noise_rel) -> tuple[
 
 # ------------------------------------------------------------------------------------------------ two-probe pairs
 def probe_pairs(model, probes, pairs=None) -> dict:
-    """{(bearing_node, direction): ((channel_a, weight_a), (channel_b, weight_b))} for the interpolation.
+    """
+    {(bearing_node, direction): ((channel_a, weight_a), (channel_b, weight_b))} for the interpolation.
 
     Raises ValueError naming the bearing and direction that lack two probe nodes.
     """
@@ -339,7 +349,7 @@ def probe_pairs(model, probes, pairs=None) -> dict:
     out = {}
     for n in model.bearing_nodes:
         zb = z[n - 1]
-        for d in ("x", "y"):
+        for d in ('x', 'y'):
             chans = {}
             for c, p in enumerate(probes):
                 if p.direction == d:
@@ -347,12 +357,12 @@ def probe_pairs(model, probes, pairs=None) -> dict:
             if pairs and n in pairs:
                 na, nb_ = pairs[n]
                 if na not in chans or nb_ not in chans:
-                    raise ValueError(f"conventional: pair {pairs[n]} for bearing node {n} needs probes in {d} at "
-                                     f"both nodes")
+                    raise ValueError(f'conventional: pair {pairs[n]} for bearing node {n} needs probes in {d} at '
+                                     f'both nodes')
             else:
                 if len(chans) < 2:
-                    raise ValueError(f"conventional method: bearing at node {n} has {len(chans)} probe node(s) in "
-                                     f"direction {d}; it needs two (one each side, or two on one side)")
+                    raise ValueError(f'conventional method: bearing at node {n} has {len(chans)} probe node(s) in '
+                                     f'direction {d}; it needs two (one each side, or two on one side)')
                 left = sorted((k for k in chans if z[k - 1] < zb), key=lambda k: zb - z[k - 1])
                 right = sorted((k for k in chans if z[k - 1] >= zb), key=lambda k: z[k - 1] - zb)
                 if left and right:
@@ -369,7 +379,8 @@ def probe_pairs(model, probes, pairs=None) -> dict:
 def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, X_std_rel, theory, truth=None,
                  max_rel_std=None, notes=(), extra=None, not_determined=None, pull=None, bias=None,
                  rank_cap=None) -> IdentResult:
-    """IdentResult from an LS solution, with the one rule of :mod:`bearing_id.identify.determined`.
+    """
+    Build the IdentResult from an LS solution, with the one rule of :mod:`bearing_id.identify.determined`.
 
     Per coefficient: estimable = LS-estimable and structurally estimable from the measured probes and runs
     (:func:`analyse` of the whitened Jacobian with the measured noise ``X_std_rel`` at the ``theory`` linearisation
@@ -399,18 +410,18 @@ def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, 
     det = verdict.determined
     K, C = theta_to_KC(sol.theta, speed, nb)
     Ks, Cs = theta_to_KC(np.where(det, sigma, np.nan), speed, nb)
-    names = tuple(b.name for b in rig.bearings) if rig is not None else tuple(f"node{n}" for n in nodes)
+    names = tuple(b.name for b in rig.bearings) if rig is not None else tuple(f'node{n}' for n in nodes)
     notes = list(notes)
-    notes.append(f"eqs 33-37 system: rank {sol.rank} of {sol.unknowns} (SVD, relative tolerance "
-                 f"{DEFAULT_RTOL:g}), condition {sol.condition:.3g}; measured data (probes "
+    notes.append(f'eqs 33-37 system: rank {sol.rank} of {sol.unknowns} (SVD, relative tolerance '
+                 f'{DEFAULT_RTOL:g}), condition {sol.condition:.3g}; measured data (probes '
                  f"{', '.join(f'{p.node}{p.direction}' for p in probes)}, {len(forces)} run(s)): rank {data.rank} "
-                 f"of {data.unknowns} (structural {data.structural_rank}; 1-sigma <= "
-                 f"{100 * (max_rel_std or DEFAULT_MAX_REL_STD):g} % of the group size)")
+                 f'of {data.unknowns} (structural {data.structural_rank}; 1-sigma <= '
+                 f'{100 * (max_rel_std or DEFAULT_MAX_REL_STD):g} % of the group size)')
     if fq.testable:
-        notes.append("eqs 33-37 residual against the bearing-displacement noise: " + fq.summary())
+        notes.append('eqs 33-37 residual against the bearing-displacement noise: ' + fq.summary())
     if data.undetermined_combinations:
-        notes.append("the data do not determine: " + "; ".join(data.undetermined_combinations[:3])
-                     + (" ..." if len(data.undetermined_combinations) > 3 else ""))
+        notes.append('the data do not determine: ' + '; '.join(data.undetermined_combinations[:3])
+                     + (' ...' if len(data.undetermined_combinations) > 3 else ''))
     vn = verdict.note(labels)
     if vn:
         notes.append(vn)
@@ -424,9 +435,9 @@ def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, 
                      f"is off by K {er['K']:.1f} %, C {er['C']:.1f} %")
     if fq.misfit:
         notes.append(fq.misfit_note(f"the {method} method's eqs 33-37 model (bearing displacements -> forces)"))
-    ex = {"theory": theory, "f_B": sol.f_B, "ls_rank": sol.rank, "data_rank": data.rank,
-          "data_structural_rank": data.structural_rank, "singular_values": sol.singular_values,
-          "fit_quality": fq, "verdict": verdict}
+    ex = {'theory': theory, 'f_B': sol.f_B, 'ls_rank': sol.rank, 'data_rank': data.rank,
+          'data_structural_rank': data.structural_rank, 'singular_values': sol.singular_values,
+          'fit_quality': fq, 'verdict': verdict}
     ex.update(extra or {})
     res = IdentResult(speed=float(speed), method=method, bearings=names, nodes=nodes, K=K, C=C, K_std=Ks,
                       C_std=Cs, K_determined=det[:4 * nb].reshape(nb, 2, 2),
@@ -434,11 +445,11 @@ def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, 
                       rank=int(min(sol.rank, data.rank, sol.rank if rank_cap is None else rank_cap)),
                       unknowns=sol.unknowns, condition=sol.condition, residual=sol.residual, notes=notes, extra=ex)
     if fq.misfit:
-        res.set_flag("misfit")
+        res.set_flag('misfit')
     return res
 
 
-__all__ = ["DEFAULT_RTOL", "STRUCTURAL_RTOL", "NULL_FRACTION", "DEFAULT_MAX_REL_STD", "bearing_dofs",
-           "bearing_forces", "ls_system", "LSSolution", "svd_solve", "solve_coefficients", "theta_to_KC",
-           "coeffs_to_theta", "noise_rel_of", "forces_at", "coefficient_labels", "coefficient_scales",
-           "coefficient_jacobian", "Identifiability", "analyse", "whitened_jacobian", "probe_pairs", "build_result"]
+__all__ = ['DEFAULT_RTOL', 'STRUCTURAL_RTOL', 'NULL_FRACTION', 'DEFAULT_MAX_REL_STD', 'bearing_dofs',
+           'bearing_forces', 'ls_system', 'LSSolution', 'svd_solve', 'solve_coefficients', 'theta_to_KC',
+           'coeffs_to_theta', 'noise_rel_of', 'forces_at', 'coefficient_labels', 'coefficient_scales',
+           'coefficient_jacobian', 'Identifiability', 'analyse', 'whitened_jacobian', 'probe_pairs', 'build_result']

@@ -1,4 +1,5 @@
-"""The paper's method (Kang et al., Sensors 2020, sections 3.1-3.2, eqs 5-37), done faithfully, reported honestly.
+"""
+The paper's method (Kang et al., Sensors 2020, sections 3.1-3.2, eqs 5-37), done faithfully, reported honestly.
 
 1. Kalman filter (:mod:`bearing_id.kalman`, eqs 5-18) on the FE state space with the THEORETICAL bearing
    coefficients at each speed and the known excitation as input estimates the bearing-node displacements from the
@@ -44,9 +45,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lsq import (DEFAULT_RTOL, LSSolution, bearing_dofs, bearing_forces, build_result, coeffs_to_theta,
-                  forces_at, ls_system, noise_rel_of, solve_coefficients, svd_solve, theta_to_KC)
 from .lsq import _svd_solve  # noqa: F401  (old private name, kept for callers)
+from .lsq import (bearing_dofs, bearing_forces, build_result, coeffs_to_theta, DEFAULT_RTOL, forces_at, ls_system,
+                  LSSolution, noise_rel_of, solve_coefficients, svd_solve, theta_to_KC)
 from .result import IdentResult
 
 DEFAULT_Q = 1e-16
@@ -55,7 +56,8 @@ DEFAULT_Q = 1e-16
 # ------------------------------------------------------------------------------------------------ KF route
 def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=None, smoother=False,
                        remove_dc: bool = True, details: dict | None = None):
-    """KF (theory coefficients) bearing-node 1X vectors at speed index ``s``.
+    """
+    KF (theory coefficients) bearing-node 1X vectors at speed index ``s``.
 
     Returns (z_B (nr, nb, 2), z_B_std (nr, nb, 2), NIS means (nr,), the KalmanModel of the first run).
     R default: each probe's residual variance around its 1X fit, per run [m^2] (the rig's and a real probe's noise
@@ -104,14 +106,15 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
         nis.append(out.nis_mean)
         bands.append(tuple(out.nis_band))
     if details is not None:
-        details["dc"] = np.array(dcs) if dcs else None
-        details["nis_band"] = bands
-        details["R"] = Rs
+        details['dc'] = np.array(dcs) if dcs else None
+        details['nis_band'] = bands
+        details['R'] = Rs
     return np.array(zs), np.array(zsd), nis, km0
 
 
 def kf_transfer(km, speed: float, *, smoother: bool = False) -> np.ndarray:
-    """Steady-state filter's 1X transfer (k, m) complex: output phasor per unit pseudo-measurement phasor.
+    """
+    Steady-state filter's 1X transfer (k, m) complex: output phasor per unit pseudo-measurement phasor.
 
     The steady-state filter on the deviation from the model's forced response is LTI,
     e(k|k) = (I - K H) Phi e(k-1|k-1) + K y_k, so a 1X input y_k = Re{Y exp(j phi_k)} (phi advancing by
@@ -122,20 +125,21 @@ def kf_transfer(km, speed: float, *, smoother: bool = False) -> np.ndarray:
     """
     P, K, _ = km.steady_state()
     n = km.n
-    I = np.eye(n)
-    IKH = I - K @ km.H
+    Id = np.eye(n)
+    IKH = Id - K @ km.H
     ph = np.exp(1j * float(speed) * km.dt)
-    T = np.linalg.solve(I - IKH @ km.Phi / ph, K.astype(complex))
+    T = np.linalg.solve(Id - IKH @ km.Phi / ph, K.astype(complex))
     if smoother:
         Ppost = IKH @ P
         Cs = np.linalg.solve(P.T, (Ppost @ km.Phi.T).T).T
-        T = np.linalg.solve(I - ph * Cs, (I - Cs @ km.Phi) @ T)
+        T = np.linalg.solve(Id - ph * Cs, (Id - Cs @ km.Phi) @ T)
     return km.E @ T
 
 
 def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_rate: float, *, Q=DEFAULT_Q, R,
                        smoother: bool = False) -> np.ndarray:
-    """Bearing-node 1X phasors (nr, nb, 2) of the steady-state KF, in the frequency domain (no time series).
+    """
+    Bearing-node 1X phasors (nr, nb, 2) of the steady-state KF, in the frequency domain (no time series).
 
     z_B,r = E Xp_r + T (X_r - H Xp_r): Xp_r the theory model's forced state response to run r, T
     :func:`kf_transfer`, X (nr, nch) the measured probe phasors [m], forces complex (nr, ndof) 1X phasors [N]
@@ -166,7 +170,8 @@ THEORY_STEP = 0.01      # theory perturbation of the sensitivity (fraction of ea
 
 def theory_sensitivity(model, speed: float, theory: dict, z_B_of, forces, *, rtol=DEFAULT_RTOL,
                        step: float = THEORY_STEP) -> np.ndarray:
-    """Scaled Jacobian G (8 nb, 8 nb) of the identified coefficients with respect to the theory fed to the KF.
+    """
+    Scaled Jacobian G (8 nb, 8 nb) of the identified coefficients with respect to the theory fed to the KF.
 
     z_B_of : theory {node: (K, C)} -> bearing-node phasors (nr, nb, 2) (e.g. :func:`kf_bearing_phasors`).
     forces : complex (nr, ndof) 1X phasors [N].  Each theory coefficient k (order of :func:`coeffs_to_theta`) is
@@ -196,7 +201,8 @@ def theory_sensitivity(model, speed: float, theory: dict, z_B_of, forces, *, rto
 
 
 def theory_fractions(G: np.ndarray) -> tuple[np.ndarray, float]:
-    """(per-coefficient d(identified)/d(theory) = row 2-norms of the scaled Jacobian, overall theory fraction).
+    """
+    (per-coefficient d(identified)/d(theory) = row 2-norms of the scaled Jacobian, overall theory fraction).
 
     The overall fraction is ||G||_F^2 / n: 1 when the result is the theory, 0 when it is the data's alone, k/n when
     k of the n directions come from the theory (G an orthogonal projector of rank k).
@@ -206,7 +212,10 @@ def theory_fractions(G: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentResult]:
-    """The paper's method per speed (see module docstring).  Signature as in :mod:`bearing_id.identify`.
+    """
+    Run the paper's method per speed (see module docstring).
+
+    Signature as in :mod:`bearing_id.identify`.
 
     options : 'bearing_fn' (theory, default the nominal bearings of ``rig``), 'Q' (default 1e-16), 'R' (default:
     the probe residual variance), 'smoother' (RTS instead of the filter; default False), 'rtol' (1e-8),
@@ -221,11 +230,11 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     with the KF's d(identified)/d(theory) as the prior pull.
     """
     opts = dict(options or {})
-    allowed = {"bearing_fn", "Q", "R", "smoother", "rtol", "max_rel_std", "z_B", "z_B_std", "z_B_kf", "remove_dc"}
+    allowed = {'bearing_fn', 'Q', 'R', 'smoother', 'rtol', 'max_rel_std', 'z_B', 'z_B_std', 'z_B_kf', 'remove_dc'}
     bad = set(opts) - allowed
     if bad:
-        raise ValueError(f"identify_paper: unknown option(s) {sorted(bad)}; allowed {sorted(allowed)}")
-    bfn = opts.get("bearing_fn")
+        raise ValueError(f'identify_paper: unknown option(s) {sorted(bad)}; allowed {sorted(allowed)}')
+    bfn = opts.get('bearing_fn')
     if bfn is None:
         from ..rig import nominal_bearing_fn
         bfn = nominal_bearing_fn(rig)
@@ -236,44 +245,44 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
         F = forces_at(model, runs, w)
         notes = []
         not_det, extra = None, {}
-        if opts.get("z_B") is not None:
-            zB = np.asarray(opts["z_B"])[:, s]
-            zBs = None if opts.get("z_B_std") is None else np.asarray(opts["z_B_std"])[:, s]
-            kf = opts.get("z_B_kf")
+        if opts.get('z_B') is not None:
+            zB = np.asarray(opts['z_B'])[:, s]
+            zBs = None if opts.get('z_B_std') is None else np.asarray(opts['z_B_std'])[:, s]
+            kf = opts.get('z_B_kf')
             if kf is None:
-                notes.append("bearing-node displacements given (no Kalman filter)")
+                notes.append('bearing-node displacements given (no Kalman filter)')
             else:
                 notes.append(f"bearing-node displacements given by a Kalman filter (Q = {kf['Q']:g})")
-                not_det, extra = _theory_check(model, w, theory, probes, data.X[:, s], F, float(kf["sample_rate"]),
-                                               kf["Q"], kf["R"], bool(kf.get("smoother", False)),
-                                               opts.get("rtol", DEFAULT_RTOL), zB, notes)
+                not_det, extra = _theory_check(model, w, theory, probes, data.X[:, s], F, float(kf['sample_rate']),
+                                               kf['Q'], kf['R'], bool(kf.get('smoother', False)),
+                                               opts.get('rtol', DEFAULT_RTOL), zB, notes)
         else:
-            Q, smooth = opts.get("Q", DEFAULT_Q), bool(opts.get("smoother", False))
+            Q, smooth = opts.get('Q', DEFAULT_Q), bool(opts.get('smoother', False))
             det_kf = {}
-            zB, zBs, nis, km = kf_bearing_vectors(model, theory, probes, data, s, Q=Q, R=opts.get("R"),
-                                                  smoother=smooth, remove_dc=bool(opts.get("remove_dc", True)),
+            zB, zBs, nis, km = kf_bearing_vectors(model, theory, probes, data, s, Q=Q, R=opts.get('R'),
+                                                  smoother=smooth, remove_dc=bool(opts.get('remove_dc', True)),
                                                   details=det_kf)
-            band = det_kf["nis_band"][0]
-            dc = det_kf.get("dc")
-            notes.append(f"Kalman filter (theory coefficients, Q = {Q:g}); mean NIS per run "
-                         + ", ".join(f"{v:.3g}" for v in nis) + f" (expected {km.m} for a consistent filter; 95 % "
-                         f"band {band[0]:.3g} ... {band[1]:.3g})"
-                         + (f"; static offset removed before filtering (largest |DC| {1e6 * np.max(np.abs(dc)):.3g} "
-                            "um)" if dc is not None else "; static offset NOT removed"))
+            band = det_kf['nis_band'][0]
+            dc = det_kf.get('dc')
+            notes.append(f'Kalman filter (theory coefficients, Q = {Q:g}); mean NIS per run '
+                         + ', '.join(f'{v:.3g}' for v in nis) + f' (expected {km.m} for a consistent filter; 95 % '
+                         f'band {band[0]:.3g} ... {band[1]:.3g})'
+                         + (f'; static offset removed before filtering (largest |DC| {1e6 * np.max(np.abs(dc)):.3g} '
+                            'um)' if dc is not None else '; static offset NOT removed'))
             not_det, extra = _theory_check(model, w, theory, probes, data.X[:, s], F, data.recordings[0].sample_rate,
-                                           Q, list(det_kf["R"]), smooth, opts.get("rtol", DEFAULT_RTOL), zB, notes)
+                                           Q, list(det_kf['R']), smooth, opts.get('rtol', DEFAULT_RTOL), zB, notes)
             # how much the KF moved the bearing displacements away from the theory model's prediction
             from ..rotor.assembly import harmonic_response
             zth = np.array([harmonic_response(model, w, w, f, theory)[_bdofs(model)].reshape(-1, 2) for f in F])
             dz = np.linalg.norm(zB - zth) / max(np.linalg.norm(zth), 1e-300)
             notes.append(f"KF bearing displacements differ from the theory model's prediction by {100 * dz:.1f} %")
-            extra.update(nis=list(nis), nis_band=det_kf["nis_band"], dc_removed=dc)
-        sol = solve_coefficients(model, w, zB, F, z_B_std=zBs, rtol=opts.get("rtol", DEFAULT_RTOL))
-        out.append(build_result("paper", model, rig, w, sol, probes=probes, forces=list(F),
+            extra.update(nis=list(nis), nis_band=det_kf['nis_band'], dc_removed=dc)
+        sol = solve_coefficients(model, w, zB, F, z_B_std=zBs, rtol=opts.get('rtol', DEFAULT_RTOL))
+        out.append(build_result('paper', model, rig, w, sol, probes=probes, forces=list(F),
                                 X_std_rel=noise_rel_of(data, s), theory=theory, truth=data.truth_at(w),
-                                max_rel_std=opts.get("max_rel_std"), notes=notes, extra={"z_B": zB, **extra},
-                                not_determined=not_det, pull=extra.get("theory_sensitivity"),
-                                rank_cap=extra.get("data_directions")))
+                                max_rel_std=opts.get('max_rel_std'), notes=notes, extra={'z_B': zB, **extra},
+                                not_determined=not_det, pull=extra.get('theory_sensitivity'),
+                                rank_cap=extra.get('data_directions')))
     return out
 
 
@@ -293,25 +302,25 @@ def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoothe
     labels = coefficient_labels(model.bearing_nodes)
     notes.append(f"theory fraction {frac:.2f} (||d identified / d theory||_F^2 / {G.shape[0]} with the KF's theory "
                  f"moved by {100 * THEORY_STEP:g} % of each group's size; 0 = the data alone, 1 = the filter hands "
-                 f"back its theory, > 1 = theory errors amplified); d(identified)/d(theory) per coefficient "
-                 f"{np.min(sens):.2f} ... {np.max(sens):.2f}; {data_dirs} of {G.shape[0]} directions come from "
-                 f"the data (singular values of the sensitivity <= {THEORY_FLAG:g}): rank capped there")
+                 f'back its theory, > 1 = theory errors amplified); d(identified)/d(theory) per coefficient '
+                 f'{np.min(sens):.2f} ... {np.max(sens):.2f}; {data_dirs} of {G.shape[0]} directions come from '
+                 f'the data (singular values of the sensitivity <= {THEORY_FLAG:g}): rank capped there')
     if flag.any():
         notes.append(f"{int(flag.sum())} of {flag.size} coefficients follow the KF's theory more than the data "
-                     f"(d identified / d theory > {THEORY_FLAG:g}): "
-                     + ", ".join(lab for lab, f in zip(labels, flag) if f) + " -- not determined by the data")
+                     f'(d identified / d theory > {THEORY_FLAG:g}): '
+                     + ', '.join(lab for lab, f in zip(labels, flag) if f) + ' -- not determined by the data')
     if mism > 0.05:
         notes.append(f"the KF's fitted 1X differs from its steady-state transfer by {100 * mism:.1f} % (a transient "
-                     f"in the window): the theory fraction is approximate")
-    return flag, {"theory_sensitivity": sens, "theory_fraction": frac, "theory_jacobian": G,
-                  "kf_transfer_mismatch": mism, "data_directions": data_dirs}
+                     f'in the window): the theory fraction is approximate')
+    return flag, {'theory_sensitivity': sens, 'theory_fraction': frac, 'theory_jacobian': G,
+                  'kf_transfer_mismatch': mism, 'data_directions': data_dirs}
 
 
 def _bdofs(model):
     return bearing_dofs(model)
 
 
-__all__ = ["bearing_dofs", "bearing_forces", "ls_system", "LSSolution", "solve_coefficients", "theta_to_KC",
-           "coeffs_to_theta", "build_result", "noise_rel_of", "forces_at", "kf_bearing_vectors", "kf_transfer",
-           "kf_bearing_phasors", "theory_sensitivity", "theory_fractions", "identify_paper", "THEORY_FLAG",
-           "THEORY_STEP"]
+__all__ = ['bearing_dofs', 'bearing_forces', 'ls_system', 'LSSolution', 'solve_coefficients', 'theta_to_KC',
+           'coeffs_to_theta', 'build_result', 'noise_rel_of', 'forces_at', 'kf_bearing_vectors', 'kf_transfer',
+           'kf_bearing_phasors', 'theory_sensitivity', 'theory_fractions', 'identify_paper', 'THEORY_FLAG',
+           'THEORY_STEP']

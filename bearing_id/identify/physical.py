@@ -1,4 +1,5 @@
-"""``physical`` method: a few bearing-model parameters per bearing, fitted across all speeds at once.
+"""
+``physical`` method: a few bearing-model parameters per bearing, fitted across all speeds at once.
 
 Instead of 16 free coefficients per speed, each bearing's K and C at every speed come from the bearing model
 (:func:`bearing_id.bearings.coefficients`, short/Ocvirk or finite Reynolds) with unknown effective viscosity mu [Pa s]
@@ -45,28 +46,29 @@ each block in the usual range), since nothing is known about a finite bearing be
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..rotor.assembly import dynamic_stiffness, probe_matrix, static_bearing_loads
-from ..conventions import COEFF_ORDER
-from .determined import FitQuality, fit_quality, judge
+from .determined import fit_quality, FitQuality, judge
 from .direct import cases_from_data, information_analysis, response_and_jacobian, weighted_stack
-from .result import IdentResult, empty_result
+from .result import empty_result, IdentResult
+from ..conventions import COEFF_ORDER
+from ..rotor.assembly import dynamic_stiffness, probe_matrix, static_bearing_loads
 
-PARAM_NAMES = ("viscosity", "clearance", "load")
+PARAM_NAMES = ('viscosity', 'clearance', 'load')
 FD_STEP = 1e-4               # central-difference step in log-parameter
 BOUND_FACTOR = 10.0          # parameters are kept within [nominal / 10, nominal x 10]
 LEAK_TOL = 1e-4              # relative leakage of a coefficient gradient into the parameter null space
-UNITS = {"viscosity": "Pa s", "clearance": "m", "load": "N"}
+UNITS = {'viscosity': 'Pa s', 'clearance': 'm', 'load': 'N'}
 
 
 @dataclass
 class PhysicalFit:
-    """Fitted bearing-model parameters.
+    """
+    Fitted bearing-model parameters.
 
     names : ('bearing1.viscosity', ...).   values : (np,) SI [Pa s, m, N].   nominal : (np,) starting values.
     rel_std : (np,) 1-sigma of log(value) = relative std (NaN where undetermined).   cov_log : (np, np).
@@ -75,6 +77,7 @@ class PhysicalFit:
     quality : the misfit test (:class:`bearing_id.identify.determined.FitQuality`); on a misfit ``rel_std`` and
     ``cov_log`` are already Birge-scaled.
     """
+
     names: tuple
     values: np.ndarray
     nominal: np.ndarray
@@ -102,31 +105,34 @@ class PhysicalFit:
         return bool(self.quality is not None and self.quality.misfit)
 
     def as_dict(self) -> dict:
-        """{name: {'value', 'std', 'rel_std', 'nominal', 'factor', 'factor_std', 'unit', 'determined',
-        'bearing_model'}} (SI; NaN std where not determined)."""
+        """
+        Return the fitted parameters as a dict (SI; NaN std where not determined).
+
+        {name: {'value', 'std', 'rel_std', 'nominal', 'factor', 'factor_std', 'unit', 'determined', 'bearing_model'}}.
+        """
         out = {}
         for n, v, s, d, nom in zip(self.names, self.values, self.rel_std, self.determined, self.nominal):
-            kind = n.rsplit(".", 1)[-1]
-            out[n] = {"value": float(v), "std": float(v * s), "rel_std": float(s), "nominal": float(nom),
-                      "factor": float(v / nom), "factor_std": float(v / nom * s), "unit": UNITS.get(kind, ""),
-                      "determined": bool(d), "bearing_model": self.bearing_model}
+            kind = n.rsplit('.', 1)[-1]
+            out[n] = {'value': float(v), 'std': float(v * s), 'rel_std': float(s), 'nominal': float(nom),
+                      'factor': float(v / nom), 'factor_std': float(v / nom * s), 'unit': UNITS.get(kind, ''),
+                      'determined': bool(d), 'bearing_model': self.bearing_model}
         return out
 
     def note(self) -> str:
         """One line with the fitted parameters for people (value, 1-sigma, factor of nominal)."""
         parts = []
         for n, v, s, d, nom in zip(self.names, self.values, self.rel_std, self.determined, self.nominal):
-            b, kind = n.rsplit(".", 1)
-            if kind == "viscosity":
-                val = f"{v:.4g} Pa s"
-            elif kind == "clearance":
-                val = f"{v * 1e6:.4g} um"
+            b, kind = n.rsplit('.', 1)
+            if kind == 'viscosity':
+                val = f'{v:.4g} Pa s'
+            elif kind == 'clearance':
+                val = f'{v * 1e6:.4g} um'
             else:
-                val = f"{v:.4g} N"
-            sd = f" +- {100 * s:.2g} %" if d and np.isfinite(s) else " (not determined)"
-            parts.append(f"{b} {kind} {val}{sd} (x{v / nom:.3f} nominal)")
-        return (f"fitted parameters ({self.bearing_model} bearing model"
-                + (", 1-sigma Birge-scaled, a lower bound" if self.misfit else "") + "): " + "; ".join(parts))
+                val = f'{v:.4g} N'
+            sd = f' +- {100 * s:.2g} %' if d and np.isfinite(s) else ' (not determined)'
+            parts.append(f'{b} {kind} {val}{sd} (x{v / nom:.3f} nominal)')
+        return (f'fitted parameters ({self.bearing_model} bearing model'
+                + (', 1-sigma Birge-scaled, a lower bound' if self.misfit else '') + '): ' + '; '.join(parts))
 
 
 class _Parametrisation:
@@ -136,11 +142,11 @@ class _Parametrisation:
         from .. import bearings as bearing_models
         self._bm = bearing_models
         for p in params:
-            if p not in ("viscosity", "clearance"):
+            if p not in ('viscosity', 'clearance'):
                 raise ValueError(f"physical: params must be among ('viscosity', 'clearance'), got {p!r}")
-        self.fitted = tuple(params) + (("load",) if load else ())
+        self.fitted = tuple(params) + (('load',) if load else ())
         if not self.fitted:
-            raise ValueError("physical: nothing to fit")
+            raise ValueError('physical: nothing to fit')
         self.rig = rig
         self.bearings = tuple(rig.bearings)
         self.nodes = tuple(b.node for b in self.bearings)
@@ -153,32 +159,32 @@ class _Parametrisation:
             else:
                 statics = statics or static_bearing_loads(model, self.nodes)
                 self.loads[b.node] = float(statics[b.node])
-        self.names = tuple(f"{b.name}.{p}" for b in self.bearings for p in self.fitted)
+        self.names = tuple(f'{b.name}.{p}' for b in self.bearings for p in self.fitted)
         nom = []
         for b in self.bearings:
-            base = {"viscosity": b.viscosity, "clearance": b.clearance, "load": self.loads[b.node]}
+            base = {'viscosity': b.viscosity, 'clearance': b.clearance, 'load': self.loads[b.node]}
             nom += [base[p] for p in self.fitted]
         self.nominal = np.asarray(nom, float)
         self.npb = len(self.fitted)
 
     def bearing_values(self, p: np.ndarray, i: int) -> dict:
         b = self.bearings[i]
-        v = {"viscosity": b.viscosity, "clearance": b.clearance, "load": self.loads[b.node]}
+        v = {'viscosity': b.viscosity, 'clearance': b.clearance, 'load': self.loads[b.node]}
         for k, name in enumerate(self.fitted):
             v[name] = float(np.exp(p[i * self.npb + k]))
         return v
 
     def bearing_beta(self, p, i, speed) -> np.ndarray:
         v = self.bearing_values(p, i)
-        K, C = self._bm.coefficients(self.bearings[i], speed, v["load"], viscosity=v["viscosity"],
-                                     clearance=v["clearance"], model=self.model_name)
+        K, C = self._bm.coefficients(self.bearings[i], speed, v['load'], viscosity=v['viscosity'],
+                                     clearance=v['clearance'], model=self.model_name)
         return np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
 
     def beta(self, p, speed) -> np.ndarray:
         return np.concatenate([self.bearing_beta(p, i, speed) for i in range(len(self.bearings))])
 
     def beta_and_grad(self, p, speed):
-        """beta (8 nb,) and d beta / d p (8 nb, np) by central differences (each bearing depends on its own p)."""
+        """Return beta (8 nb,) and d beta / d p (8 nb, np), central differences (each bearing depends on its own p)."""
         nb = len(self.bearings)
         beta = np.zeros(8 * nb)
         G = np.zeros((8 * nb, p.size))
@@ -193,14 +199,17 @@ class _Parametrisation:
         return beta, G
 
     def model_floor(self, p, speed) -> np.ndarray:
-        """(8 nb,) 1-sigma floor of the finite model's coefficients: the table's stated tolerance against the direct
-        Reynolds solver on its default grid (:func:`bearing_id.bearings.finite_table.stated_tolerance`) times the
-        largest |entry| of each K and C block."""
+        """
+        Return the (8 nb,) 1-sigma floor of the finite model's coefficients.
+
+        The table's stated tolerance against the direct Reynolds solver on its default grid
+        (:func:`bearing_id.bearings.finite_table.stated_tolerance`) times the largest |entry| of each K and C block.
+        """
         from ..bearings.finite_table import stated_tolerance
         out = []
         for i, b in enumerate(self.bearings):
             v = self.bearing_values(p, i)
-            sol = self._bm.solution(b, speed, v["load"], viscosity=v["viscosity"], clearance=v["clearance"],
+            sol = self._bm.solution(b, speed, v['load'], viscosity=v['viscosity'], clearance=v['clearance'],
                                     model=self.model_name)
             tol = stated_tolerance(sol.sommerfeld, table_grid=False)
             out += [tol * float(np.max(np.abs(sol.K)))] * 4 + [tol * float(np.max(np.abs(sol.C)))] * 4
@@ -212,23 +221,36 @@ class _Parametrisation:
                 for i, n in enumerate(self.nodes)}
 
 
-
-def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=False, bearing_model="short",
+def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=False, bearing_model='short',
                  probes=None, runs=None, max_nfev: int = 100, augment=None):
-    """Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
+    """
+    Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
 
     Parameters
     ----------
-    model : rotor.assembly.RotorModel (no bearings).   rig : params.RigParams (bearing geometry, nominal oil).
-    data : harmonic data (``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]).
-    params : which of ('viscosity', 'clearance') to fit per bearing.   load : also fit the static load per bearing.
-    bearing_model : 'short' (Ocvirk) or 'finite' (Reynolds) -- the estimator's model of the bearing.
-    probes, runs : override data.probes / data.runs.
-    augment : augmented-model hook (module docstring) or None (nominal model).
+    model
+        rotor.assembly.RotorModel (no bearings).
+    rig
+        params.RigParams (bearing geometry, nominal oil).
+    data
+        harmonic data (``speeds`` (ns,) rad/s, ``X`` complex (nr, ns, nch) [m], ``X_std`` (nr, ns, nch) [m]).
+    params
+        which of ('viscosity', 'clearance') to fit per bearing.
+    load
+        also fit the static load per bearing.
+    bearing_model
+        'short' (Ocvirk) or 'finite' (Reynolds) -- the estimator's model of the bearing.
+    probes, runs
+        override data.probes / data.runs.
+    max_nfev
+        evaluation limit of the least-squares fit.
+    augment
+        augmented-model hook (module docstring) or None (nominal model).
 
     Returns
     -------
     (PhysicalFit, list[IdentResult]) -- the parameters, and K, C per speed with delta-method std (method 'physical').
+
     """
     probes = tuple(probes if probes is not None else data.probes)
     runs = tuple(runs if runs is not None else data.runs)
@@ -237,7 +259,7 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     cases = [cases_from_data(model, data, probes, runs, i, augment=augment) for i in range(len(speeds))]
     keep = [i for i, c in enumerate(cases) if c]
     if not keep:
-        raise ValueError("physical: no finite synchronous measurements at any speed")
+        raise ValueError('physical: no finite synchronous measurements at any speed')
     Z0 = {i: dynamic_stiffness(model, speeds[i], speeds[i], {}) for i in keep}
     nb = len(par.nodes)
     ones = np.ones(8 * nb)
@@ -282,25 +304,25 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
         try:
             return residual_jac(p, want_jac=False)[0]
         except (ValueError, np.linalg.LinAlgError, FloatingPointError):
-            return np.full(cache.get("m", 1), 1e10)
+            return np.full(cache.get('m', 1), 1e10)
 
     def jac(p):
         return residual_jac(p)[1]
 
     p0 = np.log(par.nominal)
     r0 = f(p0)
-    cache["m"] = r0.size
+    cache['m'] = r0.size
     lb, ub = p0 - math.log(BOUND_FACTOR), p0 + math.log(BOUND_FACTOR)
-    sol = least_squares(f, p0, jac=jac, bounds=(lb, ub), method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-12,
+    sol = least_squares(f, p0, jac=jac, bounds=(lb, ub), method='trf', x_scale=1.0, xtol=1e-12, ftol=1e-12,
                         gtol=1e-12, max_nfev=max_nfev)
     p = sol.x
     r, J = residual_jac(p)
     info = information_analysis(J)
-    cov = info["cov_pinv"]
-    pleak = info["leakage"] < LEAK_TOL
+    cov = info['cov_pinv']
+    pleak = info['leakage'] < LEAK_TOL
     chi2 = float(r @ r)
-    dof = max(r.size - info["rank"], 1)
-    fq = fit_quality(chi2, r.size - info["rank"])
+    dof = max(r.size - info['rank'], 1)
+    fq = fit_quality(chi2, r.size - info['rank'])
     misfit = fq.misfit
     if misfit:   # Birge ratio: the noise alone does not explain the residual, so widen every 1-sigma
         cov = cov * fq.birge ** 2
@@ -312,29 +334,29 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
     notes += [f"physical fit ({bearing_model} bearing model) of {', '.join(par.fitted)} per bearing over "
               f"{len(keep)} speed(s): rank {info['rank']} of {p.size}, " + fq.summary()]
     if misfit:
-        if bearing_model == "finite":
-            hint = ("look for the physics the aligned, isoviscous finite-length plain-bearing model leaves out "
-                    "(groove geometry, thermal viscosity change, misalignment, flexible supports, rotor model "
-                    "errors) with `bearing-id diagnose`")
+        if bearing_model == 'finite':
+            hint = ('look for the physics the aligned, isoviscous finite-length plain-bearing model leaves out '
+                    '(groove geometry, thermal viscosity change, misalignment, flexible supports, rotor model '
+                    'errors) with `bearing-id diagnose`')
         else:
-            hint = ("a finite-length bearing is a common cause -- refit with --bearing-model finite -- or look for "
-                    "the missing physics with `bearing-id diagnose`")
-        notes.append(fq.misfit_note(f"the {bearing_model} bearing model (or the rotor model around it)") + "; "
+            hint = ('a finite-length bearing is a common cause -- refit with --bearing-model finite -- or look for '
+                    'the missing physics with `bearing-id diagnose`')
+        notes.append(fq.misfit_note(f'the {bearing_model} bearing model (or the rotor model around it)') + '; '
                      + hint)
     if np.any(p <= lb + 1e-9) or np.any(p >= ub - 1e-9):
-        notes.append(f"a parameter reached its bound (x{BOUND_FACTOR:g} / {BOUND_FACTOR:g} of nominal): "
-                     "the bearing model may not fit these data")
+        notes.append(f'a parameter reached its bound (x{BOUND_FACTOR:g} / {BOUND_FACTOR:g} of nominal): '
+                     'the bearing model may not fit these data')
     if not sol.success:
-        notes.append(f"least_squares did not converge: {sol.message}")
+        notes.append(f'least_squares did not converge: {sol.message}')
     if not np.all(pdet):
-        notes.append("parameters not separately determined: " + ", ".join(n for n, d in zip(par.names, pdet) if not d))
-    if bearing_model == "finite":
+        notes.append('parameters not separately determined: ' + ', '.join(n for n, d in zip(par.names, pdet) if not d))
+    if bearing_model == 'finite':
         notes.append("finite bearing model (tabulated Reynolds solution): each coefficient's 1-sigma includes the "
                      "table's stated accuracy against the direct Reynolds solver (0.9-1.5 % of the block in the usual "
                      "range, up to 10 % above eccentricity 0.9; bearings/finite_table.py); the parameters' 1-sigma "
-                     "do not")
+                     'do not')
     fit = PhysicalFit(names=par.names, values=np.exp(p), nominal=par.nominal, rel_std=rel_std, cov_log=cov,
-                      determined=pdet, rank=info["rank"], unknowns=p.size, condition=info["condition"],
+                      determined=pdet, rank=info['rank'], unknowns=p.size, condition=info['condition'],
                       residual=math.nan, chi2=chi2, dof=dof, bearing_model=bearing_model, loads=dict(par.loads),
                       notes=notes, quality=fq)
     notes.append(fit.note())
@@ -342,7 +364,7 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
 
     # residual per speed and overall (unweighted, relative)
     results, num_all, den_all = [], 0.0, 0.0
-    V0 = np.linalg.svd(J, full_matrices=True)[2].T[:, info["rank"]:]
+    V0 = np.linalg.svd(J, full_matrices=True)[2].T[:, info['rank']:]
     names = tuple(b.name for b in par.bearings)
     for i in keep:
         W = speeds[i]
@@ -356,7 +378,7 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
         num_all += num
         den_all += den
         cov_b = G @ cov @ G.T
-        if bearing_model == "finite":       # the table's stated accuracy against the direct Reynolds solution
+        if bearing_model == 'finite':       # the table's stated accuracy against the direct Reynolds solution
             floor = par.model_floor(p, W)
             cov_b = cov_b + np.diag(floor ** 2)
         gnorm = np.linalg.norm(G, axis=1)
@@ -366,36 +388,37 @@ def fit_physical(model, rig, data, *, params=("viscosity", "clearance"), load=Fa
         verdict = judge(beta, std, estimable=est)
         det = verdict.determined
         std = np.where(det, std, np.nan)
-        res = empty_result(W, "physical", names, par.nodes)
+        res = empty_result(W, 'physical', names, par.nodes)
         for b in range(nb):
             s = slice(8 * b, 8 * b + 4)
             t = slice(8 * b + 4, 8 * b + 8)
             res.K[b], res.C[b] = beta[s].reshape(2, 2), beta[t].reshape(2, 2)
             res.K_std[b], res.C_std[b] = std[s].reshape(2, 2), std[t].reshape(2, 2)
             res.K_determined[b], res.C_determined[b] = det[s].reshape(2, 2), det[t].reshape(2, 2)
-        res.rank, res.unknowns, res.condition = info["rank"], p.size, info["condition"]
+        res.rank, res.unknowns, res.condition = info['rank'], p.size, info['condition']
         res.residual = math.sqrt(num / den) if den > 0 else math.nan
         res.notes += notes
-        vn = verdict.note([f"{names[j]}.{sym}{lab}" for j in range(nb) for sym in ("K", "C") for lab in COEFF_ORDER])
+        vn = verdict.note([f'{names[j]}.{sym}{lab}' for j in range(nb) for sym in ('K', 'C') for lab in COEFF_ORDER])
         if vn:
             res.notes.append(vn)
         res.extra.update(cov_beta=cov_b, params=dict(zip(par.names, np.exp(p))), misfit=bool(misfit),
                          parameters=params_dict, fit_quality=fq, verdict=verdict, bearing_model=bearing_model)
         if misfit:
-            res.set_flag("misfit")
+            res.set_flag('misfit')
         results.append(res)
     fit.residual = math.sqrt(num_all / den_all) if den_all > 0 else math.nan
     for res in results:
-        res.extra["fit"] = fit
+        res.extra['fit'] = fit
     return fit, results
 
 
-OPTIONS = {"params": ("viscosity", "clearance"), "load": False, "bearing_model": "short", "max_nfev": 100,
-           "augment": None}
+OPTIONS = {'params': ('viscosity', 'clearance'), 'load': False, 'bearing_model': 'short', 'max_nfev': 100,
+           'augment': None}
 
 
 def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
-    """``physical`` identification with the common method signature (see :mod:`bearing_id.identify`).
+    """
+    ``physical`` identification with the common method signature (see :mod:`bearing_id.identify`).
 
     Options / keywords: ``params`` (default ('viscosity', 'clearance')), ``load`` (False), ``bearing_model``
     ('short'), ``max_nfev``.  Returns the per-speed IdentResult list; the fitted parameters are in each result's
@@ -404,12 +427,12 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     opts = dict(OPTIONS)
     for k, v in {**(options or {}), **kw}.items():
         if k not in OPTIONS:
-            raise ValueError(f"physical: unknown option {k!r} (known: {sorted(OPTIONS)})")
+            raise ValueError(f'physical: unknown option {k!r} (known: {sorted(OPTIONS)})')
         opts[k] = v
-    _, results = fit_physical(model, rig, data, params=tuple(opts["params"]), load=bool(opts["load"]),
-                              bearing_model=str(opts["bearing_model"]), probes=probes, runs=runs,
-                              max_nfev=int(opts["max_nfev"]), augment=opts["augment"])
+    _, results = fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
+                              bearing_model=str(opts['bearing_model']), probes=probes, runs=runs,
+                              max_nfev=int(opts['max_nfev']), augment=opts['augment'])
     return results
 
 
-__all__ = ["PhysicalFit", "fit_physical", "identify_physical", "PARAM_NAMES"]
+__all__ = ['PhysicalFit', 'fit_physical', 'identify_physical', 'PARAM_NAMES']

@@ -1,6 +1,8 @@
-"""Physical plausibility gates on identification results: a result from data the model cannot describe is not
-"determined", whatever its rank (issue 10, item 3).  Applied by :func:`bearing_id.identify.identify`, so the CLI
-and the identifier node apply the same gates.
+"""
+Physical plausibility gates on identification results.
+
+A result from data the model cannot describe is not "determined", whatever its rank (issue 10, item 3).  Applied by
+:func:`bearing_id.identify.identify`, so the CLI and the identifier node apply the same gates.
 
 Per speed:
 
@@ -25,13 +27,17 @@ import numpy as np
 ORBIT_LIMIT = 0.30      # fraction of the radial clearance (same rule as rig.check_validity and kf_estimator)
 SIGNAL_SIGMA = 3.0      # a channel's 1X amplitude must exceed this many of its 1-sigma in some run
 
+
 def stability_threshold(model, rig, speed_max: float) -> float:
-    """The nominal model's stability threshold [rad/s], searched up to at least 2 x ``speed_max`` (inf when stable
-    there).  Kept on the model object for this rig: a later call within the range searched reuses it (the live
-    identifier solves again at every new speed)."""
+    """
+    Return the nominal model's stability threshold [rad/s].
+
+    Searched up to at least 2 x ``speed_max`` (inf when stable there).  Kept on the model object for this rig: a later
+    call within the range searched reuses it (the live identifier solves again at every new speed).
+    """
     from ..bearings import bearing_fn
     from ..bearings.stability import threshold_speed
-    cached = getattr(model, "_plausibility_threshold", None)       # (rig, top of the range searched, threshold)
+    cached = getattr(model, '_plausibility_threshold', None)       # (rig, top of the range searched, threshold)
     if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
         return cached[2]
     top = 4.0 * float(speed_max)
@@ -47,15 +53,19 @@ def stability_threshold(model, rig, speed_max: float) -> float:
 
 
 def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
-    """{bearing node: largest orbit radius [m] over the runs} at speed index ``s``: the model's response with the
-    identified coefficients, scaled by the least-squares ratio of measured to modelled probe amplitudes."""
+    """
+    Return {bearing node: largest orbit radius [m] over the runs} at speed index ``s``.
+
+    The model's response with the identified coefficients, scaled by the least-squares ratio of measured to modelled
+    probe amplitudes.
+    """
+    from ..conventions import dof_index
     from ..excitation import harmonic_forces
     from ..rotor.assembly import harmonic_response, probe_matrix
-    from ..conventions import dof_index
     w = float(data.speeds[s])
     co = result.coeffs()
     S = probe_matrix(model, probes)
-    out = {n: 0.0 for n in co}
+    out = dict.fromkeys(co, 0.0)
     for r, run in enumerate(runs):
         F = harmonic_forces(run.excitation, w, model.n_nodes).get(1.0)
         if F is None:
@@ -68,15 +78,18 @@ def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
         meas = np.abs(data.X[r, s])
         scale = float(pred @ meas / (pred @ pred)) if pred @ pred > 0 else math.inf
         for n in co:
-            qx = q[dof_index(n, "x", model.n_nodes)]
-            qy = q[dof_index(n, "y", model.n_nodes)]
+            qx = q[dof_index(n, 'x', model.n_nodes)]
+            qy = q[dof_index(n, 'y', model.n_nodes)]
             out[n] = max(out[n], scale * math.sqrt(abs(qx) ** 2 + abs(qy) ** 2))
     return out
 
 
 def gate(results, model, rig, data, runs, probes) -> list:
-    """Apply the gates (module docstring) to ``results`` (one IdentResult per ``data.speeds`` entry, matched by
-    speed) in place; returns them."""
+    """
+    Apply the gates (module docstring) to ``results`` in place; returns them.
+
+    ``results``: one IdentResult per ``data.speeds`` entry, matched by speed.
+    """
     if not results:
         return results
     speeds = np.asarray(data.speeds, dtype=float)
@@ -90,27 +103,27 @@ def gate(results, model, rig, data, runs, probes) -> list:
         rpm = res.speed_rpm
         if res.speed >= thr:
             reasons.append(f"{rpm:.0f} rpm is at or above the model's stability threshold "
-                           f"({thr * 60 / (2 * math.pi):.0f} rpm, oil whip): no steady 1X response exists there -- a "
-                           f"wrong speed signal, or a machine the model does not describe")
+                           f'({thr * 60 / (2 * math.pi):.0f} rpm, oil whip): no steady 1X response exists there -- a '
+                           f'wrong speed signal, or a machine the model does not describe')
         live = np.any(amp[:, s, :] > SIGNAL_SIGMA * np.maximum(std[:, s, :], 0.0), axis=0) & \
             np.any(amp[:, s, :] > 0, axis=0)
         for c in np.nonzero(~live)[0]:
-            reasons.append(f"channel {probes[c].name}: no 1X signal above its noise in any run at {rpm:.0f} rpm "
-                           f"(dead, constant or all-zero channel)")
+            reasons.append(f'channel {probes[c].name}: no 1X signal above its noise in any run at {rpm:.0f} rpm '
+                           f'(dead, constant or all-zero channel)')
         if not reasons:
             for node, r_orb in bearing_orbits(res, model, data, s, runs, probes).items():
                 c = clearance.get(node)
                 if c and not r_orb <= ORBIT_LIMIT * c:
-                    reasons.append(f"the journal orbit at the bearing at node {node} would be {r_orb / c:.3g} x its "
-                                   f"radial clearance at {rpm:.0f} rpm (limit {ORBIT_LIMIT:g}): outside the linear "
+                    reasons.append(f'the journal orbit at the bearing at node {node} would be {r_orb / c:.3g} x its '
+                                   f'radial clearance at {rpm:.0f} rpm (limit {ORBIT_LIMIT:g}): outside the linear '
                                    f"coefficients' range -- or the samples are not in metres")
         if reasons:
             res.K_determined = np.zeros_like(res.K_determined, dtype=bool)
             res.C_determined = np.zeros_like(res.C_determined, dtype=bool)
             res.K_std = np.full_like(res.K, np.nan)
             res.C_std = np.full_like(res.C, np.nan)
-            res.notes = list(res.notes) + [f"NOT PLAUSIBLE: {t}; not determined" for t in reasons]
+            res.notes = list(res.notes) + [f'NOT PLAUSIBLE: {t}; not determined' for t in reasons]
     return results
 
 
-__all__ = ["ORBIT_LIMIT", "SIGNAL_SIGMA", "stability_threshold", "bearing_orbits", "gate"]
+__all__ = ['ORBIT_LIMIT', 'SIGNAL_SIGMA', 'stability_threshold', 'bearing_orbits', 'gate']

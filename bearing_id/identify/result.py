@@ -1,4 +1,5 @@
-"""The result every identification method returns: bearing coefficients at one speed, with what the data determine.
+"""
+The result every identification method returns: bearing coefficients at one speed, with what the data determine.
 
 One :class:`IdentResult` per speed.  Arrays are indexed ``[bearing, row, col]`` with rows/cols (x, y) of
 :mod:`bearing_id.conventions` (force on the shaft ``-K q - C q'``).  SI units: K [N/m], C [N s/m], speed [rad/s].
@@ -16,18 +17,18 @@ physical parameters with their 1-sigma, method ``physical``) are serialised by :
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
 from ..conventions import COEFF_ORDER, RPM_PER_RAD_S
 
 
-
 @dataclass
 class IdentResult:
-    """Identified bearing coefficients at one speed.
+    """
+    Identified bearing coefficients at one speed.
 
     Attributes
     ----------
@@ -46,7 +47,9 @@ class IdentResult:
     extra : method-specific data (e.g. the KF bearing-node estimates, the theory used) -- not serialised, except
         ``extra['fit_quality']`` and ``extra['parameters']`` (see the module docstring).
     flags : machine-readable warnings every printer must show: 'misfit' (see the module docstring).
+
     """
+
     speed: float
     method: str
     bearings: tuple
@@ -67,8 +70,12 @@ class IdentResult:
 
     @property
     def misfit(self) -> bool:
-        """True when the model does not fit the data within their noise (chi-square test): a warning, never an OK."""
-        return "misfit" in self.flags
+        """
+        Return True when the model does not fit the data within their noise (chi-square test).
+
+        A warning, never an OK.
+        """
+        return 'misfit' in self.flags
 
     @property
     def plainly_determined(self) -> bool:
@@ -85,21 +92,21 @@ class IdentResult:
 
     @property
     def fully_determined(self) -> bool:
-        """True when every coefficient is fixed by the data."""
+        """Return True when every coefficient is fixed by the data."""
         return bool(np.all(self.K_determined) and np.all(self.C_determined))
 
     def undetermined_names(self) -> list[str]:
         """Names like 'bearing1.Kxy' of the coefficients not determined by the data."""
         out = []
         for i, name in enumerate(self.bearings):
-            for sym, mask in (("K", self.K_determined), ("C", self.C_determined)):
+            for sym, mask in (('K', self.K_determined), ('C', self.C_determined)):
                 for k, lab in enumerate(COEFF_ORDER):
                     if not mask[i].reshape(4)[k]:
-                        out.append(f"{name}.{sym}{lab}")
+                        out.append(f'{name}.{sym}{lab}')
         return out
 
     def coeffs(self) -> dict:
-        """The shared shape ``{node: (K, C)}`` (2x2 arrays, SI)."""
+        """Return the shared shape ``{node: (K, C)}`` (2x2 arrays, SI)."""
         return {int(n): (self.K[i].copy(), self.C[i].copy()) for i, n in enumerate(self.nodes)}
 
     def to_dict(self) -> dict:
@@ -108,32 +115,32 @@ class IdentResult:
             return [[_num(v) for v in row] for row in np.asarray(a, dtype=float)]
 
         out = {
-            "speed_rpm": float(self.speed_rpm),
-            "speed_rad_s": float(self.speed),
-            "method": self.method,
-            "rank": int(self.rank),
-            "unknowns": int(self.unknowns),
-            "condition": _num(self.condition),
-            "residual": _num(self.residual),
-            "fully_determined": self.fully_determined,
-            "plainly_determined": self.plainly_determined,
-            "bearings": [
-                {"name": str(name), "node": int(self.nodes[i]),
-                 "K": arr(self.K[i]), "C": arr(self.C[i]),
-                 "K_std": arr(self.K_std[i]), "C_std": arr(self.C_std[i]),
-                 "determined": {"K": np.asarray(self.K_determined[i], bool).tolist(),
-                                "C": np.asarray(self.C_determined[i], bool).tolist()}}
+            'speed_rpm': float(self.speed_rpm),
+            'speed_rad_s': float(self.speed),
+            'method': self.method,
+            'rank': int(self.rank),
+            'unknowns': int(self.unknowns),
+            'condition': _num(self.condition),
+            'residual': _num(self.residual),
+            'fully_determined': self.fully_determined,
+            'plainly_determined': self.plainly_determined,
+            'bearings': [
+                {'name': str(name), 'node': int(self.nodes[i]),
+                 'K': arr(self.K[i]), 'C': arr(self.C[i]),
+                 'K_std': arr(self.K_std[i]), 'C_std': arr(self.C_std[i]),
+                 'determined': {'K': np.asarray(self.K_determined[i], bool).tolist(),
+                                'C': np.asarray(self.C_determined[i], bool).tolist()}}
                 for i, name in enumerate(self.bearings)],
-            "units": {"K": "N/m", "C": "N s/m", "speed": "rpm"},
-            "flags": list(self.flags),
-            "misfit": self.misfit,
-            "notes": list(self.notes),
+            'units': {'K': 'N/m', 'C': 'N s/m', 'speed': 'rpm'},
+            'flags': list(self.flags),
+            'misfit': self.misfit,
+            'notes': list(self.notes),
         }
-        fq = self.extra.get("fit_quality")
+        fq = self.extra.get('fit_quality')
         if fq is not None:
-            out["fit_quality"] = fq.to_dict() if hasattr(fq, "to_dict") else dict(fq)
-        if self.extra.get("parameters"):
-            out["parameters"] = _jsonable(self.extra["parameters"])
+            out['fit_quality'] = fq.to_dict() if hasattr(fq, 'to_dict') else dict(fq)
+        if self.extra.get('parameters'):
+            out['parameters'] = _jsonable(self.extra['parameters'])
         return out
 
 
@@ -160,7 +167,7 @@ def _jsonable(v):
 
 
 def empty_result(speed: float, method: str, bearings, nodes) -> IdentResult:
-    """A result with every coefficient NaN and undetermined (fill it in)."""
+    """Return a result with every coefficient NaN and undetermined (fill it in)."""
     nb = len(nodes)
     nan = np.full((nb, 2, 2), np.nan)
     no = np.zeros((nb, 2, 2), dtype=bool)
@@ -170,12 +177,15 @@ def empty_result(speed: float, method: str, bearings, nodes) -> IdentResult:
 
 
 def eq38_error(identified, truth) -> dict:
-    """Paper eq. 38 error [%]: mean over speeds of |(actual - estimated) / actual| x 100, per coefficient and group.
+    """
+    Paper eq. 38 error [%]: mean over speeds of |(actual - estimated) / actual| x 100, per coefficient and group.
 
     Parameters
     ----------
-    identified : IdentResult or a list of them (one per speed).
-    truth : for each identified speed the true coefficients: a callable ``bearing_fn(speed) -> {node: (K, C)}``,
+    identified
+        IdentResult or a list of them (one per speed).
+    truth
+        for each identified speed the true coefficients: a callable ``bearing_fn(speed) -> {node: (K, C)}``,
         or one ``{node: (K, C)}`` / IdentResult (single speed), or a list of those aligned with ``identified``.
 
     Returns
@@ -183,6 +193,7 @@ def eq38_error(identified, truth) -> dict:
     dict with per-coefficient errors keyed like ``'node2.Kxy'`` and group errors (the mean over the coefficients of
     both bearings in the group): ``'K_direct'`` (Kxx, Kyy), ``'K_cross'`` (Kxy, Kyx), ``'C_direct'``, ``'C_cross'``,
     ``'K'``, ``'C'`` (all four entries), ``'all'``.  NaN identified values give NaN.
+
     """
     ids = list(identified) if isinstance(identified, (list, tuple)) else [identified]
     if callable(truth):
@@ -192,7 +203,7 @@ def eq38_error(identified, truth) -> dict:
     else:
         truths = [truth]
     if len(truths) != len(ids):
-        raise ValueError(f"eq38_error: {len(ids)} identified speeds but {len(truths)} truths")
+        raise ValueError(f'eq38_error: {len(ids)} identified speeds but {len(truths)} truths')
     per = {}
     for r, t in zip(ids, truths):
         a = r.coeffs() if isinstance(r, IdentResult) else r
@@ -200,18 +211,18 @@ def eq38_error(identified, truth) -> dict:
         if sorted(a) != sorted(b):
             raise ValueError(f"eq38_error: identified bearings {sorted(a)} differ from the truth's {sorted(b)}")
         for n in sorted(b):
-            for si, sym in enumerate(("K", "C")):
+            for si, sym in enumerate(('K', 'C')):
                 x, y = np.asarray(a[n][si], float), np.asarray(b[n][si], float)
                 for k, lab in enumerate(COEFF_ORDER):
                     e = abs((y.reshape(4)[k] - x.reshape(4)[k]) / y.reshape(4)[k]) * 100.0
-                    per.setdefault(f"node{n}.{sym}{lab}", []).append(e)
+                    per.setdefault(f'node{n}.{sym}{lab}', []).append(e)
     out = {k: float(np.mean(v)) for k, v in per.items()}
-    groups = {"K_direct": ("Kxx", "Kyy"), "K_cross": ("Kxy", "Kyx"), "C_direct": ("Cxx", "Cyy"),
-              "C_cross": ("Cxy", "Cyx"), "K": ("Kxx", "Kxy", "Kyx", "Kyy"), "C": ("Cxx", "Cxy", "Cyx", "Cyy")}
+    groups = {'K_direct': ('Kxx', 'Kyy'), 'K_cross': ('Kxy', 'Kyx'), 'C_direct': ('Cxx', 'Cyy'),
+              'C_cross': ('Cxy', 'Cyx'), 'K': ('Kxx', 'Kxy', 'Kyx', 'Kyy'), 'C': ('Cxx', 'Cxy', 'Cyx', 'Cyy')}
     for g, labs in groups.items():
-        out[g] = float(np.mean([v for k, v in out.items() if "." in k and k.split(".")[1] in labs]))
-    out["all"] = float(np.mean([v for k, v in out.items() if "." in k]))
+        out[g] = float(np.mean([v for k, v in out.items() if '.' in k and k.split('.')[1] in labs]))
+    out['all'] = float(np.mean([v for k, v in out.items() if '.' in k]))
     return out
 
 
-__all__ = ["IdentResult", "empty_result", "eq38_error"]
+__all__ = ['IdentResult', 'empty_result', 'eq38_error']

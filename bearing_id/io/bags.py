@@ -1,4 +1,5 @@
-"""rosbag2 bags (sqlite3 and mcap) without a ROS installation, via ``rosbags``.
+"""
+rosbag2 bags (sqlite3 and mcap) without a ROS installation, via ``rosbags``.
 
 The typestore is ROS 2 Jazzy's plus the ``bearing_id_msgs`` types registered from the very ``.msg`` files that
 ``msg_defs/`` builds, so bags written here read in stock ROS 2 tools (the RIHS01 type hashes match rosidl's) and
@@ -28,20 +29,20 @@ parse (size, nesting, alias expansion: :func:`bearing_id.params.check_yaml_event
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
 import functools
 import importlib.util
 import math
 import os
+from pathlib import Path
 import struct
 import sys
 import time
 import zlib
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
 
-PACKAGE = "bearing_id_msgs"
-STORAGES = ("mcap", "sqlite3")
+PACKAGE = 'bearing_id_msgs'
+STORAGES = ('mcap', 'sqlite3')
 BAG_VERSION = 9  # rosbag2 metadata version written by ROS 2 Jazzy
 
 
@@ -52,9 +53,9 @@ class BagError(RuntimeError):
 # -------------------------------------------------------------------------------------------------- .msg files
 def _msg_dir_candidates() -> list[Path]:
     here = Path(__file__).resolve()
-    cands = [here.parents[2] / "msg_defs" / "msg"]                     # source tree (editable install, checkout)
+    cands = [here.parents[2] / 'msg_defs' / 'msg']                     # source tree (editable install, checkout)
     prefixes = [Path(sys.prefix)]
-    prefixes += [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    prefixes += [Path(p) for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     try:                                                                  # <prefix>/lib/pythonX.Y/site-packages/pkg
         spec = importlib.util.find_spec(PACKAGE)
     except (ImportError, ValueError):
@@ -62,23 +63,26 @@ def _msg_dir_candidates() -> list[Path]:
     if spec is not None and spec.submodule_search_locations:
         for loc in spec.submodule_search_locations:
             prefixes.append(Path(loc).resolve().parents[3])
-    cands += [p / "share" / PACKAGE / "msg" for p in prefixes]
+    cands += [p / 'share' / PACKAGE / 'msg' for p in prefixes]
     return cands
 
 
 def msg_files() -> dict[str, Path]:
-    """``{'bearing_id_msgs/msg/Name': path}`` of the interface definitions (source tree first, then installed
-    ``share/bearing_id_msgs/msg``); ``BagError`` when none are found."""
+    """
+    Return ``{'bearing_id_msgs/msg/Name': path}`` of the interface definitions; ``BagError`` when none are found.
+
+    The source tree first, then the installed ``share/bearing_id_msgs/msg``.
+    """
     for d in _msg_dir_candidates():
-        files = sorted(d.glob("*.msg")) if d.is_dir() else []
+        files = sorted(d.glob('*.msg')) if d.is_dir() else []
         if files:
-            return {f"{PACKAGE}/msg/{f.stem}": f for f in files}
-    raise BagError(f"no {PACKAGE} .msg files found; looked in: " + ", ".join(str(d) for d in _msg_dir_candidates()))
+            return {f'{PACKAGE}/msg/{f.stem}': f for f in files}
+    raise BagError(f'no {PACKAGE} .msg files found; looked in: ' + ', '.join(str(d) for d in _msg_dir_candidates()))
 
 
 def make_typestore():
-    """A new ROS 2 Jazzy typestore with the bearing_id_msgs types registered from their .msg text."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    """Make a new ROS 2 Jazzy typestore with the bearing_id_msgs types registered from their .msg text."""
+    from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     types = {}
@@ -90,20 +94,20 @@ def make_typestore():
 
 @functools.lru_cache(maxsize=1)
 def typestore():
-    """The shared typestore (ROS 2 Jazzy + bearing_id_msgs), built once per process."""
+    """Return the shared typestore, built once per process (ROS 2 Jazzy + bearing_id_msgs)."""
     return make_typestore()
 
 
 # ---------------------------------------------------------------------------------------------------- QoS
-LATCHED_TOPICS = ("/rotor/excitation", "/bearing_id/coefficients")
+LATCHED_TOPICS = ('/rotor/excitation', '/bearing_id/coefficients')
 _INFINITE = (9223372036, 854775807)     # RMW_DURATION_INFINITE as rosbag2 writes it
-QOS_KEYS = ("history", "depth", "reliability", "durability", "deadline", "lifespan", "liveliness",
-            "liveliness_lease_duration", "avoid_ros_namespace_conventions")
+QOS_KEYS = ('history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan', 'liveliness',
+            'liveliness_lease_duration', 'avoid_ros_namespace_conventions')
 
 
-def _enum(enum_cls, value, default="UNKNOWN"):
-    """rosbags QoS enum member from a name ('transient_local', 'TRANSIENT_LOCAL'), an rclpy enum, or an int."""
-    name = getattr(value, "name", value)
+def _enum(enum_cls, value, default='UNKNOWN'):
+    """Return the rosbags QoS enum member of a name ('transient_local', 'TRANSIENT_LOCAL'), an rclpy enum or an int."""
+    name = getattr(value, 'name', value)
     if isinstance(name, str):
         return enum_cls.__members__.get(name.upper(), enum_cls.__members__[default])
     try:
@@ -113,27 +117,34 @@ def _enum(enum_cls, value, default="UNKNOWN"):
 
 
 def _qtime(v):
-    """(sec, nsec) from a mapping {sec, nsec}, a (sec, nsec) pair, nanoseconds (int), an rclpy Duration or None
-    (unspecified = 0)."""
+    """
+    Convert to (sec, nsec) from a mapping {sec, nsec}, a (sec, nsec) pair, nanoseconds (int) or an rclpy Duration.
+
+    None is unspecified = 0.
+    """
     from rosbags.interfaces import QosTime
     if v is None:
         return QosTime(0, 0)
     if isinstance(v, dict):
-        return QosTime(int(v.get("sec", 0)), int(v.get("nsec", 0)))
+        return QosTime(int(v.get('sec', 0)), int(v.get('nsec', 0)))
     if isinstance(v, (tuple, list)):
         return QosTime(int(v[0]), int(v[1]))
-    ns = int(getattr(v, "nanoseconds", v))
+    ns = int(getattr(v, 'nanoseconds', v))
     if ns >= _INFINITE[0] * 1_000_000_000 + _INFINITE[1]:
         return QosTime(*_INFINITE)
     return QosTime(ns // 1_000_000_000, ns % 1_000_000_000)
 
 
-def qos_profile(reliability="reliable", durability="volatile", depth: int = 10, history="keep_last", *,
-                deadline=None, lifespan=None, liveliness="automatic", liveliness_lease_duration=None,
+def qos_profile(reliability='reliable', durability='volatile', depth: int = 10, history='keep_last', *,
+                deadline=None, lifespan=None, liveliness='automatic', liveliness_lease_duration=None,
                 avoid_ros_namespace_conventions: bool = False):
-    """A rosbags ``Qos`` (what rosbag2 stores as one entry of ``offered_qos_profiles``).  Policies by name
-    ('reliable', 'best_effort', 'transient_local', 'volatile', 'keep_last', 'keep_all', 'automatic', ...) or as the
-    rclpy enums; durations as nanoseconds, rclpy Durations, (sec, nsec) or {sec, nsec}; None = unspecified."""
+    """
+    Make a rosbags ``Qos`` (what rosbag2 stores as one entry of ``offered_qos_profiles``).
+
+    Policies by name ('reliable', 'best_effort', 'transient_local', 'volatile', 'keep_last', 'keep_all', 'automatic',
+    ...) or as the rclpy enums; durations as nanoseconds, rclpy Durations, (sec, nsec) or {sec, nsec}; None =
+    unspecified.
+    """
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
     return Qos(_enum(QosHistory, history), max(0, int(depth)), _enum(QosReliability, reliability),
                _enum(QosDurability, durability), _qtime(deadline), _qtime(lifespan),
@@ -142,7 +153,11 @@ def qos_profile(reliability="reliable", durability="volatile", depth: int = 10, 
 
 
 def qos_from_rclpy(profile):
-    """rosbags ``Qos`` of an rclpy ``QoSProfile`` (e.g. ``node.get_publishers_info_by_topic(t)[i].qos_profile``)."""
+    """
+    Return the rosbags ``Qos`` of an rclpy ``QoSProfile``.
+
+    E.g. ``node.get_publishers_info_by_topic(t)[i].qos_profile``.
+    """
     return qos_profile(profile.reliability, profile.durability, profile.depth, profile.history,
                        deadline=profile.deadline, lifespan=profile.lifespan, liveliness=profile.liveliness,
                        liveliness_lease_duration=profile.liveliness_lease_duration,
@@ -150,42 +165,48 @@ def qos_from_rclpy(profile):
 
 
 def qos_to_dict(q) -> dict:
-    """One ``Qos`` as rosbag2 Jazzy (metadata version 9) writes it: policy names in lower case, durations as
-    {sec, nsec}."""
-    t = lambda x: {"sec": int(x.sec), "nsec": int(x.nsec)}  # noqa: E731
-    return {"history": q.history.name.lower(), "depth": int(q.depth), "reliability": q.reliability.name.lower(),
-            "durability": q.durability.name.lower(), "deadline": t(q.deadline), "lifespan": t(q.lifespan),
-            "liveliness": q.liveliness.name.lower(), "liveliness_lease_duration": t(q.liveliness_lease_duration),
-            "avoid_ros_namespace_conventions": bool(q.avoid_ros_namespace_conventions)}
+    """
+    Return one ``Qos`` as rosbag2 Jazzy (metadata version 9) writes it.
+
+    Policy names in lower case, durations as {sec, nsec}.
+    """
+    t = lambda x: {'sec': int(x.sec), 'nsec': int(x.nsec)}  # noqa: E731
+    return {'history': q.history.name.lower(), 'depth': int(q.depth), 'reliability': q.reliability.name.lower(),
+            'durability': q.durability.name.lower(), 'deadline': t(q.deadline), 'lifespan': t(q.lifespan),
+            'liveliness': q.liveliness.name.lower(), 'liveliness_lease_duration': t(q.liveliness_lease_duration),
+            'avoid_ros_namespace_conventions': bool(q.avoid_ros_namespace_conventions)}
 
 
 def default_qos(topic: str) -> list:
-    """What bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.common`): RELIABLE +
-    TRANSIENT_LOCAL depth 20 for the latched topics, RELIABLE + VOLATILE otherwise (depth 400 for the streams, 50
-    for /rotor/speed, 10 for the rest)."""
+    """
+    Return what bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.common`).
+
+    RELIABLE + TRANSIENT_LOCAL depth 20 for the latched topics, RELIABLE + VOLATILE otherwise (depth 400 for the
+    streams, 50 for /rotor/speed, 10 for the rest).
+    """
     if topic in LATCHED_TOPICS:
-        return [qos_profile("reliable", "transient_local", 20)]
-    depth = {"/rotor/displacement": 400, "/bearing_id/bearing_displacement": 400, "/bearing_id/innovation": 400,
-             "/rotor/speed": 50}.get(topic, 10)
-    return [qos_profile("reliable", "volatile", depth)]
+        return [qos_profile('reliable', 'transient_local', 20)]
+    depth = {'/rotor/displacement': 400, '/bearing_id/bearing_displacement': 400, '/bearing_id/innovation': 400,
+             '/rotor/speed': 50}.get(topic, 10)
+    return [qos_profile('reliable', 'volatile', depth)]
 
 
 # ---------------------------------------------------------------------------------------------------- writing
 def _msgtype_of(msg) -> str:
-    mt = getattr(msg, "__msgtype__", None)            # rosbags dataclass
+    mt = getattr(msg, '__msgtype__', None)            # rosbags dataclass
     if mt:
         return mt
     cls = type(msg)                                   # rclpy: module 'pkg.msg._name', class Name
-    pkg = cls.__module__.split(".")[0]
-    if ".msg" in cls.__module__:
-        return f"{pkg}/msg/{cls.__name__}"
-    raise BagError(f"cannot tell the ROS message type of {cls.__name__}; pass (topic, msgtype, timestamp_ns, msg)")
+    pkg = cls.__module__.split('.')[0]
+    if '.msg' in cls.__module__:
+        return f'{pkg}/msg/{cls.__name__}'
+    raise BagError(f'cannot tell the ROS message type of {cls.__name__}; pass (topic, msgtype, timestamp_ns, msg)')
 
 
 def _serialize(ts, msg, msgtype: str) -> bytes:
     if isinstance(msg, (bytes, bytearray, memoryview)):
         return bytes(msg)
-    if hasattr(msg, "__msgtype__"):
+    if hasattr(msg, '__msgtype__'):
         return bytes(ts.serialize_cdr(msg, msgtype))
     from rclpy.serialization import serialize_message  # rclpy message object
     return serialize_message(msg)
@@ -195,15 +216,16 @@ def _storage_plugin(storage: str):
     from rosbags.rosbag2 import StoragePlugin
 
     s = str(storage).lower()
-    if s == "mcap":
+    if s == 'mcap':
         return StoragePlugin.MCAP
-    if s in ("sqlite3", "sqlite", "db3"):
+    if s in ('sqlite3', 'sqlite', 'db3'):
         return StoragePlugin.SQLITE3
-    raise BagError(f"unknown bag storage {storage!r}; use one of {STORAGES}")
+    raise BagError(f'unknown bag storage {storage!r}; use one of {STORAGES}')
 
 
 class BagWriter:
-    """A rosbag2 bag written message by message and made durable every ``flush_period`` seconds.
+    """
+    A rosbag2 bag written message by message and made durable every ``flush_period`` seconds.
 
     mcap: the pending chunk is closed and written (rosbags otherwise keeps up to 1 MiB of messages in memory),
     the file flushed and fsync'ed; sqlite3: the open transaction is committed.  A process killed with SIGKILL
@@ -217,26 +239,26 @@ class BagWriter:
     connection on first use.
     """
 
-    def __init__(self, path, storage: str = "mcap", *, types=None, overwrite: bool = False,
+    def __init__(self, path, storage: str = 'mcap', *, types=None, overwrite: bool = False,
                  flush_period: float | None = 1.0, fsync: bool = True):
         from rosbags.rosbag2 import Writer, WriterError
 
         self.path = Path(path)
-        self.storage = "sqlite3" if str(storage).lower() in ("sqlite3", "sqlite", "db3") else str(storage).lower()
+        self.storage = 'sqlite3' if str(storage).lower() in ('sqlite3', 'sqlite', 'db3') else str(storage).lower()
         self.types = types if types is not None else typestore()
         self.flush_period = flush_period
         self.fsync = fsync
         plugin = _storage_plugin(storage)
         if self.path.exists():
             if not overwrite:
-                raise BagError(f"{self.path}: exists already (pass overwrite=True to replace it)")
+                raise BagError(f'{self.path}: exists already (pass overwrite=True to replace it)')
             import shutil
             shutil.rmtree(self.path)
         self._w = Writer(self.path, version=BAG_VERSION, storage_plugin=plugin)
         try:
             self._w.open()
         except (WriterError, OSError) as exc:
-            raise BagError(f"{self.path}: cannot create bag: {exc}") from exc
+            raise BagError(f'{self.path}: cannot create bag: {exc}') from exc
         self._conns: dict[str, tuple[str, object]] = {}
         self.counts: dict[str, int] = {}
         self._last_flush = time.monotonic()
@@ -247,16 +269,16 @@ class BagWriter:
     def add_connection(self, topic: str, msgtype: str, qos=None):
         if topic in self._conns:
             if self._conns[topic][0] != msgtype:
-                raise BagError(f"{self.path}: topic {topic} written with two types ({self._conns[topic][0]}, "
-                               f"{msgtype})")
+                raise BagError(f'{self.path}: topic {topic} written with two types ({self._conns[topic][0]}, '
+                               f'{msgtype})')
             return self._conns[topic][1]
         if msgtype not in self.types.types:
-            raise BagError(f"{self.path}: message type {msgtype} (topic {topic}) is not in the typestore")
+            raise BagError(f'{self.path}: message type {msgtype} (topic {topic}) is not in the typestore')
         profiles = list(qos) if qos else default_qos(topic)
         try:
             conn = self._w.add_connection(topic, msgtype, typestore=self.types, offered_qos_profiles=profiles)
         except Exception as exc:  # WriterError, a bad QoS value
-            raise BagError(f"{self.path}: cannot add topic {topic}: {exc}") from exc
+            raise BagError(f'{self.path}: cannot add topic {topic}: {exc}') from exc
         self._conns[topic] = (msgtype, conn)
         self.counts[topic] = 0
         self._dirty = True
@@ -265,7 +287,7 @@ class BagWriter:
     def write(self, topic: str, msgtype: str, stamp_ns: int, msg) -> None:
         conn = self.add_connection(topic, msgtype) if topic not in self._conns else self._conns[topic][1]
         if self._conns[topic][0] != msgtype:
-            raise BagError(f"{self.path}: topic {topic} written with two types ({self._conns[topic][0]}, {msgtype})")
+            raise BagError(f'{self.path}: topic {topic} written with two types ({self._conns[topic][0]}, {msgtype})')
         self._w.write(conn, int(stamp_ns), _serialize(self.types, msg, msgtype))
         self.counts[topic] += 1
         self._dirty = True
@@ -283,13 +305,13 @@ class BagWriter:
         self._last_flush = time.monotonic()
         if st is None or not self._dirty:
             return
-        if hasattr(st, "close_chunk"):                  # rosbags McapWriter
+        if hasattr(st, 'close_chunk'):                  # rosbags McapWriter
             if st.chunk.bio.tell():
                 st.close_chunk()
             st.bio.flush()
             if self.fsync:
                 os.fsync(st.bio.fileno())
-        elif hasattr(st, "conn"):                       # rosbags Sqlite3Writer
+        elif hasattr(st, 'conn'):                       # rosbags Sqlite3Writer
             st.conn.commit()
         self._dirty = False
 
@@ -304,7 +326,7 @@ class BagWriter:
             try:
                 self._w.close()
             except Exception as exc:
-                raise BagError(f"{self.path}: cannot finish bag: {exc}") from exc
+                raise BagError(f'{self.path}: cannot finish bag: {exc}') from exc
         return self.path
 
     def abort(self) -> None:
@@ -327,9 +349,10 @@ class BagWriter:
         return False
 
 
-def write_bag(path, messages: Iterable, storage: str = "mcap", *, types=None, overwrite: bool = False,
+def write_bag(path, messages: Iterable, storage: str = 'mcap', *, types=None, overwrite: bool = False,
               qos: dict | None = None) -> Path:
-    """Write a rosbag2 bag directory.
+    """
+    Write a rosbag2 bag directory.
 
     messages : iterable of ``(topic, timestamp_ns, msg)`` or ``(topic, msgtype, timestamp_ns, msg_or_raw_bytes)``
         (the tuples :func:`read_bag` yields write back unchanged); msg is a rosbags dataclass or an rclpy message.
@@ -349,8 +372,8 @@ def write_bag(path, messages: Iterable, storage: str = "mcap", *, types=None, ov
             elif len(item) == 4:
                 topic, msgtype, stamp, msg = item
             else:
-                raise BagError(f"{w.path}: message {n} must be (topic, timestamp_ns, msg) or "
-                               f"(topic, msgtype, timestamp_ns, msg), got {len(item)} items")
+                raise BagError(f'{w.path}: message {n} must be (topic, timestamp_ns, msg) or '
+                               f'(topic, msgtype, timestamp_ns, msg), got {len(item)} items')
             if topic not in w.counts:
                 w.add_connection(topic, msgtype, qos.get(topic))
             w.write(topic, msgtype, stamp, msg)
@@ -364,14 +387,18 @@ MAX_CHUNK_BYTES = 1 << 30                  # an mcap chunk declaring more (uncom
 
 
 def _storage_files(path: Path) -> list[Path]:
-    return sorted(p for p in path.iterdir() if p.is_file() and p.suffix in (".mcap", ".db3"))
+    return sorted(p for p in path.iterdir() if p.is_file() and p.suffix in ('.mcap', '.db3'))
 
 
 def unfinished(path) -> Path | None:
-    """The storage file of an unfinished recording (a bag directory without ``metadata.yaml`` holding one
-    ``.mcap``/``.db3`` file: a recorder killed before it could finish), else None."""
+    """
+    Return the storage file of an unfinished recording, else None.
+
+    An unfinished recording is a bag directory without ``metadata.yaml`` holding one ``.mcap``/``.db3`` file: a recorder
+    killed before it could finish.
+    """
     path = Path(path)
-    if not path.is_dir() or (path / "metadata.yaml").exists():
+    if not path.is_dir() or (path / 'metadata.yaml').exists():
         return None
     files = _storage_files(path)
     return files[0] if len(files) == 1 else None
@@ -379,61 +406,62 @@ def unfinished(path) -> Path | None:
 
 def _check_metadata(path: Path) -> None:
     """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it."""
-    from ..params import ParamError, check_yaml_events
     import yaml
 
-    meta = path / "metadata.yaml"
+    from ..params import check_yaml_events, ParamError
+
+    meta = path / 'metadata.yaml'
     try:
         size = meta.stat().st_size
         if size > METADATA_MAX_BYTES:
-            raise BagError(f"{path}: metadata.yaml has {size} bytes (more than {METADATA_MAX_BYTES}: refused)")
-        text = meta.read_bytes().decode("utf-8")
+            raise BagError(f'{path}: metadata.yaml has {size} bytes (more than {METADATA_MAX_BYTES}: refused)')
+        text = meta.read_bytes().decode('utf-8')
     except OSError as exc:
-        raise BagError(f"{path}: cannot read metadata.yaml: {exc}") from exc
+        raise BagError(f'{path}: cannot read metadata.yaml: {exc}') from exc
     except UnicodeDecodeError as exc:
-        raise BagError(f"{path}: metadata.yaml is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        raise BagError(f'{path}: metadata.yaml is not UTF-8 text ({exc.reason} at byte {exc.start})') from None
     try:
-        check_yaml_events(text, "metadata.yaml", max_depth=32, max_nodes=1_000_000)
-        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # noqa: S506 - safe loader
+        check_yaml_events(text, 'metadata.yaml', max_depth=32, max_nodes=1_000_000)
+        data = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # noqa: S506 - safe loader
     except ParamError as exc:
-        raise BagError(f"{path}: {exc}") from None
+        raise BagError(f'{path}: {exc}') from None
     except yaml.YAMLError as exc:
-        text = " ".join(str(exc).replace('"<unicode string>"', "metadata.yaml").split())
-        raise BagError(f"{path}: metadata.yaml is not valid YAML: {text[:300]}") from None
-    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+        text = ' '.join(str(exc).replace('"<unicode string>"', 'metadata.yaml').split())
+        raise BagError(f'{path}: metadata.yaml is not valid YAML: {text[:300]}') from None
+    info = data.get('rosbag2_bagfile_information') if isinstance(data, dict) else None
     if not isinstance(info, dict):
-        raise BagError(f"{path}: metadata.yaml is not rosbag2 metadata (no rosbag2_bagfile_information mapping)")
+        raise BagError(f'{path}: metadata.yaml is not rosbag2 metadata (no rosbag2_bagfile_information mapping)')
 
 
 def _open_reader(path: Path):
     from rosbags.rosbag2 import Reader
 
     if not path.exists():
-        raise BagError(f"{path}: no such bag")
+        raise BagError(f'{path}: no such bag')
     if path.is_file():  # a bare .mcap/.db3 without metadata.yaml
-        raise BagError(f"{path}: is a file; a rosbag2 bag is a directory with metadata.yaml and the storage file(s)")
-    if not (path / "metadata.yaml").exists():
+        raise BagError(f'{path}: is a file; a rosbag2 bag is a directory with metadata.yaml and the storage file(s)')
+    if not (path / 'metadata.yaml').exists():
         part = unfinished(path)
         if part is not None:
-            raise BagError(f"{path}: metadata.yaml missing: an unfinished recording (the recorder was killed?); "
-                           f"`bearing-id record --recover {path}` salvages the messages written to {part.name} "
-                           f"before it stopped")
+            raise BagError(f'{path}: metadata.yaml missing: an unfinished recording (the recorder was killed?); '
+                           f'`bearing-id record --recover {path}` salvages the messages written to {part.name} '
+                           f'before it stopped')
         files = [p.name for p in path.iterdir()][:5]
-        raise BagError(f"{path}: metadata.yaml missing and no single .mcap/.db3 storage file "
+        raise BagError(f'{path}: metadata.yaml missing and no single .mcap/.db3 storage file '
                        f"({'empty directory' if not files else 'has ' + ', '.join(files)}): not a rosbag2 bag")
     _check_metadata(path)
     try:
         reader = Reader(path)
         reader.open()
     except Exception as exc:  # ReaderError, yaml / sqlite / mcap errors on corrupt files
-        raise BagError(f"{path}: cannot open bag ({type(exc).__name__}: {exc}): its storage file is truncated or "
-                       f"damaged, or its metadata.yaml does not describe it") from exc
-    for st in getattr(reader.storage, "storages", []) or []:
-        for ch in getattr(st, "chunks", []) or []:
+        raise BagError(f'{path}: cannot open bag ({type(exc).__name__}: {exc}): its storage file is truncated or '
+                       f'damaged, or its metadata.yaml does not describe it') from exc
+    for st in getattr(reader.storage, 'storages', []) or []:
+        for ch in getattr(st, 'chunks', []) or []:
             if ch.uncompressed_size > MAX_CHUNK_BYTES or ch.compressed_size > MAX_CHUNK_BYTES:
                 reader.close()
-                raise BagError(f"{path}: an mcap chunk declares {ch.uncompressed_size} bytes (refused: corrupt or "
-                               f"hostile)")
+                raise BagError(f'{path}: an mcap chunk declares {ch.uncompressed_size} bytes (refused: corrupt or '
+                               f'hostile)')
     return reader
 
 
@@ -443,17 +471,17 @@ def _ensure_types(ts, reader, path: Path, conns) -> None:
 
     missing = {c.msgtype: c for c in conns if c.msgtype not in ts.types}
     for msgtype, c in missing.items():
-        md = getattr(c, "msgdef", None)
-        data = getattr(md, "data", "") if md is not None else ""
-        fmt = str(getattr(md, "format", "") or "")
-        if data and "msg" in fmt.lower():
+        md = getattr(c, 'msgdef', None)
+        data = getattr(md, 'data', '') if md is not None else ''
+        fmt = str(getattr(md, 'format', '') or '')
+        if data and 'msg' in fmt.lower():
             try:
                 ts.register(get_types_from_msg(data, msgtype))
                 continue
             except Exception as exc:  # pragma: no cover - depends on the bag's contents
                 raise BagError(f"{path}: cannot register type {msgtype} from the bag's definition: {exc}") from exc
-        raise BagError(f"{path}: message type {msgtype} (topic {c.topic}) is unknown and the bag carries no "
-                       f"definition of it")
+        raise BagError(f'{path}: message type {msgtype} (topic {c.topic}) is unknown and the bag carries no '
+                       f'definition of it')
 
 
 def bag_topics(path) -> dict[str, tuple[str, int]]:
@@ -471,7 +499,7 @@ def offered_qos(path) -> dict[str, list]:
     path = Path(path)
     reader = _open_reader(path)
     try:
-        return {c.topic: list(getattr(c.ext, "offered_qos_profiles", []) or []) for c in reader.connections}
+        return {c.topic: list(getattr(c.ext, 'offered_qos_profiles', []) or []) for c in reader.connections}
     finally:
         reader.close()
 
@@ -483,43 +511,48 @@ def _n(msg, name):
 
 
 def check_message(msgtype: str, msg) -> str | None:
-    """What is structurally wrong with a decoded bearing_id message (arrays of inconsistent lengths, a bad sample
-    rate), or None.  Other types are not checked."""
-    if msgtype.endswith("/DisplacementBlock"):
-        nch = _n(msg, "channels")
-        for f in ("nodes", "directions"):
+    """
+    Return what is structurally wrong with a decoded bearing_id message, or None.
+
+    Arrays of inconsistent lengths, a bad sample rate.  Other types are not checked.
+    """
+    if msgtype.endswith('/DisplacementBlock'):
+        nch = _n(msg, 'channels')
+        for f in ('nodes', 'directions'):
             if _n(msg, f) is not None and _n(msg, f) != nch:
-                return f"{f} has {_n(msg, f)} entries but channels has {nch}"
-        ns = _n(msg, "samples") or 0
+                return f'{f} has {_n(msg, f)} entries but channels has {nch}'
+        ns = _n(msg, 'samples') or 0
         if not nch:
-            return "no channels" if ns else None
+            return 'no channels' if ns else None
         if ns % nch:
-            return f"{ns} samples is not a multiple of {nch} channels"
-        na = _n(msg, "sample_angles")
+            return f'{ns} samples is not a multiple of {nch} channels'
+        na = _n(msg, 'sample_angles')
         if na not in (None, 0, ns // nch):
-            return f"{na} sample_angles for {ns // nch} sample rows"
-        fs = float(getattr(msg, "sample_rate", 1.0))
+            return f'{na} sample_angles for {ns // nch} sample rows'
+        fs = float(getattr(msg, 'sample_rate', 1.0))
         if not (math.isfinite(fs) and fs > 0):
-            return f"sample_rate {fs!r} is not > 0"
-    elif msgtype.endswith("/Excitation"):
-        lens = {f: _n(msg, f) for f in ("kind", "node", "magnitude", "phase", "direction", "frequency_ratio")}
+            return f'sample_rate {fs!r} is not > 0'
+    elif msgtype.endswith('/Excitation'):
+        lens = {f: _n(msg, f) for f in ('kind', 'node', 'magnitude', 'phase', 'direction', 'frequency_ratio')}
         if len({v for v in lens.values() if v is not None}) > 1:
-            return "parallel arrays of different lengths: " + ", ".join(f"{k} {v}" for k, v in lens.items())
-    elif msgtype.endswith("/BearingCoefficients"):
-        nb = _n(msg, "bearings")
-        if _n(msg, "nodes") not in (None, nb):
+            return 'parallel arrays of different lengths: ' + ', '.join(f'{k} {v}' for k, v in lens.items())
+    elif msgtype.endswith('/BearingCoefficients'):
+        nb = _n(msg, 'bearings')
+        if _n(msg, 'nodes') not in (None, nb):
             return f"nodes has {_n(msg, 'nodes')} entries but bearings has {nb}"
-        for f in ("stiffness", "damping", "stiffness_std", "damping_std", "stiffness_determined",
-                  "damping_determined"):
+        for f in ('stiffness', 'damping', 'stiffness_std', 'damping_std', 'stiffness_determined',
+                  'damping_determined'):
             if _n(msg, f) not in (None, 4 * nb):
-                return f"{f} has {_n(msg, f)} entries, not 4 per bearing ({4 * nb})"
+                return f'{f} has {_n(msg, f)} entries, not 4 per bearing ({4 * nb})'
     return None
 
 
 def read_bag(path, topics: Iterable[str] | None = None, *, raw: bool = False, types=None,
              salvage: bool = False) -> Iterator[tuple]:
-    """Yield ``(topic, msgtype, timestamp_ns, msg)`` in time order; ``msg`` is a rosbags dataclass, or the raw CDR
-    bytes when ``raw``.
+    """
+    Yield ``(topic, msgtype, timestamp_ns, msg)`` in time order.
+
+    ``msg`` is a rosbags dataclass, or the raw CDR bytes when ``raw``.
 
     topics : only these topics (each must be in the bag, else ``BagError`` listing the ones present).
     types : typestore (default: a copy-free use of :func:`typestore` for known types; types the bag defines that
@@ -541,7 +574,7 @@ def read_bag(path, topics: Iterable[str] | None = None, *, raw: bool = False, ty
             present = {c.topic for c in conns}
             absent = [t for t in want if t not in present]
             if absent:
-                raise BagError(f"{path}: topic(s) {absent} not in the bag; it has {sorted(present)}")
+                raise BagError(f'{path}: topic(s) {absent} not in the bag; it has {sorted(present)}')
             conns = [c for c in conns if c.topic in want]
         ts = types if types is not None else typestore()
         if not raw and any(c.msgtype not in ts.types for c in conns):
@@ -561,8 +594,8 @@ def read_bag(path, topics: Iterable[str] | None = None, *, raw: bool = False, ty
         except BagError:
             raise
         except Exception as exc:  # truncated / corrupt storage file
-            raise BagError(f"{path}: bag is truncated or corrupt after {n} message(s): "
-                           f"{type(exc).__name__}: {exc}") from exc
+            raise BagError(f'{path}: bag is truncated or corrupt after {n} message(s): '
+                           f'{type(exc).__name__}: {exc}') from exc
     finally:
         reader.close()
 
@@ -571,11 +604,11 @@ def _decode(ts, path, n, topic, msgtype, data):
     try:
         msg = ts.deserialize_cdr(data, msgtype)
     except Exception as exc:
-        raise BagError(f"{path}: message {n} on {topic} ({msgtype}) does not deserialize: "
-                       f"{type(exc).__name__}: {exc}") from exc
+        raise BagError(f'{path}: message {n} on {topic} ({msgtype}) does not deserialize: '
+                       f'{type(exc).__name__}: {exc}') from exc
     problem = check_message(msgtype, msg)
     if problem:
-        raise BagError(f"{path}: message {n} on {topic} ({msgtype}) is malformed: {problem}")
+        raise BagError(f'{path}: message {n} on {topic} ({msgtype}) is malformed: {problem}')
     return msg
 
 
@@ -591,15 +624,20 @@ class SalvagedTopic:
 
 @dataclass
 class Salvage:
-    """What an unfinished recording holds: its topics and (via :meth:`messages`) every complete message, in file
-    order, up to ``valid_bytes`` of the ``total_bytes`` storage file; ``stopped`` says why the scan ended there."""
+    """
+    What an unfinished recording holds.
+
+    Its topics and (via :meth:`messages`) every complete message, in file order, up to ``valid_bytes`` of the
+    ``total_bytes`` storage file; ``stopped`` says why the scan ended there.
+    """
+
     path: Path
     storage_file: Path
     storage: str                # 'mcap' | 'sqlite3'
     topics: dict = field(default_factory=dict)      # topic -> SalvagedTopic
     valid_bytes: int = 0
     total_bytes: int = 0
-    stopped: str = ""
+    stopped: str = ''
 
     @property
     def message_count(self) -> int:
@@ -608,9 +646,9 @@ class Salvage:
     def messages(self, topics=None) -> Iterator[tuple]:
         """``(topic, msgtype, timestamp_ns, raw bytes)`` of every salvaged message (of ``topics`` if given)."""
         want = None if topics is None else set([topics] if isinstance(topics, str) else topics)
-        if self.storage == "mcap":
+        if self.storage == 'mcap':
             for kind, *rest in _scan_mcap(self.storage_file, self.valid_bytes, messages=True):
-                if kind == "msg":
+                if kind == 'msg':
                     topic, msgtype, stamp, data = rest
                     if want is None or topic in want:
                         yield topic, msgtype, stamp, data
@@ -618,34 +656,34 @@ class Salvage:
             import sqlite3
             con = sqlite3.connect(str(self.storage_file))
             try:
-                names = {tid: (name, typ) for tid, name, typ in con.execute("SELECT id, name, type FROM topics")}
-                for tid, stamp, data in con.execute("SELECT topic_id, timestamp, data FROM messages "
-                                                    "ORDER BY timestamp, id"):
+                names = {tid: (name, typ) for tid, name, typ in con.execute('SELECT id, name, type FROM topics')}
+                for tid, stamp, data in con.execute('SELECT topic_id, timestamp, data FROM messages '
+                                                    'ORDER BY timestamp, id'):
                     if tid in names and (want is None or names[tid][0] in want):
                         yield names[tid][0], names[tid][1], int(stamp), bytes(data)
             finally:
                 con.close()
 
 
-_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_MCAP_MAGIC = b'\x89MCAP0\r\n'
 
 
 def _mcap_str(buf, pos):
-    (n,) = struct.unpack_from("<I", buf, pos)
+    (n,) = struct.unpack_from('<I', buf, pos)
     end = pos + 4 + n
     if end > len(buf):
-        raise ValueError("string runs past its record")
-    return bytes(buf[pos + 4:end]).decode("utf-8"), end
+        raise ValueError('string runs past its record')
+    return bytes(buf[pos + 4:end]).decode('utf-8'), end
 
 
 def _mcap_qos(meta: bytes) -> list:
     """offered_qos_profiles from an mcap channel's metadata map."""
     from rosbags.rosbag2.metadata import parse_qos
-    pos, end = 4, 4 + struct.unpack_from("<I", meta, 0)[0]
+    pos, end = 4, 4 + struct.unpack_from('<I', meta, 0)[0]
     while pos < end:
         k, pos = _mcap_str(meta, pos)
         v, pos = _mcap_str(meta, pos)
-        if k == "offered_qos_profiles":
+        if k == 'offered_qos_profiles':
             try:
                 return parse_qos(v)
             except Exception:   # a damaged profile string: the messages are still worth having
@@ -654,9 +692,13 @@ def _mcap_qos(meta: bytes) -> list:
 
 
 def _scan_mcap(path: Path, limit: int | None = None, *, messages: bool = False):
-    """Scan an mcap file record by record (chunks decompressed), up to ``limit`` bytes or the first incomplete or
-    damaged record.  Yields ('topic', SalvagedTopic, channel id), ('msg', topic, msgtype, stamp, bytes or None) and
-    finally ('end', valid_bytes, reason).  Reads one record at a time (memory: one chunk)."""
+    """
+    Scan an mcap file record by record (chunks decompressed).
+
+    Up to ``limit`` bytes or the first incomplete or damaged record.  Yields ('topic', SalvagedTopic, channel id),
+    ('msg', topic, msgtype, stamp, bytes or None) and finally ('end', valid_bytes, reason).  Reads one record at a time
+    (memory: one chunk).
+    """
     from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
 
     size = path.stat().st_size
@@ -669,51 +711,51 @@ def _scan_mcap(path: Path, limit: int | None = None, *, messages: bool = False):
         p = 0
         while p + 9 <= len(view):
             op = view[p]
-            (ln,) = struct.unpack_from("<Q", view, p + 1)
+            (ln,) = struct.unpack_from('<Q', view, p + 1)
             if p + 9 + ln > len(view):
-                raise ValueError("record runs past its chunk")
+                raise ValueError('record runs past its chunk')
             yield op, view[p + 9:p + 9 + ln]
             p += 9 + ln
 
     def handle(op, body):
-        """Schema / channel / message record -> events."""
+        """Turn a schema / channel / message record into events."""
         if op == 0x03:
-            (sid,) = struct.unpack_from("<H", body, 0)
+            (sid,) = struct.unpack_from('<H', body, 0)
             name, p = _mcap_str(body, 2)
             _enc, p = _mcap_str(body, p)
             data, _ = _mcap_str(body, p)
             schemas[sid] = (name, data)
         elif op == 0x04:
-            cid, sid = struct.unpack_from("<HH", body, 0)
+            cid, sid = struct.unpack_from('<HH', body, 0)
             topic, p = _mcap_str(body, 4)
             _enc, p = _mcap_str(body, p)
-            name, data = schemas.get(sid, ("", ""))
+            name, data = schemas.get(sid, ('', ''))
             if cid not in channels:
                 channels[cid] = (topic, name)
-                yield "topic", SalvagedTopic(topic, name, data, _mcap_qos(bytes(body[p:]))), cid
+                yield 'topic', SalvagedTopic(topic, name, data, _mcap_qos(bytes(body[p:]))), cid
         elif op == 0x05:
-            cid, _seq, stamp = struct.unpack_from("<HIQ", body, 0)
+            cid, _seq, stamp = struct.unpack_from('<HIQ', body, 0)
             if cid in channels:
                 topic, name = channels[cid]
-                yield "msg", topic, name, stamp, (bytes(body[22:]) if messages else None)
+                yield 'msg', topic, name, stamp, (bytes(body[22:]) if messages else None)
 
-    with open(path, "rb") as fh:
+    with open(path, 'rb') as fh:
         if size < 8 or fh.read(8) != _MCAP_MAGIC:
-            yield "end", 0, "not an mcap file (bad magic)"
+            yield 'end', 0, 'not an mcap file (bad magic)'
             return
-        pos, reason = 8, "end of file"
+        pos, reason = 8, 'end of file'
         while pos < limit:
             head = fh.read(9)
             if len(head) < 9 or pos + 9 > limit:
-                reason = f"incomplete record at byte {pos} (the last write was cut off)"
+                reason = f'incomplete record at byte {pos} (the last write was cut off)'
                 break
             op = head[0]
-            (ln,) = struct.unpack_from("<Q", head, 1)
+            (ln,) = struct.unpack_from('<Q', head, 1)
             if pos + 9 + ln > limit:
-                reason = f"incomplete record at byte {pos} (the last write was cut off)"
+                reason = f'incomplete record at byte {pos} (the last write was cut off)'
                 break
             if op == 0x02:                              # footer: a complete file
-                pos, reason = pos + 9 + ln, "footer"
+                pos, reason = pos + 9 + ln, 'footer'
                 break
             if op not in (0x03, 0x04, 0x05, 0x06):      # indexes, statistics, metadata: not needed
                 fh.seek(ln, 1)
@@ -722,75 +764,79 @@ def _scan_mcap(path: Path, limit: int | None = None, *, messages: bool = False):
             body = fh.read(ln)
             try:
                 if op == 0x06:
-                    _t0, _t1, usize, crc = struct.unpack_from("<QQQI", body, 0)
+                    _t0, _t1, usize, crc = struct.unpack_from('<QQQI', body, 0)
                     comp, p = _mcap_str(body, 28)
-                    (clen,) = struct.unpack_from("<Q", body, p)
+                    (clen,) = struct.unpack_from('<Q', body, p)
                     if p + 8 + clen > len(body) or usize > MAX_CHUNK_BYTES:
-                        raise ValueError("chunk sizes inconsistent")
+                        raise ValueError('chunk sizes inconsistent')
                     if comp not in DECOMPRESSORS:
-                        raise ValueError(f"unknown chunk compression {comp!r}")
+                        raise ValueError(f'unknown chunk compression {comp!r}')
                     raw = DECOMPRESSORS[comp](body[p + 8:p + 8 + clen], usize)
                     if len(raw) != usize or (crc and zlib.crc32(raw) != crc):
-                        raise ValueError("chunk size or checksum mismatch")
+                        raise ValueError('chunk size or checksum mismatch')
                     events = [e for iop, ibody in records(memoryview(raw)) for e in handle(iop, ibody)]
                 else:
                     events = list(handle(op, body))
             except Exception as exc:     # struct / unicode / a decompressor's own error type
-                reason = f"damaged record at byte {pos}: {type(exc).__name__}: {exc}"
+                reason = f'damaged record at byte {pos}: {type(exc).__name__}: {exc}'
                 break
             yield from events
             pos += 9 + ln
-        yield "end", pos, reason
+        yield 'end', pos, reason
 
 
 def salvage_bag(path) -> Salvage:
-    """Inspect an unfinished recording (see :func:`unfinished`): topics, message counts, and how much of its storage
-    file is usable.  ``BagError`` when ``path`` is not one."""
+    """
+    Inspect an unfinished recording (see :func:`unfinished`).
+
+    Topics, message counts, and how much of its storage file is usable.  ``BagError`` when ``path`` is not one.
+    """
     path = Path(path)
     part = unfinished(path)
     if part is None:
-        if (path / "metadata.yaml").exists():
-            raise BagError(f"{path}: has metadata.yaml: a finished bag, nothing to recover")
-        raise BagError(f"{path}: not an unfinished recording (no directory holding exactly one .mcap/.db3 file)")
-    sv = Salvage(path, part, "mcap" if part.suffix == ".mcap" else "sqlite3", total_bytes=part.stat().st_size)
-    if sv.storage == "mcap":
+        if (path / 'metadata.yaml').exists():
+            raise BagError(f'{path}: has metadata.yaml: a finished bag, nothing to recover')
+        raise BagError(f'{path}: not an unfinished recording (no directory holding exactly one .mcap/.db3 file)')
+    sv = Salvage(path, part, 'mcap' if part.suffix == '.mcap' else 'sqlite3', total_bytes=part.stat().st_size)
+    if sv.storage == 'mcap':
         ids: dict[int, str] = {}
         for ev in _scan_mcap(part):
-            if ev[0] == "topic":
+            if ev[0] == 'topic':
                 _, t, cid = ev
                 ids[cid] = t.topic
                 sv.topics.setdefault(t.topic, t)
-            elif ev[0] == "msg":
+            elif ev[0] == 'msg':
                 sv.topics[ev[1]].count += 1
             else:
                 _, sv.valid_bytes, sv.stopped = ev
         if sv.valid_bytes < 8:
-            raise BagError(f"{path}: {part.name} is not a readable mcap file ({sv.stopped})")
+            raise BagError(f'{path}: {part.name} is not a readable mcap file ({sv.stopped})')
         return sv
     import sqlite3
+
     from rosbags.rosbag2.metadata import parse_qos
     try:
         con = sqlite3.connect(str(part))        # read-write: a hot journal of the killed transaction is rolled back
         try:
             defs = {}
             try:
-                defs = {t: d for t, d in con.execute("SELECT topic_type, encoded_message_definition "
-                                                     "FROM message_definitions")}
+                defs = dict(con.execute('SELECT topic_type, encoded_message_definition '
+                                        'FROM message_definitions'))
             except sqlite3.Error:
                 pass
-            counts = dict(con.execute("SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id"))
-            for tid, name, typ, qos in con.execute("SELECT id, name, type, offered_qos_profiles FROM topics"):
+            counts = dict(con.execute('SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id'))
+            for tid, name, typ, qos in con.execute('SELECT id, name, type, offered_qos_profiles FROM topics'):
                 try:
                     profiles = parse_qos(qos) if qos else []
                 except Exception:
                     profiles = []
-                sv.topics[name] = SalvagedTopic(name, typ, defs.get(typ, ""), profiles, int(counts.get(tid, 0)))
+                sv.topics[name] = SalvagedTopic(name, typ, defs.get(typ, ''), profiles, int(counts.get(tid, 0)))
         finally:
             con.close()
     except sqlite3.Error as exc:
-        raise BagError(f"{path}: {part.name} is not a readable sqlite3 bag: {exc}") from exc
+        raise BagError(f'{path}: {part.name} is not a readable sqlite3 bag: {exc}') from exc
     sv.valid_bytes = sv.total_bytes = part.stat().st_size
-    sv.stopped = "committed transactions"
+    sv.stopped = 'committed transactions'
     return sv
 
 
@@ -802,12 +848,12 @@ def _salvage_typestore(sv: Salvage, types=None):
         ts = make_typestore()
     for t in missing:
         if not t.msgdef:
-            raise BagError(f"{sv.path}: message type {t.msgtype} (topic {t.topic}) is unknown and the recording "
-                           f"carries no definition of it")
+            raise BagError(f'{sv.path}: message type {t.msgtype} (topic {t.topic}) is unknown and the recording '
+                           f'carries no definition of it')
         try:
             ts.register(get_types_from_msg(t.msgdef, t.msgtype))
         except Exception as exc:
-            raise BagError(f"{sv.path}: cannot register type {t.msgtype}: {exc}") from exc
+            raise BagError(f'{sv.path}: cannot register type {t.msgtype}: {exc}') from exc
     return ts
 
 
@@ -817,7 +863,7 @@ def _read_salvaged(path: Path, topics, *, raw: bool, types):
         want = [topics] if isinstance(topics, str) else list(topics)
         absent = [t for t in want if t not in sv.topics]
         if absent:
-            raise BagError(f"{path}: topic(s) {absent} not in the unfinished recording; it has {sorted(sv.topics)}")
+            raise BagError(f'{path}: topic(s) {absent} not in the unfinished recording; it has {sorted(sv.topics)}')
     else:
         want = None
     ts = None if raw else _salvage_typestore(sv, types)
@@ -826,18 +872,22 @@ def _read_salvaged(path: Path, topics, *, raw: bool, types):
 
 
 def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
-    """Turn an unfinished recording into a complete bag in place (same storage, same topics, their offered QoS and
-    every salvaged message); the unfinished original is kept next to it as ``<path>.unfinished``.
+    """
+    Turn an unfinished recording into a complete bag in place.
+
+    Same storage, same topics, their offered QoS and every salvaged message; the unfinished original is kept next to it
+    as ``<path>.unfinished``.
 
     Returns ``(path, salvage, backup)``.  ``BagError`` if ``path`` is not an unfinished recording or nothing in it
-    can be read; the original is left untouched on any failure."""
+    can be read; the original is left untouched on any failure.
+    """
     import shutil
     import tempfile
 
     path = Path(path)
     sv = salvage_bag(path)
     ts = _salvage_typestore(sv, types)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.recover-", dir=path.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f'.{path.name}.recover-', dir=path.parent))
     try:
         new = tmp / path.name
         with BagWriter(new, sv.storage, types=ts, flush_period=None) as w:
@@ -845,10 +895,10 @@ def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
                 w.add_connection(t.topic, t.msgtype, t.qos or None)
             for topic, msgtype, stamp, data in sv.messages():
                 w.write(topic, msgtype, stamp, data)
-        backup = path.with_name(path.name + ".unfinished")
+        backup = path.with_name(path.name + '.unfinished')
         k = 1
         while backup.exists():
-            backup = path.with_name(f"{path.name}.unfinished{k}")
+            backup = path.with_name(f'{path.name}.unfinished{k}')
             k += 1
         os.rename(path, backup)
         os.rename(new, path)
@@ -857,6 +907,6 @@ def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
     return path, sv, backup
 
 
-__all__ = ["BagError", "BagWriter", "STORAGES", "LATCHED_TOPICS", "msg_files", "make_typestore", "typestore",
-           "write_bag", "read_bag", "bag_topics", "offered_qos", "qos_profile", "qos_from_rclpy", "qos_to_dict",
-           "default_qos", "check_message", "unfinished", "salvage_bag", "recover_bag", "Salvage"]
+__all__ = ['BagError', 'BagWriter', 'STORAGES', 'LATCHED_TOPICS', 'msg_files', 'make_typestore', 'typestore',
+           'write_bag', 'read_bag', 'bag_topics', 'offered_qos', 'qos_profile', 'qos_from_rclpy', 'qos_to_dict',
+           'default_qos', 'check_message', 'unfinished', 'salvage_bag', 'recover_bag', 'Salvage']

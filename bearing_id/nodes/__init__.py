@@ -1,4 +1,5 @@
-"""ROS 2 adapters (thin): ``sensor_driver``, ``kf_estimator``, ``identifier``.
+"""
+ROS 2 adapters (thin): ``sensor_driver``, ``kf_estimator``, ``identifier``.
 
 Every algorithm lives in the plain modules (rig, signals, kalman, identify); the nodes only move messages, check
 their inputs, keep records and report ``/diagnostics``.  Shared parameter handling, input checks and the process

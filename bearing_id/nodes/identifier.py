@@ -1,4 +1,5 @@
-"""``identifier``: accumulates 1X harmonic vectors per (run, speed) and publishes identified bearing coefficients.
+"""
+``identifier``: accumulates 1X harmonic vectors per (run, speed) and publishes identified bearing coefficients.
 
 Consumes ``/rotor/displacement`` (measured), ``/bearing_id/bearing_displacement`` (the kf_estimator's bearing-node
 estimates) and ``/rotor/excitation``; publishes ``/bearing_id/coefficients`` (BearingCoefficients, latched) and
@@ -27,55 +28,54 @@ Record and resume
 """
 from __future__ import annotations
 
+from collections import deque
+from dataclasses import dataclass
 import math
 import queue
 import sys
 import threading
 import time
-from collections import deque
-from dataclasses import dataclass
 
 import numpy as np
 
+from .common import (DiagItem, diagnostics_msg, ERROR, OK, ParamSpec, qos_latched, run_node, STALE, StreamMonitor,
+                     TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, WARN)
 from ..conventions import rad_s_to_rpm
 from ..params import ExcitationEntry, Probe, Run
-from .common import (ERROR, OK, STALE, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
-                     TOPIC_EXCITATION, WARN, DiagItem, ParamSpec, StreamMonitor, diagnostics_msg,
-                     qos_latched, qos_stream, run_node, stamp_to_sec)
 
-NAME = "identifier"
+NAME = 'identifier'
 
 SPECS = [
-    ParamSpec("rig_params", "", "rig YAML with the nominal model (empty: the packaged params/rig.yaml)"),
-    ParamSpec("method", "physical", "identification method (bearing-id identify --method); physical is the one "
-              "unbalance runs at one probe location determine",
-              choices=("paper", "conventional", "direct", "physical")),
-    ParamSpec("record_dir", "~/.ros/bearing_id_record", "directory of the append-only record (resumed on restart)"),
-    ParamSpec("runs", None, "excitation runs that must all be present at a speed before solving (unset: every run "
-              "announced on /rotor/excitation)", type_="str[]"),
-    ParamSpec("channels", None, "expected probe channel names (unset: the rig's probes)", type_="str[]"),
-    ParamSpec("speed_tolerance", 0.005, "relative speed change that ends a steady window; also matches speeds "
-              "across runs", "-", lo=1e-5, hi=0.2),
-    ParamSpec("settle_fraction", 0.25, "fraction of each steady window discarded at its start (transient after a "
-              "speed step)", "-", lo=0.0, hi=0.9),
-    ParamSpec("min_window", 0.2, "shortest usable steady window", "s", lo=0.01, hi=3600.0),
-    ParamSpec("segment_timeout", 0.3, "a steady window closes when no block arrived for this long", "s",
+    ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
+    ParamSpec('method', 'physical', 'identification method (bearing-id identify --method); physical is the one '
+              'unbalance runs at one probe location determine',
+              choices=('paper', 'conventional', 'direct', 'physical')),
+    ParamSpec('record_dir', '~/.ros/bearing_id_record', 'directory of the append-only record (resumed on restart)'),
+    ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
+              'announced on /rotor/excitation)', type_='str[]'),
+    ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
+    ParamSpec('speed_tolerance', 0.005, 'relative speed change that ends a steady window; also matches speeds '
+              'across runs', '-', lo=1e-5, hi=0.2),
+    ParamSpec('settle_fraction', 0.25, 'fraction of each steady window discarded at its start (transient after a '
+              'speed step)', '-', lo=0.0, hi=0.9),
+    ParamSpec('min_window', 0.2, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
+    ParamSpec('segment_timeout', 0.3, 'a steady window closes when no block arrived for this long', 's',
               lo=0.01, hi=3600.0),
-    ParamSpec("max_waiting_blocks", 400, "blocks held while their run's excitation has not arrived yet (the oldest "
-              "is dropped and counted beyond this)", "blocks", lo=1, hi=100000),
-    ParamSpec("max_segment", 120.0, "a steady window is fitted in pieces of at most this length, then combined "
-              "(bounds memory; the offline route uses the same length)", "s", lo=0.1,
+    ParamSpec('max_waiting_blocks', 400, "blocks held while their run's excitation has not arrived yet (the oldest "
+              'is dropped and counted beyond this)', 'blocks', lo=1, hi=100000),
+    ParamSpec('max_segment', 120.0, 'a steady window is fitted in pieces of at most this length, then combined '
+              '(bounds memory; the offline route uses the same length)', 's', lo=0.1,
               hi=86400.0),
-    ParamSpec("max_displacement", 1e-3, "samples above this are implausible (wrong units or garbage)", "m",
+    ParamSpec('max_displacement', 1e-3, 'samples above this are implausible (wrong units or garbage)', 'm',
               lo=1e-9, hi=1.0),
-    ParamSpec("kf_process_noise", 1e-16, "method paper: the kf_estimator's process_noise (set both alike); used "
-              "to check how much of the result follows the KF's theory", "m^2", lo=0.0, hi=1.0),
-    ParamSpec("kf_measurement_noise", 1e-7, "method paper: the kf_estimator's measurement_noise (set both alike)",
-              "m", lo=1e-12, hi=1e-3),
-    ParamSpec("publish_undetermined", False, "publish results the data do not fully determine (NaN std and "
-              "determined=false mark the undetermined coefficients)"),
-    ParamSpec("stale_after", 5.0, "an input silent for this long is reported STALE", "s", lo=0.1, hi=3600.0),
-    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics", "s", lo=0.05, hi=60.0),
+    ParamSpec('kf_process_noise', 1e-16, "method paper: the kf_estimator's process_noise (set both alike); used "
+              "to check how much of the result follows the KF's theory", 'm^2', lo=0.0, hi=1.0),
+    ParamSpec('kf_measurement_noise', 1e-7, "method paper: the kf_estimator's measurement_noise (set both alike)",
+              'm', lo=1e-12, hi=1e-3),
+    ParamSpec('publish_undetermined', False, 'publish results the data do not fully determine (NaN std and '
+              'determined=false mark the undetermined coefficients)'),
+    ParamSpec('stale_after', 5.0, 'an input silent for this long is reported STALE', 's', lo=0.1, hi=3600.0),
+    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
 ]
 
 
@@ -83,6 +83,7 @@ SPECS = [
 @dataclass
 class _Stream:
     """The open sample stream of one source (measured / estimated): the run and probe set it carries."""
+
     run: Run
     probes: tuple
     stream: object                 # identify.harmonics.RunStream
@@ -94,7 +95,8 @@ def _probe_key(probes) -> tuple:
 
 
 class IdentifierCore:
-    """Windows, vectors per (run, speed), the record, and the solve (no ROS).
+    """
+    Windows, vectors per (run, speed), the record, and the solve (no ROS).
 
     ``feed(block, run, source, contiguous, now)`` appends a checked block to the source's run stream
     (:class:`bearing_id.identify.harmonics.RunStream`, the offline route's windowing) and returns the steady windows
@@ -121,9 +123,9 @@ class IdentifierCore:
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
-        self.vectors: dict = {"measured": {}, "estimated": {}}   # source -> run id -> [(speed, X, X_std, probes)]
+        self.vectors: dict = {'measured': {}, 'estimated': {}}   # source -> run id -> [(speed, X, X_std, probes)]
         self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
-        self.streams: dict = {"measured": None, "estimated": None}
+        self.streams: dict = {'measured': None, 'estimated': None}
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
         self.results: dict = {}                # speed -> IdentResult (latest)
@@ -138,50 +140,54 @@ class IdentifierCore:
         n_vec = n_res = n_bad = 0
         for e in self.record.entries():
             try:
-                if e["type"] == "excitation":
-                    run = Run(str(e["run_id"]), tuple(ExcitationEntry(**x) for x in e["entries"]))
+                if e['type'] == 'excitation':
+                    run = Run(str(e['run_id']), tuple(ExcitationEntry(**x) for x in e['entries']))
                     if run.id not in self.runs:
                         self.runs[run.id] = run
-                        self.run_starts.append((float(e.get("stamp", -math.inf)), run))
-                elif e["type"] == "vector" and e.get("used", True):
-                    probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e["probes"])
-                    X = np.asarray(e["X"]).astype(complex).reshape(-1)
-                    Xs = np.asarray(e["X_std"], dtype=float).reshape(-1)
-                    if X.size != len(probes) or Xs.size != len(probes) or not float(e["speed"]) > 0:
-                        raise ValueError(f"{X.size} values for {len(probes)} probes")
-                    self._store(str(e["source"]), str(e["run_id"]), float(e["speed"]), X, Xs, probes,
-                                bool(e.get("after_gap", False)))
+                        self.run_starts.append((float(e.get('stamp', -math.inf)), run))
+                elif e['type'] == 'vector' and e.get('used', True):
+                    probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
+                    X = np.asarray(e['X']).astype(complex).reshape(-1)
+                    Xs = np.asarray(e['X_std'], dtype=float).reshape(-1)
+                    if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0:
+                        raise ValueError(f'{X.size} values for {len(probes)} probes')
+                    self._store(str(e['source']), str(e['run_id']), float(e['speed']), X, Xs, probes,
+                                bool(e.get('after_gap', False)))
                     n_vec += 1
-                elif e["type"] == "result":
+                elif e['type'] == 'result':
                     n_res += 1
             except (KeyError, ValueError, TypeError, AttributeError) as exc:
                 n_bad += 1
                 self.notes.append(f"record {self.record.path}: entry n={e.get('n')} ({e.get('type')}) is malformed "
-                                  f"({type(exc).__name__}: {exc}); skipped")
+                                  f'({type(exc).__name__}: {exc}); skipped')
         if self.record.torn_lines:
-            self.notes.append(f"record {self.record.path}: {self.record.torn_lines} torn line(s) skipped")
-        self.record.append("session", resumed_vectors=n_vec, resumed_results=n_res, method=self.method)
-        return {"vectors": n_vec, "results": n_res, "torn_lines": self.record.torn_lines, "malformed": n_bad}
+            self.notes.append(f'record {self.record.path}: {self.record.torn_lines} torn line(s) skipped')
+        self.record.append('session', resumed_vectors=n_vec, resumed_results=n_res, method=self.method)
+        return {'vectors': n_vec, 'results': n_res, 'torn_lines': self.record.torn_lines, 'malformed': n_bad}
 
     def add_excitation(self, run: Run, stamp: float = -math.inf) -> bool:
         with self.lock:
             if run.id in self.runs:
                 if self.runs[run.id] != run:
-                    self.notes.append(f"run {run.id} re-announced with a different excitation; the first is kept")
+                    self.notes.append(f'run {run.id} re-announced with a different excitation; the first is kept')
                 return False
             self.runs[run.id] = run
             self.run_starts.append((float(stamp), run))
-        self.record.append("excitation", run_id=run.id, stamp=float(stamp),
-                           entries=[{"kind": e.kind, "node": e.node, "magnitude": e.magnitude, "phase": e.phase,
-                                     "direction": e.direction, "frequency_ratio": e.frequency_ratio}
+        self.record.append('excitation', run_id=run.id, stamp=float(stamp),
+                           entries=[{'kind': e.kind, 'node': e.node, 'magnitude': e.magnitude, 'phase': e.phase,
+                                     'direction': e.direction, 'frequency_ratio': e.frequency_ratio}
                                     for e in run.excitation])
         return True
 
     def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False) -> str:
-        """Store a vector: 'new', 'combined' (the rest of a dwell split by lost data, inverse-variance merged with
-        the vector of the window before the gap) or 'duplicate' (a later window at a speed the run already has with
-        this probe set: recorded, not used -- the offline route keeps the first too)."""
-        from ..identify.harmonics import WindowVector, combine_vectors
+        """
+        Store a vector; returns 'new', 'combined' or 'duplicate'.
+
+        'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
+        the gap.  'duplicate': a later window at a speed the run already has with this probe set: recorded, not used --
+        the offline route keeps the first too.
+        """
+        from ..identify.harmonics import combine_vectors, WindowVector
         key = _probe_key(probes)
         lst = self.vectors[source].setdefault(run_id, [])
         last = self._last_stored.get((source, run_id))
@@ -190,23 +196,27 @@ class IdentifierCore:
             s0, X0, S0, _ = lst[last]
             m = combine_vectors(WindowVector(s0, X0, S0, 0, 0, None), WindowVector(speed, X, X_std, 0, 0, None))
             lst[last] = (m.speed, m.X, m.X_std, probes)
-            return "combined"
+            return 'combined'
         if any(abs(s - speed) <= self.tol_rel * speed and _probe_key(p) == key for s, _, _, p in lst):
             self._last_stored.pop((source, run_id), None)
-            return "duplicate"
+            return 'duplicate'
         lst.append((speed, X, X_std, probes))
         self._last_stored[(source, run_id)] = len(lst) - 1
-        if source == "measured":
+        if source == 'measured':
             if self.probe_set is not None and self.probe_set != key:
-                self.notes.append(f"probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in key]}: "
-                                  f"vectors of different probe sets are kept apart; the new set is identified")
+                self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in key]}: '
+                                  f'vectors of different probe sets are kept apart; the new set is identified')
             self.probe_set = key
-        return "new"
+        return 'new'
 
     # ---- data path (callback thread)
     def feed(self, block, run: Run, source: str, contiguous: bool, now: float) -> list:
-        """Append a checked block (``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``,
-        ``stamp``, ``seq``) of ``run`` to the source's stream; returns the steady windows it closed."""
+        """
+        Append a checked block of ``run`` to the source's stream; returns the steady windows it closed.
+
+        The block has ``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``, ``stamp``,
+        ``seq``.
+        """
         from ..identify.harmonics import RunStream
         out = []
         cur = self.streams[source]
@@ -234,32 +244,32 @@ class IdentifierCore:
         return cur.stream.close()
 
     # ---- accumulation (worker thread)
-    def add_window(self, win, source: str = "measured") -> list[tuple]:
+    def add_window(self, win, source: str = 'measured') -> list[tuple]:
         """Fit one closed window (the offline rule) and store its vector; returns [(speed, X)] newly usable."""
         from ..identify import harmonics
-        what = (f"{source} window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, "
-                f"blocks {win.seqs[0]}..{win.seqs[1]}" if win.seqs else f"{source} window of run {win.run.id}")
+        what = (f'{source} window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
+                f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'{source} window of run {win.run.id}')
         v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
         if v is None:
             if win.duration >= 0.5 * self.min_window:
-                self.notes.append(f"{what} ({win.duration:.2f} s): too short for a 1X vector; not used")
+                self.notes.append(f'{what} ({win.duration:.2f} s): too short for a 1X vector; not used')
             return []
         with self.lock:
             how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued)
             self.sample_rate = win.sample_rate
-        self.record.append("vector", source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
+        self.record.append('vector', source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
-                           used=how != "duplicate")
-        if how == "duplicate":
-            self.notes.append(f"{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; "
-                              f"recorded, not used (the first window at a speed is used, as offline)")
+                           used=how != 'duplicate')
+        if how == 'duplicate':
+            self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; '
+                              f'recorded, not used (the first window at a speed is used, as offline)')
             return []
-        if how == "combined":
-            self.notes.append(f"{what}: the rest of a dwell split by lost data, combined with its first part")
+        if how == 'combined':
+            self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
         return [(v.speed, v.X)]
 
-    def vector_counts(self, source: str = "measured") -> dict:
+    def vector_counts(self, source: str = 'measured') -> dict:
         with self.lock:
             return {rid: len(v) for rid, v in self.vectors[source].items()}
 
@@ -267,9 +277,12 @@ class IdentifierCore:
         return list(self.required) if self.required else list(self.runs)
 
     def assemble(self):
-        """HarmonicData of the measured vectors (latest probe set) at every speed all required runs have (in the
-        first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline)."""
-        from ..identify.harmonics import HarmonicData, common_speeds
+        """
+        Return the HarmonicData of the measured vectors (latest probe set) at every speed all required runs have.
+
+        In the first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline.
+        """
+        from ..identify.harmonics import common_speeds, HarmonicData
         with self.lock:
             req = self.required_runs()
             if not req or any(r not in self.runs for r in req) or self.probe_set is None:
@@ -278,10 +291,10 @@ class IdentifierCore:
             def of_set(source, rid):
                 return [v for v in self.vectors[source].get(rid, []) if _probe_key(v[3]) == self.probe_set]
 
-            meas = [of_set("measured", rid) for rid in req]
+            meas = [of_set('measured', rid) for rid in req]
             speeds, picks = common_speeds(meas, self.tol_rel)
-            if self.method == "paper":          # needs the kf_estimator's bearing-node vectors too
-                est = [of_set("estimated", rid) for rid in req]
+            if self.method == 'paper':          # needs the kf_estimator's bearing-node vectors too
+                est = [of_set('estimated', rid) for rid in req]
                 keep = []
                 for k, w in enumerate(speeds):
                     zr = []
@@ -303,7 +316,7 @@ class IdentifierCore:
             Xs = np.array([[rows[s][r][2] for s in range(len(speeds))] for r in range(len(req))], dtype=float)
             runs = tuple(self.runs[r] for r in req)
             data = HarmonicData(np.array(speeds), probes, runs, X, Xs)
-            if self.method == "paper":
+            if self.method == 'paper':
                 nb = len(self.rig.bearings)
                 data.z_B = np.array([[zrows[s][r][1].reshape(nb, 2) for s in range(len(speeds))]
                                      for r in range(len(req))])
@@ -312,29 +325,32 @@ class IdentifierCore:
         return data
 
     def signature(self, data) -> tuple:
-        """What a solve depends on (run ids, speeds, vectors): equal signatures give equal results."""
+        """Return what a solve depends on (run ids, speeds, vectors): equal signatures give equal results."""
         return None if data is None else (tuple(r.id for r in data.runs), data.speeds.tobytes(), data.X.tobytes(),
-                                           getattr(data, "z_B", np.zeros(0)).tobytes())
+                                          getattr(data, 'z_B', np.zeros(0)).tobytes())
 
     def solve(self, data=None):
-        """Identify at every complete speed (``data``: an :meth:`assemble` result, default a new one); returns
-        (results, data) or ([], None)."""
+        """
+        Identify at every complete speed; returns (results, data) or ([], None).
+
+        ``data``: an :meth:`assemble` result, default a new one.
+        """
         from ..identify import identify
         data = self.assemble() if data is None else data
         if data is None:
             return [], None
         opts = dict(self.options or {})
-        if self.method == "paper":   # the KF ran in kf_estimator: its bearing-node vectors replace the offline KF
+        if self.method == 'paper':   # the KF ran in kf_estimator: its bearing-node vectors replace the offline KF
             opts.update(z_B=data.z_B, z_B_std=data.z_B_std)
-            kf = opts.pop("kf", None)
+            kf = opts.pop('kf', None)
             if kf:  # so that the theory-dominance check runs on the estimator's vectors as it does offline
-                opts["z_B_kf"] = {"Q": kf["Q"], "R": kf["R"], "sample_rate": self.sample_rate}
+                opts['z_B_kf'] = {'Q': kf['Q'], 'R': kf['R'], 'sample_rate': self.sample_rate}
         else:
-            opts.pop("kf", None)
+            opts.pop('kf', None)
         results = identify(self.method, self.model, self.rig, data, options=opts or None)
         for r in results:
             self.results[float(r.speed)] = r
-            self.record.append("result", **_result_payload(r))
+            self.record.append('result', **_result_payload(r))
         return results, data
 
     def close(self):
@@ -343,8 +359,8 @@ class IdentifierCore:
 
 def _result_payload(r) -> dict:
     d = r.to_dict()
-    d["speed_rad_s"] = float(r.speed)
-    return {"result": d}
+    d['speed_rad_s'] = float(r.speed)
+    return {'result': d}
 
 
 # ------------------------------------------------------------------------------------------------ node
@@ -355,57 +371,57 @@ def _make_node():
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
 
+    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
+    from .runs import excitation_of, MALFORMED, RunResolver
     from ..io import messages as M
     from ..params import load_rig
-    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
-    from .runs import MALFORMED, RunResolver, excitation_of
 
     class Identifier(Node):
         def __init__(self):
             super().__init__(NAME)
             v = declare_parameters(self, SPECS)
             self.values = v
-            rig = load_rig(v["rig_params"] or None)
+            rig = load_rig(v['rig_params'] or None)
             self.rig = rig
-            channels = v["channels"] or [p.name for p in rig.probes]
-            self.core = IdentifierCore(rig, v["method"], v["record_dir"], v["runs"], v["speed_tolerance"],
-                                       v["settle_fraction"], v["min_window"],
-                                       options={"kf": {"Q": v["kf_process_noise"],
-                                                       "R": v["kf_measurement_noise"] ** 2}},
-                                       max_window=v["max_segment"])
-            self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v["max_displacement"])
-            self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v["max_displacement"])
-            self.resolver = {"measured": RunResolver(v["max_waiting_blocks"]),
-                             "estimated": RunResolver(v["max_waiting_blocks"])}
+            channels = v['channels'] or [p.name for p in rig.probes]
+            self.core = IdentifierCore(rig, v['method'], v['record_dir'], v['runs'], v['speed_tolerance'],
+                                       v['settle_fraction'], v['min_window'],
+                                       options={'kf': {'Q': v['kf_process_noise'],
+                                                       'R': v['kf_measurement_noise'] ** 2}},
+                                       max_window=v['max_segment'])
+            self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
+            self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
+            self.resolver = {'measured': RunResolver(v['max_waiting_blocks']),
+                             'estimated': RunResolver(v['max_waiting_blocks'])}
             for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
                 for rs in self.resolver.values():
                     rs.announce(stamp, run)
             self.problems: deque = deque(maxlen=10)
-            self.skipped = {"no_speed": 0, "no_angles": 0}
-            self._gap = {"measured": False, "estimated": False}    # the next block follows rejected data
+            self.skipped = {'no_speed': 0, 'no_angles': 0}
+            self._gap = {'measured': False, 'estimated': False}    # the next block follows rejected data
             self.published = 0
             self.last_results = []
             self.solve_time = None
             self.latency = deque(maxlen=50)         # s, last block of a window -> coefficients published
             self._jobs: queue.Queue = queue.Queue()
-            self._worker = threading.Thread(target=self._work, daemon=True, name="identifier_solver")
+            self._worker = threading.Thread(target=self._work, daemon=True, name='identifier_solver')
             self.pub = self.create_publisher(M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), qos_latched(100))
-            self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+            self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
             # the excitation subscription first: when a run's announcement and its first block are ready together,
             # the executor takes the announcement first (a block of a run not yet announced waits for it)
             subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
             self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
-                                     lambda m: self.on_block(m, "measured"), qos_input(self))
+                                     lambda m: self.on_block(m, 'measured'), qos_input(self))
             self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
-                                     lambda m: self.on_block(m, "estimated"), qos_input(self))
+                                     lambda m: self.on_block(m, 'estimated'), qos_input(self))
             self.create_timer(0.05, self.tick)
-            self.create_timer(v["diagnostics_period"], self.diagnostics)
+            self.create_timer(v['diagnostics_period'], self.diagnostics)
             self._worker.start()
             r = self.core.resumed
             self.get_logger().info(f"method {v['method']}, record {self.core.record.path} (resumed {r['vectors']} "
                                    f"vectors, {r['results']} results)")
-            if r["vectors"]:
-                self._jobs.put(("solve", time.monotonic()))
+            if r['vectors']:
+                self._jobs.put(('solve', time.monotonic()))
 
         def _problem(self, text):
             self.problems.append(text)
@@ -415,7 +431,7 @@ def _make_node():
             try:
                 stamp, run = excitation_of(msg, self.core.model.n_nodes)
             except MALFORMED as exc:
-                self._problem(f"malformed Excitation rejected: {exc}")
+                self._problem(f'malformed Excitation rejected: {exc}')
                 return
             new = False
             for source, rs in self.resolver.items():
@@ -425,29 +441,29 @@ def _make_node():
                 for b, r, contiguous in released:    # blocks of this run that arrived before its announcement
                     self._feed(b, r, source, contiguous, now)
             if self.core.add_excitation(run, stamp):
-                self.get_logger().info(f"excitation: run {run.id}")
+                self.get_logger().info(f'excitation: run {run.id}')
 
         def on_block(self, msg, source):
             try:
                 b = M.block_from_msg(msg)
             except MALFORMED as exc:
-                self._problem(f"malformed DisplacementBlock on the {source} stream: {exc}")
+                self._problem(f'malformed DisplacementBlock on the {source} stream: {exc}')
                 return
-            mon = self.monitor if source == "measured" else self.monitor_est
+            mon = self.monitor if source == 'measured' else self.monitor_est
             chk = mon.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
             for p in chk.problems:
                 self._problem(p)
             now = time.monotonic()
-            bad = [] if not chk.usable else M.validate_block(b, self.values["max_displacement"],
+            bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
                                                              self.core.model.n_nodes)
             for p in bad:
-                self._problem(f"{source} block seq {b.seq} rejected: {p}")
+                self._problem(f'{source} block seq {b.seq} rejected: {p}')
             if not chk.usable or bad:
                 self._gap[source] = True       # a rejected block is lost data: the window ends there
                 return
             if not b.has_sample_angles:
-                self.skipped["no_angles"] += 1
-            if source == "estimated" and self.values["method"] != "paper":
+                self.skipped['no_angles'] += 1
+            if source == 'estimated' and self.values['method'] != 'paper':
                 return                         # monitored only: no other method uses the estimates
             contiguous = chk.contiguous and not self._gap[source]
             self._gap[source] = False
@@ -461,7 +477,7 @@ def _make_node():
             try:
                 wins = self.core.feed(b, run, source, contiguous, now)
             except ValueError as exc:
-                self._problem(f"{source} block seq {b.seq} not accumulated: {exc}")
+                self._problem(f'{source} block seq {b.seq} not accumulated: {exc}')
                 return
             self._close(wins, source, now)
 
@@ -470,12 +486,12 @@ def _make_node():
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for w in windows:
                 if w.duration >= 0.5 * self.core.min_window:   # (shorter ones, e.g. ramp steps, give nothing)
-                    self._jobs.put(("window", w, source, now))
+                    self._jobs.put(('window', w, source, now))
 
         def tick(self):
             now = time.monotonic()
-            for source in ("measured", "estimated"):
-                self._close(self.core.flush(source, now, self.values["segment_timeout"]), source, now)
+            for source in ('measured', 'estimated'):
+                self._close(self.core.flush(source, now, self.values['segment_timeout']), source, now)
 
         def _work(self):
             t_req = None              # when the oldest window not yet solved closed (latency reference)
@@ -484,12 +500,12 @@ def _make_node():
                 job = self._jobs.get()
                 if job is None:
                     return
-                if job[0] == "window":                 # fit and accumulate it
+                if job[0] == 'window':                 # fit and accumulate it
                     _, win, source, closed_at = job
                     try:
                         added = self.core.add_window(win, source)
                     except Exception as exc:          # reported; the window is lost, nothing else is
-                        self._problem(f"harmonic fit failed on a {source} window: {type(exc).__name__}: {exc}")
+                        self._problem(f'harmonic fit failed on a {source} window: {type(exc).__name__}: {exc}')
                         added = []
                     if added:
                         t_req = closed_at if t_req is None else min(t_req, closed_at)
@@ -509,14 +525,14 @@ def _make_node():
                     results, _ = self.core.solve(data)
                     last_sig = sig
                 except Exception as exc:              # reported, never published
-                    self._problem(f"identification failed: {type(exc).__name__}: {exc}")
+                    self._problem(f'identification failed: {type(exc).__name__}: {exc}')
                     t_req = None
                     continue
                 self.solve_time = time.perf_counter() - t0
                 self.last_results = results
                 sent = 0
                 for r in results:
-                    if r.fully_determined or self.values["publish_undetermined"]:
+                    if r.fully_determined or self.values['publish_undetermined']:
                         self.pub.publish(M.coefficients_to_msg(r, stamp=self.get_clock().now().to_msg(),
                                                                frame_id=self.rig.name))
                         sent += 1
@@ -527,46 +543,46 @@ def _make_node():
 
         def diagnostics(self):
             items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
-                         f"{NAME}: input {TOPIC_DISPLACEMENT}", self.values["stale_after"])),
-                     self.monitor_est.status(f"{NAME}: input {TOPIC_BEARING_DISPLACEMENT}", self.values["stale_after"])]
-            if self.values["method"] != "paper" and items[1].level == STALE:
+                         f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])),
+                     self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
+            if self.values['method'] != 'paper' and items[1].level == STALE:
                 items[1].level = OK
-                items[1].message += " (not needed by the " + self.values["method"] + " method)"
-            rs = self.resolver["measured"]
-            ex = DiagItem(f"{NAME}: input {TOPIC_EXCITATION}", OK, f"runs known: {list(self.core.runs)}",
-                          {"runs": len(self.core.runs), "required": ",".join(self.core.required_runs()),
-                           "blocks_waiting_for_excitation": len(rs.waiting),
-                           "blocks_assigned_after_waiting": rs.released,
-                           "blocks_dropped_waiting_too_long": rs.dropped})
+                items[1].message += ' (not needed by the ' + self.values['method'] + ' method)'
+            rs = self.resolver['measured']
+            ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
+                          {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),
+                           'blocks_waiting_for_excitation': len(rs.waiting),
+                           'blocks_assigned_after_waiting': rs.released,
+                           'blocks_dropped_waiting_too_long': rs.dropped})
             if not self.core.runs:
                 ex.level = ERROR if self.monitor.n_blocks else STALE
-                ex.message = f"no excitation received on {TOPIC_EXCITATION}: blocks wait, nothing is accumulated"
+                ex.message = f'no excitation received on {TOPIC_EXCITATION}: blocks wait, nothing is accumulated'
             elif rs.dropped:
                 ex.level = WARN
                 ex.message = f"{rs.dropped} block(s) dropped after waiting too long for their run's excitation"
             items.append(ex)
-            nvec = self.core.vector_counts("measured")
-            acc = DiagItem(f"{NAME}: accumulation", OK, "ok", {
-                "vectors_per_run": ", ".join(f"{k}: {n}" for k, n in nvec.items()) or "none",
-                "record": str(self.core.record.path), "resumed_vectors": self.core.resumed["vectors"],
-                "published_results": self.published, "blocks_without_speed": self.skipped["no_speed"],
-                "blocks_without_sample_angles": self.skipped["no_angles"]})
-            if self.skipped["no_angles"]:
+            nvec = self.core.vector_counts('measured')
+            acc = DiagItem(f'{NAME}: accumulation', OK, 'ok', {
+                'vectors_per_run': ', '.join(f'{k}: {n}' for k, n in nvec.items()) or 'none',
+                'record': str(self.core.record.path), 'resumed_vectors': self.core.resumed['vectors'],
+                'published_results': self.published, 'blocks_without_speed': self.skipped['no_speed'],
+                'blocks_without_sample_angles': self.skipped['no_angles']})
+            if self.skipped['no_angles']:
                 acc.level = WARN
                 acc.message = (f"{self.skipped['no_angles']} block(s) without sample_angles: their angle assumes "
-                               f"constant speed over the block (biased on speed ramps)")
+                               f'constant speed over the block (biased on speed ramps)')
             if self.solve_time is not None:
-                acc.values["last_solve_s"] = self.solve_time
+                acc.values['last_solve_s'] = self.solve_time
             if self.latency:
-                acc.values["last_latency_s"] = self.latency[-1]
-                acc.values["median_latency_s"] = float(np.median(self.latency))
-                acc.values["max_latency_s"] = max(self.latency)
+                acc.values['last_latency_s'] = self.latency[-1]
+                acc.values['median_latency_s'] = float(np.median(self.latency))
+                acc.values['max_latency_s'] = max(self.latency)
             if self.problems:
                 acc.level, acc.message = WARN, self.problems[-1]
-                acc.values["problems"] = " | ".join(list(self.problems)[-5:])
+                acc.values['problems'] = ' | '.join(list(self.problems)[-5:])
                 self.problems.clear()
             items.append(acc)
-            items.append(identifiability_item(self.last_results, self.values["publish_undetermined"]))
+            items.append(identifiability_item(self.last_results, self.values['publish_undetermined']))
             self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
 
         def close(self):
@@ -579,33 +595,33 @@ def _make_node():
 
 def identifiability_item(results, publish_undetermined: bool = False) -> DiagItem:
     """Rank / unknowns / condition per speed; WARN naming the speeds whose coefficients the data do not determine."""
-    name = f"{NAME}: identifiability"
+    name = f'{NAME}: identifiability'
     if not results:
-        return DiagItem(name, OK, "no complete speed yet (waiting for every required run)", {})
+        return DiagItem(name, OK, 'no complete speed yet (waiting for every required run)', {})
     vals = {}
     bad = []
     for r in results:
         rpm = rad_s_to_rpm(r.speed)
-        vals[f"{rpm:.0f}rpm"] = f"rank {r.rank}/{r.unknowns}, condition {r.condition:.3g}, residual {r.residual:.3g}"
+        vals[f'{rpm:.0f}rpm'] = f'rank {r.rank}/{r.unknowns}, condition {r.condition:.3g}, residual {r.residual:.3g}'
         if not r.fully_determined:
             und = r.undetermined_names()
-            bad.append(f"{rpm:.0f} rpm: rank {r.rank} of {r.unknowns}, {len(und)} coefficient(s) not determined "
+            bad.append(f'{rpm:.0f} rpm: rank {r.rank} of {r.unknowns}, {len(und)} coefficient(s) not determined '
                        f"({', '.join(und[:4])}{'...' if len(und) > 4 else ''})")
     if bad:
-        tail = "published flagged" if publish_undetermined else "not published"
+        tail = 'published flagged' if publish_undetermined else 'not published'
         return DiagItem(name, WARN, f"{'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''} -- {tail}", vals)
     misfit = [r for r in results if r.misfit]
     if misfit:       # a model that does not fit the data is a warning, never an OK
-        note = next((n for n in misfit[0].notes if "MISFIT" in n), "model misfit")
-        return DiagItem(name, WARN, f"all {len(results)} speed(s) determined, but {len(misfit)} with a MODEL MISFIT "
-                                    f"(1-sigma a lower bound): {note}", vals)
-    return DiagItem(name, OK, f"all {len(results)} speed(s) determined", vals)
+        note = next((n for n in misfit[0].notes if 'MISFIT' in n), 'model misfit')
+        return DiagItem(name, WARN, f'all {len(results)} speed(s) determined, but {len(misfit)} with a MODEL MISFIT '
+                                    f'(1-sigma a lower bound): {note}', vals)
+    return DiagItem(name, OK, f'all {len(results)} speed(s) determined', vals)
 
 
 def main(argv=None) -> int:
-    return run_node(NAME, "Accumulate 1X harmonic vectors per excitation run and speed, identify the bearing "
-                          "stiffness and damping, publish them with their uncertainty.", SPECS, _make_node, argv)
+    return run_node(NAME, 'Accumulate 1X harmonic vectors per excitation run and speed, identify the bearing '
+                          'stiffness and damping, publish them with their uncertainty.', SPECS, _make_node, argv)
 
 
-if __name__ == "__main__":  # pragma: no cover
+if __name__ == '__main__':  # pragma: no cover
     sys.exit(main())

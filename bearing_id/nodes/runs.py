@@ -1,4 +1,5 @@
-"""Which excitation run a displacement block belongs to, for the kf_estimator and the identifier (no ROS).
+"""
+Which excitation run a displacement block belongs to, for the kf_estimator and the identifier (no ROS).
 
 A block names its run (``DisplacementBlock.run_id``, set by the sensor_driver) or, when the sender leaves it empty,
 belongs to the run announced last on /rotor/excitation at or before its stamp.  A block whose run is not known yet
@@ -18,17 +19,24 @@ MALFORMED = (ValueError, TypeError, AttributeError, OverflowError, IndexError)
 
 
 def excitation_of(msg, n_nodes: int | None = None):
-    """(stamp [s], params.Run) of an Excitation message, validated (:func:`bearing_id.io.messages.check_excitation`
-    with the model's ``n_nodes``); raises one of :data:`MALFORMED` saying what is wrong."""
+    """
+    Return (stamp [s], params.Run) of an Excitation message, validated.
+
+    Validated by :func:`bearing_id.io.messages.check_excitation` with the model's ``n_nodes``; raises one of
+    :data:`MALFORMED` saying what is wrong.
+    """
     from ..io.messages import excitation_from_msg
     run = excitation_from_msg(msg, n_nodes)
     return stamp_to_sec(msg.header.stamp), run
 
 
 class RunResolver:
-    """``resolve(block, tag)`` -> the block's params.Run, or None when it was queued (with ``tag``, e.g. the block's
-    contiguity) to wait for its announcement; ``announce(stamp, run)`` registers a run and returns the waiting
-    [(block, run, tag)] it releases (in arrival order).
+    """
+    Match blocks to the excitation runs announced for them.
+
+    ``resolve(block, tag)`` -> the block's params.Run, or None when it was queued (with ``tag``, e.g. the block's
+    contiguity) to wait for its announcement; ``announce(stamp, run)`` registers a run and returns the waiting [(block,
+    run, tag)] it releases (in arrival order).
 
     ``block`` needs ``run_id`` ('' = by stamp) and ``stamp`` [s].  ``known`` maps run id -> Run.
     """
@@ -58,13 +66,13 @@ class RunResolver:
         return new, out
 
     def _lookup(self, block):
-        rid = getattr(block, "run_id", "") or ""
+        rid = getattr(block, 'run_id', '') or ''
         if rid:
             return self.known.get(rid)
         return self.timeline.at(block.stamp)
 
     def resolve(self, block, tag=None):
-        """The block's run, or None (the block now waits, with ``tag``; see ``waiting``)."""
+        """Return the block's run, or None (the block now waits, with ``tag``; see ``waiting``)."""
         run = self._lookup(block)
         if run is not None:
             return run

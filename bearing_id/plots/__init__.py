@@ -1,4 +1,5 @@
-"""Figures (matplotlib) for people: one module per figure family, all taking the result objects the CLI prints.
+"""
+Figures (matplotlib) for people: one module per figure family, all taking the result objects the CLI prints.
 
 * :mod:`.data` -- the numbers behind every figure (no matplotlib; tested against the model on their own).
 * :mod:`.campbell` -- Campbell diagram (0.5X / 1X / 2X, log-decrement colour, critical speeds, stability threshold)
@@ -19,8 +20,8 @@ save-to-path interface (``from bearing_id.plots import plot_coefficients``).
 """
 from __future__ import annotations
 
-from .common import DPI, new_figure, png_bytes, save_png
 from .coefficients import coefficients_figure, plot_bearing_vectors, plot_coefficients, theory_coefficients_figure
+from .common import DPI, new_figure, png_bytes, save_png
 
-__all__ = ["DPI", "new_figure", "png_bytes", "save_png", "plot_coefficients", "plot_bearing_vectors",
-           "coefficients_figure", "theory_coefficients_figure"]
+__all__ = ['DPI', 'new_figure', 'png_bytes', 'save_png', 'plot_coefficients', 'plot_bearing_vectors',
+           'coefficients_figure', 'theory_coefficients_figure']

@@ -1,4 +1,5 @@
-"""Shared figure plumbing: figures without pyplot state, PNG bytes, the styles every figure family uses.
+"""
+Shared figure plumbing: figures without pyplot state, PNG bytes, the styles every figure family uses.
 
 Figures are :class:`matplotlib.figure.Figure` objects made without ``pyplot`` (no global state, nothing to close,
 Agg rendering on save), except the legacy save-to-path helpers that keep ``pyplot`` for their callers' tests.
@@ -9,20 +10,20 @@ import io
 from pathlib import Path
 
 DPI = 90                       # report figures: readable at 100 % zoom, small enough to embed
-RUN_COLORS = ("C0", "C1", "C2", "C4", "C5", "C6", "C8", "C9")
-BEARING_STYLES = ({"color": "C0", "ls": "-", "marker": "o", "mfc": "C0", "ms": 4},
-                  {"color": "C3", "ls": "--", "marker": "s", "mfc": "none", "ms": 7},
-                  {"color": "C2", "ls": ":", "marker": "^", "mfc": "none", "ms": 7},
-                  {"color": "C4", "ls": "-.", "marker": "D", "mfc": "none", "ms": 6})
-ORDER_STYLES = {0.5: {"color": "0.25", "ls": "--", "lw": 1.0}, 1.0: {"color": "k", "ls": "-", "lw": 1.2},
-                2.0: {"color": "0.25", "ls": ":", "lw": 1.2}}
-MODEL_STYLE = {"color": "C3", "ls": "-", "lw": 1.6}        # identified model
-THEORY_STYLE = {"color": "0.35", "ls": "--", "lw": 1.2}    # nominal theory
-TRUTH_STYLE = {"color": "C2", "ls": "-.", "lw": 1.2}       # truth of a simulated recording
+RUN_COLORS = ('C0', 'C1', 'C2', 'C4', 'C5', 'C6', 'C8', 'C9')
+BEARING_STYLES = ({'color': 'C0', 'ls': '-', 'marker': 'o', 'mfc': 'C0', 'ms': 4},
+                  {'color': 'C3', 'ls': '--', 'marker': 's', 'mfc': 'none', 'ms': 7},
+                  {'color': 'C2', 'ls': ':', 'marker': '^', 'mfc': 'none', 'ms': 7},
+                  {'color': 'C4', 'ls': '-.', 'marker': 'D', 'mfc': 'none', 'ms': 6})
+ORDER_STYLES = {0.5: {'color': '0.25', 'ls': '--', 'lw': 1.0}, 1.0: {'color': 'k', 'ls': '-', 'lw': 1.2},
+                2.0: {'color': '0.25', 'ls': ':', 'lw': 1.2}}
+MODEL_STYLE = {'color': 'C3', 'ls': '-', 'lw': 1.6}        # identified model
+THEORY_STYLE = {'color': '0.35', 'ls': '--', 'lw': 1.2}    # nominal theory
+TRUTH_STYLE = {'color': 'C2', 'ls': '-.', 'lw': 1.2}       # truth of a simulated recording
 
 
 def order_label(k: float) -> str:
-    return f"{k:g}X"
+    return f'{k:g}X'
 
 
 def run_color(i: int) -> str:
@@ -37,17 +38,17 @@ def new_figure(figsize, nrows: int = 1, ncols: int = 1, **kw):
     """(Figure, axes) without pyplot; ``axes`` as from ``Figure.subplots`` (squeeze=False unless given)."""
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize)
-    kw.setdefault("squeeze", False)
+    kw.setdefault('squeeze', False)
     axes = fig.subplots(nrows, ncols, **kw)
     return fig, axes
 
 
 def png_bytes(fig, dpi: int = DPI) -> bytes:
-    """The figure as PNG bytes (Agg)."""
+    """Return the figure as PNG bytes (Agg)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format='png', dpi=dpi)
     return buf.getvalue()
 
 
@@ -61,7 +62,7 @@ def save_png(fig, path, dpi: int = DPI) -> Path:
 
 def _plt():
     import matplotlib
-    matplotlib.use("Agg")
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     return plt
 

@@ -1,4 +1,5 @@
-"""The numbers behind the report's figures -- plain numpy/scipy, no matplotlib (so they can be tested on their own).
+"""
+The numbers behind the report's figures -- plain numpy/scipy, no matplotlib (so they can be tested on their own).
 
 Every figure module in :mod:`bearing_id.plots` draws what these functions return; every number comes from the same
 physics modules the CLI prints from (:mod:`bearing_id.rotor.modal`, :mod:`bearing_id.bearings.stability`,
@@ -21,12 +22,12 @@ SI units inside (rad/s, m, N/m, N s/m); the ``*_rpm`` / ``*_hz`` / ``*_um`` prop
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
-from ..conventions import DOF_PER_NODE, LOCAL_DOF, RPM_PER_RAD_S, orbit_semi_axes, whirl_direction
+from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, RPM_PER_RAD_S, whirl_direction
 
 TWO_PI = 2.0 * math.pi
 ORDERS = (0.5, 1.0, 2.0)          # the order lines of the Campbell diagram and the spectra
@@ -35,7 +36,8 @@ ORDERS = (0.5, 1.0, 2.0)          # the order lines of the Campbell diagram and 
 # ------------------------------------------------------------------------------------------------ Campbell
 @dataclass
 class CampbellData:
-    """Campbell diagram of one rotor-bearing model.
+    """
+    Campbell diagram of one rotor-bearing model.
 
     speeds (ns,) rad/s; frequency, log_dec, damping_ratio (ns, n) [rad/s, -, -] (NaN where fewer modes);
     whirl (ns, n) 'forward'/'backward'; critical (nc,) rad/s synchronous critical speeds (forward mode = 1X);
@@ -43,6 +45,7 @@ class CampbellData:
     computed / already unstable at the low end); threshold_ratio: whirl frequency / speed of the mode that goes
     unstable; label: which bearings (for titles); notes: what could not be computed.
     """
+
     speeds: np.ndarray
     frequency: np.ndarray
     log_dec: np.ndarray
@@ -52,7 +55,7 @@ class CampbellData:
     critical_zeta: np.ndarray
     threshold: float | None
     threshold_ratio: float | None
-    label: str = ""
+    label: str = ''
     notes: list = field(default_factory=list)
 
     @property
@@ -75,8 +78,9 @@ class CampbellData:
 
 
 def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | None = None, n_modes: int = 8,
-                  n_grid: int = 40, label: str = "") -> CampbellData:
-    """Campbell data of ``model`` on ``bearing_fn`` over (min_speed, max_speed] [rad/s].
+                  n_grid: int = 40, label: str = '') -> CampbellData:
+    """
+    Campbell data of ``model`` on ``bearing_fn`` over (min_speed, max_speed] [rad/s].
 
     Critical speeds: :func:`bearing_id.rotor.modal.critical_speeds` on (lo, max_speed) with 40 grid points and
     ``n_modes`` modes (the ``bearing-id model`` call); stability threshold: :func:`bearings.stability.threshold_speed`
@@ -93,7 +97,7 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
     zc = []
     for c in crit:
         m = damped_modes(model, c, bearing_fn(c), n_modes)
-        k = int(np.argmin([abs(f - c) if w == "forward" else np.inf for f, w in zip(m.frequency, m.whirl)]))
+        k = int(np.argmin([abs(f - c) if w == 'forward' else np.inf for f, w in zip(m.frequency, m.whirl)]))
         zc.append(float(m.damping_ratio[k]))
     thr, ratio = None, None
     try:
@@ -101,16 +105,19 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
         if np.isfinite(thr):
             ratio = stability.whirl_ratio(model, bearing_fn, thr * (1 + 1e-6))
     except ValueError as exc:
-        notes.append(f"stability threshold not computed: {exc}")
+        notes.append(f'stability threshold not computed: {exc}')
     return CampbellData(speeds=grid, frequency=cb.frequency, log_dec=cb.log_dec, damping_ratio=cb.damping_ratio,
                         whirl=cb.whirl, critical=np.asarray(crit, float), critical_zeta=np.asarray(zc, float),
                         threshold=thr, threshold_ratio=ratio, label=label, notes=notes)
 
 
 def forward_branches(cd: CampbellData) -> np.ndarray:
-    """(ns, kmax) the k-th lowest forward-whirl frequency at each speed [rad/s] (the branches critical_speeds
-    follows), NaN-padded."""
-    rows = [np.sort(cd.frequency[i][(cd.whirl[i] == "forward") & np.isfinite(cd.frequency[i])])
+    """
+    Return (ns, kmax) the k-th lowest forward-whirl frequency at each speed [rad/s], NaN-padded.
+
+    These are the branches critical_speeds follows.
+    """
+    rows = [np.sort(cd.frequency[i][(cd.whirl[i] == 'forward') & np.isfinite(cd.frequency[i])])
             for i in range(cd.speeds.size)]
     k = max((r.size for r in rows), default=0)
     out = np.full((cd.speeds.size, k), np.nan)
@@ -122,9 +129,13 @@ def forward_branches(cd: CampbellData) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------ mode shapes
 @dataclass
 class ModeShape:
-    """One damped mode at one speed.  z (n_nodes,) m; x, y complex (n_nodes,) normalised so that the largest
-    |component| is 1; frequency rad/s; log_dec, damping_ratio; whirl 'forward'/'backward' (orbit-size vote);
-    node_whirl per node; speed rad/s."""
+    """
+    One damped mode at one speed.
+
+    z (n_nodes,) m; x, y complex (n_nodes,) normalised so that the largest |component| is 1; frequency rad/s; log_dec,
+    damping_ratio; whirl 'forward'/'backward' (orbit-size vote); node_whirl per node; speed rad/s.
+    """
+
     speed: float
     frequency: float
     log_dec: float
@@ -158,14 +169,14 @@ class ModeShape:
 
 
 def mode_shapes(model, bearing_fn, speed: float, n: int = 4) -> list[ModeShape]:
-    """The lowest ``n`` damped modes at ``speed`` [rad/s] as :class:`ModeShape` (ordered by frequency)."""
+    """Return the lowest ``n`` damped modes at ``speed`` [rad/s] as :class:`ModeShape` (ordered by frequency)."""
     from ..rotor.modal import damped_modes
     m = damped_modes(model, speed, bearing_fn(speed), n)
     out = []
     for k in range(m.frequency.size):
         v = m.shapes[:, k]
-        x = v[LOCAL_DOF["x"]::DOF_PER_NODE].copy()
-        y = v[LOCAL_DOF["y"]::DOF_PER_NODE].copy()
+        x = v[LOCAL_DOF['x']::DOF_PER_NODE].copy()
+        y = v[LOCAL_DOF['y']::DOF_PER_NODE].copy()
         both = np.concatenate([x, y])
         ref = both[int(np.argmax(np.abs(both)))]
         x, y = x / ref, y / ref
@@ -177,15 +188,19 @@ def mode_shapes(model, bearing_fn, speed: float, n: int = 4) -> list[ModeShape]:
 
 
 def critical_mode_index(shapes, speed: float) -> int | None:
-    """Index of the forward mode whose damped frequency is nearest ``speed`` [rad/s] (the mode a critical speed
-    excites), or None when there is no forward mode."""
-    c = [(abs(m.frequency - speed), k) for k, m in enumerate(shapes) if m.whirl == "forward"]
+    """
+    Return the index of the forward mode whose damped frequency is nearest ``speed`` [rad/s].
+
+    That is the mode a critical speed excites.  Return None when there is no forward mode.
+    """
+    c = [(abs(m.frequency - speed), k) for k, m in enumerate(shapes) if m.whirl == 'forward']
     return min(c)[1] if c else None
 
 
 # ------------------------------------------------------------------------------------------------ bearing models
 class InterpolatedBearings:
-    """``speed -> {node: (K, C)}`` by monotone cubic (PCHIP) interpolation of identified coefficients in speed.
+    """
+    ``speed -> {node: (K, C)}`` by monotone cubic (PCHIP) interpolation of identified coefficients in speed.
 
     Exact at the identification speeds; defined only on [min, max] of them (ValueError outside).
     """
@@ -194,7 +209,7 @@ class InterpolatedBearings:
         from scipy.interpolate import PchipInterpolator
         rs = sorted(results, key=lambda r: r.speed)
         if len(rs) < 2:
-            raise ValueError("interpolation needs results at two speeds at least")
+            raise ValueError('interpolation needs results at two speeds at least')
         self.nodes = tuple(int(n) for n in rs[0].nodes)
         self.speeds = np.array([r.speed for r in rs])
         self.lo, self.hi = float(self.speeds[0]), float(self.speeds[-1])
@@ -209,15 +224,20 @@ class InterpolatedBearings:
         if s in self._exact:
             return {n: (K.copy(), C.copy()) for n, (K, C) in self._exact[s].items()}
         if not self.lo <= s <= self.hi:
-            raise ValueError(f"speed {s:.4g} rad/s outside the identified range {self.lo:.4g}..{self.hi:.4g}")
+            raise ValueError(f'speed {s:.4g} rad/s outside the identified range {self.lo:.4g}..{self.hi:.4g}')
         y = self._f(s).reshape(len(self.nodes), 8)
         return {n: (y[i, :4].reshape(2, 2), y[i, 4:].reshape(2, 2)) for i, n in enumerate(self.nodes)}
 
 
 @dataclass
 class IdentifiedModel:
-    """A continuous bearing model from identification.  fn: ``speed -> {node: (K, C)}``; speed_range (lo, hi) rad/s
-    where it is defined (None: any speed > 0); label for legends; kind 'physical' | 'interpolated'."""
+    """
+    A continuous bearing model from identification.
+
+    fn: ``speed -> {node: (K, C)}``; speed_range (lo, hi) rad/s where it is defined (None: any speed > 0); label for
+    legends; kind 'physical' | 'interpolated'.
+    """
+
     fn: object
     speed_range: tuple | None
     label: str
@@ -225,7 +245,8 @@ class IdentifiedModel:
 
 
 def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
-    """(model, why): the identified bearings as a continuous function of speed, or (None, the reason there is none).
+    """
+    (model, why): the identified bearings as a continuous function of speed, or (None, the reason there is none).
 
     * method ``physical``: the bearing model with the fitted viscosity / clearance (/ load) per bearing -- the same
       call the fit made, so it reproduces every result's K, C exactly, and it is defined at every speed;
@@ -233,30 +254,30 @@ def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
     * otherwise None: undetermined coefficients are never drawn as a model.
     """
     if not results:
-        return None, "no identification results"
-    fit = results[0].extra.get("fit") if isinstance(results[0].extra, dict) else None
-    if fit is not None and hasattr(fit, "names") and hasattr(fit, "values"):
+        return None, 'no identification results'
+    fit = results[0].extra.get('fit') if isinstance(results[0].extra, dict) else None
+    if fit is not None and hasattr(fit, 'names') and hasattr(fit, 'values'):
         if not np.all(fit.determined):
-            return None, "the physical fit leaves some bearing parameters undetermined"
+            return None, 'the physical fit leaves some bearing parameters undetermined'
         from .. import bearings as bmod
         vals = dict(zip(fit.names, np.asarray(fit.values, float)))
         vf, cf, loads = [], [], {}
         for b in rig.bearings:
-            vf.append(vals.get(f"{b.name}.viscosity", b.viscosity) / b.viscosity)
-            cf.append(vals.get(f"{b.name}.clearance", b.clearance) / b.clearance)
-            if f"{b.name}.load" in vals:
-                loads[b.node] = vals[f"{b.name}.load"]
+            vf.append(vals.get(f'{b.name}.viscosity', b.viscosity) / b.viscosity)
+            cf.append(vals.get(f'{b.name}.clearance', b.clearance) / b.clearance)
+            if f'{b.name}.load' in vals:
+                loads[b.node] = vals[f'{b.name}.load']
             else:
                 loads[b.node] = fit.loads[b.node]
         fn = bmod.bearing_fn(rig, model=fit.bearing_model, viscosity_factor=vf, clearance_factor=cf, loads=loads)
-        return IdentifiedModel(fn, None, f"identified ({fit.bearing_model} bearing, fitted parameters)",
-                               "physical"), ""
+        return IdentifiedModel(fn, None, f'identified ({fit.bearing_model} bearing, fitted parameters)',
+                               'physical'), ''
     if not all(r.fully_determined for r in results):
-        return None, "some coefficients are not determined by the data: no identified model is drawn"
+        return None, 'some coefficients are not determined by the data: no identified model is drawn'
     if len(results) < 3:
-        return None, f"{len(results)} speed(s) only: too few to interpolate the coefficients between them"
+        return None, f'{len(results)} speed(s) only: too few to interpolate the coefficients between them'
     ib = InterpolatedBearings(results)
-    return IdentifiedModel(ib, (ib.lo, ib.hi), "identified (interpolated between test speeds)", "interpolated"), ""
+    return IdentifiedModel(ib, (ib.lo, ib.hi), 'identified (interpolated between test speeds)', 'interpolated'), ''
 
 
 def coefficient_curves(bearing_fn, speeds) -> dict:
@@ -272,7 +293,7 @@ def coefficient_curves(bearing_fn, speeds) -> dict:
 
 # ------------------------------------------------------------------------------------------------ 1X response
 def curve_speeds(test_speeds, lo: float, hi: float, n: int = 160) -> np.ndarray:
-    """A speed grid [rad/s] of ``n`` points on [lo, hi] that also contains every test speed inside it."""
+    """Return a speed grid [rad/s] of ``n`` points on [lo, hi] that also contains every test speed inside it."""
     t = np.asarray(test_speeds, float)
     g = np.concatenate([np.linspace(lo, hi, n), t[(t >= lo) & (t <= hi)]])
     return np.unique(g)
@@ -300,9 +321,13 @@ def response_curves(model, bearing_fn, runs, probes, speeds) -> np.ndarray:
 
 def response_curves_adaptive(model, bearing_fn, runs, probes, test_speeds, lo: float, hi: float, *, n0: int = 120,
                              tol: float = 0.02, max_points: int = 800):
-    """(speeds (ng,), Y (n_runs, ng, n_probes)): :func:`response_curves` on :func:`curve_speeds` ``(test_speeds, lo,
-    hi, n0)``, refined by bisection wherever the phasor moves by more than ``tol`` x its largest value between
-    neighbouring speeds (a resonance loop is drawn round, not as a polygon).  The test speeds stay on the grid."""
+    """
+    Return (speeds (ng,), Y (n_runs, ng, n_probes)) of :func:`response_curves` on an adaptively refined speed grid.
+
+    The grid is :func:`curve_speeds` ``(test_speeds, lo, hi, n0)``, refined by bisection wherever the phasor moves by
+    more than ``tol`` x its largest value between neighbouring speeds (a resonance loop is drawn round, not as a
+    polygon).  The test speeds stay on the grid.
+    """
     g = curve_speeds(test_speeds, lo, hi, n0)
     Y = response_curves(model, bearing_fn, runs, probes, g)
     for _ in range(6):
@@ -329,23 +354,26 @@ def align_phase(measured_deg, reference_deg):
 
 # ------------------------------------------------------------------------------------------------ centreline
 def journal_positions(bearing_fn, speeds) -> dict | None:
-    """{node: {'xy' (ns, 2) m, 'clearance' m, 'eps' (ns,), 'attitude' (ns,) rad}} from a bearing model with
-    ``solutions(speed)`` (:class:`bearing_id.bearings.BearingFunction`); None for a model without one."""
-    sol = getattr(bearing_fn, "solutions", None)
+    """
+    Return {node: {'xy' (ns, 2) m, 'clearance' m, 'eps' (ns,), 'attitude' (ns,) rad}} from a bearing model.
+
+    The model needs ``solutions(speed)`` (:class:`bearing_id.bearings.BearingFunction`); None for a model without one.
+    """
+    sol = getattr(bearing_fn, 'solutions', None)
     if sol is None:
         return None
     out: dict = {}
     for s in speeds:
         for n, b in sol(float(s)).items():
-            d = out.setdefault(n, {"xy": [], "eps": [], "attitude": []})
-            d["xy"].append(np.asarray(b.journal_position, float))
-            d["eps"].append(float(b.eccentricity))
-            d["attitude"].append(float(b.attitude_angle))
+            d = out.setdefault(n, {'xy': [], 'eps': [], 'attitude': []})
+            d['xy'].append(np.asarray(b.journal_position, float))
+            d['eps'].append(float(b.eccentricity))
+            d['attitude'].append(float(b.attitude_angle))
     for n, d in out.items():
-        d["xy"] = np.array(d["xy"])
-        d["eps"] = np.array(d["eps"])
-        d["attitude"] = np.array(d["attitude"])
-        d["clearance"] = float(bearing_fn.clearance[n])
+        d['xy'] = np.array(d['xy'])
+        d['eps'] = np.array(d['eps'])
+        d['attitude'] = np.array(d['attitude'])
+        d['clearance'] = float(bearing_fn.clearance[n])
     return out
 
 
@@ -381,9 +409,14 @@ def waterfall_data(data, run: int, channel: int, fmax: float) -> list[tuple[floa
 # ------------------------------------------------------------------------------------------------ orbits
 @dataclass
 class OrbitData:
-    """One orbit panel.  speed rad/s; raw (M, 2) m unfiltered x, y over the last revolutions, window mean removed;
-    raw_key (k, 2) m keyphasor positions on it (angle = 0 mod 2 pi, interpolated); filt (P, 2) m the 1X ellipse;
-    filt_key (2,) m its keyphasor point (angle 0); whirl of the 1X orbit; pk_pk (2,) m of the 1X x and y."""
+    """
+    One orbit panel.
+
+    speed rad/s; raw (M, 2) m unfiltered x, y over the last revolutions, window mean removed; raw_key (k, 2) m keyphasor
+    positions on it (angle = 0 mod 2 pi, interpolated); filt (P, 2) m the 1X ellipse; filt_key (2,) m its keyphasor
+    point (angle 0); whirl of the 1X orbit; pk_pk (2,) m of the 1X x and y.
+    """
+
     speed: float
     raw: np.ndarray
     raw_key: np.ndarray
@@ -395,8 +428,12 @@ class OrbitData:
 
 def orbit_data(rec, i0: int, i1: int, ix: int, iy: int, Xx: complex, Xy: complex, speed: float,
                n_rev: int = 3) -> OrbitData:
-    """Orbit of channels (ix, iy) of ``rec`` in samples [i0, i1): the last ``n_rev`` revolutions unfiltered (mean of
-    the window removed: the DC is the centreline, not the orbit) and the 1X ellipse Re{X exp(j phi)}."""
+    """
+    Return the orbit of channels (ix, iy) of ``rec`` in samples [i0, i1).
+
+    The last ``n_rev`` revolutions unfiltered (mean of the window removed: the DC is the centreline, not the orbit) and
+    the 1X ellipse Re{X exp(j phi)}.
+    """
     a = np.asarray(rec.angle[i0:i1], float)
     xy = np.asarray(rec.samples[i0:i1][:, [ix, iy]], float)
     xy = xy - xy.mean(axis=0)
@@ -416,8 +453,8 @@ def xy_pairs(probes) -> list[tuple[int, int]]:
     out = []
     nodes = sorted({p.node for p in probes})
     for n in nodes:
-        ix = [i for i, p in enumerate(probes) if p.node == n and p.direction == "x"]
-        iy = [i for i, p in enumerate(probes) if p.node == n and p.direction == "y"]
+        ix = [i for i, p in enumerate(probes) if p.node == n and p.direction == 'x']
+        iy = [i for i, p in enumerate(probes) if p.node == n and p.direction == 'y']
         if ix and iy:
             out.append((ix[0], iy[0]))
     return out
@@ -425,9 +462,13 @@ def xy_pairs(probes) -> list[tuple[int, int]]:
 
 # ------------------------------------------------------------------------------------------------ diagnosis
 def diagnosis_curves(diag) -> dict:
-    """Before/after 1X of a diagnosis: {'panels': [{'run', 'probe', 'rpm' (n,), 'measured', 'std', 'nominal',
-    'refitted', 'augmented' (complex (n,) m)}], 'orders': [...], 'residual_before'/'residual_after' (per order, RMS
-    m)} -- from the diagnosis' own predictions (``Problem.prediction_by_window``), as ``diagnose --report`` draws."""
+    """
+    Return the before/after 1X of a diagnosis, as ``diagnose --report`` draws.
+
+    {'panels': [{'run', 'probe', 'rpm' (n,), 'measured', 'std', 'nominal', 'refitted', 'augmented' (complex (n,) m)}],
+    'orders': [...], 'residual_before'/'residual_after' (per order, RMS m)} -- from the diagnosis' own predictions
+    (``Problem.prediction_by_window``).
+    """
     prob, sel = diag.problem, diag.selection
     base, final = sel.base, sel.final
     nom = prob.prediction_by_window(np.zeros(prob.n_nuis), [], [], np.zeros(0))
@@ -439,13 +480,13 @@ def diagnosis_curves(diag) -> dict:
         if not ks:
             continue
         for c, p in enumerate(rec.probes):
-            panels.append({"run": str(rec.run.id), "probe": p,
-                           "rpm": np.array([prob.windows[k].speed * RPM_PER_RAD_S for k in ks]),
-                           "measured": np.array([prob.windows[k].X[0, c] for k in ks]),
-                           "std": np.array([np.asarray(prob.windows[k].std)[0, c] for k in ks]),
-                           "nominal": np.array([nom[k][0, c] for k in ks]),
-                           "refitted": np.array([bef[k][0, c] for k in ks]),
-                           "augmented": np.array([aft[k][0, c] for k in ks])})
+            panels.append({'run': str(rec.run.id), 'probe': p,
+                           'rpm': np.array([prob.windows[k].speed * RPM_PER_RAD_S for k in ks]),
+                           'measured': np.array([prob.windows[k].X[0, c] for k in ks]),
+                           'std': np.array([np.asarray(prob.windows[k].std)[0, c] for k in ks]),
+                           'nominal': np.array([nom[k][0, c] for k in ks]),
+                           'refitted': np.array([bef[k][0, c] for k in ks]),
+                           'augmented': np.array([aft[k][0, c] for k in ks])})
     orders = [float(o) for o in prob.obs.orders]
     rb, ra = [], []
     for o in range(len(orders)):
@@ -453,11 +494,11 @@ def diagnosis_curves(diag) -> dict:
                                          for k, w in enumerate(prob.windows)]))))
         ra.append(float(np.sqrt(np.mean([np.mean(np.abs(w.X[o] - aft[k][o]) ** 2)
                                          for k, w in enumerate(prob.windows)]))))
-    return {"panels": panels, "orders": orders, "residual_before": np.array(rb), "residual_after": np.array(ra)}
+    return {'panels': panels, 'orders': orders, 'residual_before': np.array(rb), 'residual_after': np.array(ra)}
 
 
-__all__ = ["ORDERS", "CampbellData", "campbell_data", "forward_branches", "ModeShape", "mode_shapes",
-           "critical_mode_index", "InterpolatedBearings", "IdentifiedModel", "identified_bearing_fn",
-           "coefficient_curves", "curve_speeds", "response_curves", "response_curves_adaptive", "align_phase",
-           "journal_positions", "amplitude_spectrum", "waterfall_data", "OrbitData", "orbit_data", "xy_pairs",
-           "diagnosis_curves"]
+__all__ = ['ORDERS', 'CampbellData', 'campbell_data', 'forward_branches', 'ModeShape', 'mode_shapes',
+           'critical_mode_index', 'InterpolatedBearings', 'IdentifiedModel', 'identified_bearing_fn',
+           'coefficient_curves', 'curve_speeds', 'response_curves', 'response_curves_adaptive', 'align_phase',
+           'journal_positions', 'amplitude_spectrum', 'waterfall_data', 'OrbitData', 'orbit_data', 'xy_pairs',
+           'diagnosis_curves']

@@ -1,4 +1,6 @@
-"""A self-contained HTML report page: inline CSS, images embedded as base64 PNG, no network access at all.
+# noqa: A005  (imported only as bearing_id.plots.html; renaming the module would change the public API)
+"""
+A self-contained HTML report page: inline CSS, images embedded as base64 PNG, no network access at all.
 
 The page forbids every fetch with a Content-Security-Policy (``default-src 'none'``; images only from ``data:``),
 so it renders the same offline, from an e-mail attachment or a CI artifact.  A small inline script records, into
@@ -59,23 +61,23 @@ def esc(text) -> str:
 
 
 def _cls(klass) -> str:
-    return ' class="' + esc(klass) + '"' if klass else ""
+    return ' class="' + esc(klass) + '"' if klass else ''
 
 
 class _Image:
     def __init__(self, png, caption, alt):
         self.png, self.caption, self.alt = png, caption, alt
 
-    def bytes(self) -> bytes:
-        png = self.png.result() if hasattr(self.png, "result") else self.png
-        if png[:8] != b"\x89PNG\r\n\x1a\n":
-            raise ValueError(f"{self.alt}: not PNG data")
+    def png_data(self) -> bytes:
+        png = self.png.result() if hasattr(self.png, 'result') else self.png
+        if png[:8] != b'\x89PNG\r\n\x1a\n':
+            raise ValueError(f'{self.alt}: not PNG data')
         return png
 
     def html(self) -> str:
-        b64 = base64.b64encode(self.bytes()).decode("ascii")
+        b64 = base64.b64encode(self.png_data()).decode('ascii')
         return (f'<figure><img alt="{esc(self.alt)}" src="data:image/png;base64,{b64}">'
-                f"<figcaption>{esc(self.caption)}</figcaption></figure>")
+                f'<figcaption>{esc(self.caption)}</figcaption></figure>')
 
 
 class Page:
@@ -88,45 +90,49 @@ class Page:
         self.n_images = 0
 
     def section(self, title: str, anchor: str | None = None) -> None:
-        anchor = anchor or "s" + str(len(self.toc) + 1)
+        anchor = anchor or 's' + str(len(self.toc) + 1)
         self.toc.append((anchor, title))
         self.parts.append(f'<h2 id="{esc(anchor)}">{esc(title)}</h2>')
 
     def subsection(self, title: str) -> None:
-        self.parts.append(f"<h3>{esc(title)}</h3>")
+        self.parts.append(f'<h3>{esc(title)}</h3>')
 
     def paragraph(self, text: str, cls: str | None = None) -> None:
-        self.parts.append(f"<p{_cls(cls)}>{esc(text)}</p>")
+        self.parts.append(f'<p{_cls(cls)}>{esc(text)}</p>')
 
     def raw(self, html_text: str) -> None:
         self.parts.append(html_text)
 
     def bullets(self, items) -> None:
-        self.parts.append("<ul>" + "".join(f"<li>{esc(i)}</li>" for i in items) + "</ul>")
+        self.parts.append('<ul>' + ''.join(f'<li>{esc(i)}</li>' for i in items) + '</ul>')
 
     def pre(self, text: str, summary: str | None = None) -> None:
-        block = f"<pre>{esc(text)}</pre>"
-        self.parts.append(f"<details><summary>{esc(summary)}</summary>{block}</details>" if summary else block)
+        block = f'<pre>{esc(text)}</pre>'
+        self.parts.append(f'<details><summary>{esc(summary)}</summary>{block}</details>' if summary else block)
 
     def table(self, header, rows, *, caption: str | None = None, left_cols: int = 1, cls: str | None = None) -> None:
         """rows: lists of cells; a cell is text or (text, css class)."""
         def cell(tag, c, i):
-            text, klass = (c if isinstance(c, tuple) else (c, ""))
-            klass = " ".join(x for x in (klass, "l" if i < left_cols else "") if x)
-            return f"<{tag}{_cls(klass)}>{esc(text)}</{tag}>"
-        out = [f"<table{_cls(cls)}>"]
+            text, klass = (c if isinstance(c, tuple) else (c, ''))
+            klass = ' '.join(x for x in (klass, 'l' if i < left_cols else '') if x)
+            return f'<{tag}{_cls(klass)}>{esc(text)}</{tag}>'
+        out = [f'<table{_cls(cls)}>']
         if caption:
-            out.append(f"<caption class=\"muted\">{esc(caption)}</caption>")
+            out.append(f'<caption class="muted">{esc(caption)}</caption>')
         if header:
-            out.append("<tr>" + "".join(cell("th", h, i) for i, h in enumerate(header)) + "</tr>")
+            out.append('<tr>' + ''.join(cell('th', h, i) for i, h in enumerate(header)) + '</tr>')
         for r in rows:
-            out.append("<tr>" + "".join(cell("td", c, i) for i, c in enumerate(r)) + "</tr>")
-        out.append("</table>")
-        self.parts.append("".join(out))
+            out.append('<tr>' + ''.join(cell('td', c, i) for i, c in enumerate(r)) + '</tr>')
+        out.append('</table>')
+        self.parts.append(''.join(out))
 
     def image(self, png, caption: str, alt: str) -> None:
-        """Embed PNG bytes as a base64 data URI with a caption.  ``png`` may also be an object with ``.result()``
-        returning the bytes (a figure rendered elsewhere); it is resolved when the page is rendered."""
+        """
+        Embed PNG bytes as a base64 data URI with a caption.
+
+        ``png`` may also be an object with ``.result()`` returning the bytes (a figure rendered elsewhere); it is
+        resolved when the page is rendered.
+        """
         self.n_images += 1
         self.parts.append(_Image(png, caption, alt))
 
@@ -135,44 +141,44 @@ class Page:
         self.parts.append('<div class="row">')
 
     def row_end(self) -> None:
-        self.parts.append("</div>")
+        self.parts.append('</div>')
 
-    def render(self, header_html: str = "", footer_text: str = "") -> str:
-        nav = "<nav>" + "".join(f'<a href="#{esc(a)}">{esc(t)}</a>' for a, t in self.toc) + "</nav>"
-        return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+    def render(self, header_html: str = '', footer_text: str = '') -> str:
+        nav = '<nav>' + ''.join(f'<a href="#{esc(a)}">{esc(t)}</a>' for a, t in self.toc) + '</nav>'
+        return ('<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
                 f'<meta http-equiv="Content-Security-Policy" content="{CSP}">'
                 '<meta name="viewport" content="width=device-width, initial-scale=1">'
-                f"<title>{esc(self.title)}</title><style>{CSS}</style><script>{CHECK_SCRIPT}</script></head>\n"
-                f"<body><main><h1>{esc(self.title)}</h1>{header_html}{nav}\n"
-                + "\n".join(p.html() if isinstance(p, _Image) else p for p in self.parts)
+                f'<title>{esc(self.title)}</title><style>{CSS}</style><script>{CHECK_SCRIPT}</script></head>\n'
+                f'<body><main><h1>{esc(self.title)}</h1>{header_html}{nav}\n'
+                + '\n'.join(p.html() if isinstance(p, _Image) else p for p in self.parts)
                 + f'\n<p class="muted">{esc(footer_text)}</p><div id="render-check">page check: not run '
-                  "(scripts disabled?)</div></main></body></html>\n")
+                  '(scripts disabled?)</div></main></body></html>\n')
 
     def images(self) -> list:
         """[(alt, PNG bytes)] of every image, in page order (resolving pending ones)."""
-        return [(p.alt, p.bytes()) for p in self.parts if isinstance(p, _Image)]
+        return [(p.alt, p.png_data()) for p in self.parts if isinstance(p, _Image)]
 
     def write(self, path, **kw) -> Path:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(self.render(**kw), encoding="utf-8")
+        path.write_text(self.render(**kw), encoding='utf-8')
         return path
 
 
 # ------------------------------------------------------------------------------------------------ browser check
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--enable-logging=stderr", "--v=0")
+CHROMIUM_FLAGS = ('--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+                  '--disable-background-networking', '--disable-component-update', '--disable-sync',
+                  '--enable-logging=stderr', '--v=0')
 
 
 def find_chromium() -> str | None:
     """Path of a Chromium / Chrome executable (``CHROMIUM`` overrides), or None."""
     import os
     import shutil
-    env = os.environ.get("CHROMIUM")
+    env = os.environ.get('CHROMIUM')
     if env:
         return env
-    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+    for name in ('chromium', 'chromium-browser', 'google-chrome', 'google-chrome-stable'):
         p = shutil.which(name)
         if p:
             return p
@@ -181,7 +187,8 @@ def find_chromium() -> str | None:
 
 def browser_check(path, *, chromium: str | None = None, screenshot=None, window=(1400, 2000),
                   timeout: float = 120.0) -> dict:
-    """Render the page ``path`` in headless Chromium and read back what it saw.
+    """
+    Render the page ``path`` in headless Chromium and read back what it saw.
 
     Returns {'images': n, 'decoded': n with naturalWidth > 0, 'bad': [alt], 'errors': [script errors and
     console.error calls recorded by the page], 'console': [every console line Chromium logged], 'done': the load
@@ -193,46 +200,46 @@ def browser_check(path, *, chromium: str | None = None, screenshot=None, window=
     import tempfile
     exe = chromium or find_chromium()
     if exe is None:
-        raise FileNotFoundError("no chromium executable (apt-get install chromium, or set CHROMIUM)")
+        raise FileNotFoundError('no chromium executable (apt-get install chromium, or set CHROMIUM)')
     url = Path(path).resolve().as_uri()
-    with tempfile.TemporaryDirectory(prefix="bearing_id_chromium_") as prof:
-        base = [exe, *CHROMIUM_FLAGS, f"--user-data-dir={prof}"]
-        r = subprocess.run(base + ["--dump-dom", url], capture_output=True, text=True, timeout=timeout)
+    with tempfile.TemporaryDirectory(prefix='bearing_id_chromium_') as prof:
+        base = [exe, *CHROMIUM_FLAGS, f'--user-data-dir={prof}']
+        r = subprocess.run(base + ['--dump-dom', url], capture_output=True, text=True, timeout=timeout)
         if r.returncode != 0:
-            raise RuntimeError(f"chromium exited {r.returncode}: {r.stderr[-2000:]}")
+            raise RuntimeError(f'chromium exited {r.returncode}: {r.stderr[-2000:]}')
         if screenshot is not None:
             shot = Path(screenshot).resolve()
             shot.parent.mkdir(parents=True, exist_ok=True)
-            s = subprocess.run(base + ["--hide-scrollbars", f"--screenshot={shot}",
-                                       f"--window-size={int(window[0])},{int(window[1])}", url],
+            s = subprocess.run(base + ['--hide-scrollbars', f'--screenshot={shot}',
+                                       f'--window-size={int(window[0])},{int(window[1])}', url],
                                capture_output=True, text=True, timeout=timeout)
             if s.returncode != 0 or not shot.exists():
-                raise RuntimeError(f"chromium screenshot failed ({s.returncode}): {s.stderr[-2000:]}")
+                raise RuntimeError(f'chromium screenshot failed ({s.returncode}): {s.stderr[-2000:]}')
     m = re.search(r'<div id="render-check"([^>]*)>', r.stdout)
     attrs = dict(re.findall(r'data-([a-z]+)="([^"]*)"', m.group(1))) if m else {}
-    console = [ln for ln in r.stderr.splitlines() if ":CONSOLE" in ln]
-    split = (lambda v: [x for x in html.unescape(v).split(" | ") if x]) if attrs else (lambda v: [])
-    return {"images": int(attrs.get("images", -1)), "decoded": int(attrs.get("decoded", -1)),
-            "bad": split(attrs.get("bad", "")), "errors": split(attrs.get("errors", "")), "console": console,
-            "done": attrs.get("done") == "1"}
+    console = [ln for ln in r.stderr.splitlines() if ':CONSOLE' in ln]
+    split = (lambda v: [x for x in html.unescape(v).split(' | ') if x]) if attrs else (lambda v: [])
+    return {'images': int(attrs.get('images', -1)), 'decoded': int(attrs.get('decoded', -1)),
+            'bad': split(attrs.get('bad', '')), 'errors': split(attrs.get('errors', '')), 'console': console,
+            'done': attrs.get('done') == '1'}
 
 
 def _main(argv=None) -> int:
     """``python -m bearing_id.plots.html PAGE [--screenshot PNG]``: the browser check, printed."""
     import argparse
-    ap = argparse.ArgumentParser(prog="python -m bearing_id.plots.html", description=browser_check.__doc__)
-    ap.add_argument("page")
-    ap.add_argument("--screenshot")
-    ap.add_argument("--window", default="1400,2000", help="WIDTH,HEIGHT of the screenshot [px]")
+    ap = argparse.ArgumentParser(prog='python -m bearing_id.plots.html', description=browser_check.__doc__)
+    ap.add_argument('page')
+    ap.add_argument('--screenshot')
+    ap.add_argument('--window', default='1400,2000', help='WIDTH,HEIGHT of the screenshot [px]')
     a = ap.parse_args(argv)
-    w = tuple(int(v) for v in a.window.split(","))
+    w = tuple(int(v) for v in a.window.split(','))
     res = browser_check(a.page, screenshot=a.screenshot, window=w)
     print(res)
-    ok = res["done"] and res["images"] == res["decoded"] and not res["errors"] and not res["console"]
+    ok = res['done'] and res['images'] == res['decoded'] and not res['errors'] and not res['console']
     return 0 if ok else 1
 
 
-__all__ = ["Page", "esc", "CSP", "find_chromium", "browser_check"]
+__all__ = ['Page', 'esc', 'CSP', 'find_chromium', 'browser_check']
 
-if __name__ == "__main__":  # pragma: no cover
+if __name__ == '__main__':  # pragma: no cover
     raise SystemExit(_main())

@@ -1,4 +1,5 @@
-"""Orbits: the shaft centre's path at one probe station, unfiltered and 1X-filtered, per speed.
+"""
+Orbits: the shaft centre's path at one probe station, unfiltered and 1X-filtered, per speed.
 
 x right, y up (:mod:`bearing_id.conventions`), rotation counter-clockwise (+x -> +y); equal axes.  The unfiltered
 orbit (thin) is the last few revolutions of the steady window with the window mean (the DC, i.e. the centreline
@@ -17,11 +18,15 @@ from .data import RPM_PER_RAD_S
 
 
 def orbits_figure(panels, run_labels, *, title=None, ncols: int = 3):
-    """``panels`` = one list per speed of :class:`bearing_id.plots.data.OrbitData` (one per run, None where a run
-    has no window there), ``run_labels`` per run -> Figure."""
+    """
+    Plot the orbit panels -> Figure.
+
+    ``panels`` = one list per speed of :class:`bearing_id.plots.data.OrbitData` (one per run, None where a run has no
+    window there), ``run_labels`` per run.
+    """
     n = len(panels)
     if not n:
-        raise ValueError("no orbits to draw")
+        raise ValueError('no orbits to draw')
     ncols = min(ncols, n)
     nrows = math.ceil(n / ncols)
     fig, axs = new_figure((3.4 * ncols, 3.35 * nrows + 0.8), nrows, ncols)
@@ -37,41 +42,41 @@ def orbits_figure(panels, run_labels, *, title=None, ncols: int = 3):
             col = run_color(r)
             speed = o.speed
             raw, filt = o.raw * 1e6, o.filt * 1e6
-            ax.plot(raw[:, 0], raw[:, 1], "-", color=col, lw=0.6, alpha=0.55, gid=f"orbit-raw:{k}:{r}")
-            ax.plot(filt[:, 0], filt[:, 1], "-", color=col, lw=2.0, gid=f"orbit-1x:{k}:{r}")
+            ax.plot(raw[:, 0], raw[:, 1], '-', color=col, lw=0.6, alpha=0.55, gid=f'orbit-raw:{k}:{r}')
+            ax.plot(filt[:, 0], filt[:, 1], '-', color=col, lw=2.0, gid=f'orbit-1x:{k}:{r}')
             if o.raw_key.size:
-                ax.plot(o.raw_key[:, 0] * 1e6, o.raw_key[:, 1] * 1e6, "o", ms=5, mfc="white", mec=col, mew=1.2,
+                ax.plot(o.raw_key[:, 0] * 1e6, o.raw_key[:, 1] * 1e6, 'o', ms=5, mfc='white', mec=col, mew=1.2,
                         zorder=4)
-            ax.plot([o.filt_key[0] * 1e6], [o.filt_key[1] * 1e6], "o", ms=7, color=col, mec="k", zorder=5,
-                    gid=f"orbit-key:{k}:{r}")
-            ax.annotate("", xy=(filt[7, 0], filt[7, 1]), xytext=(filt[0, 0], filt[0, 1]),
-                        arrowprops={"arrowstyle": "-|>", "color": col, "lw": 1.5, "mutation_scale": 13}, zorder=6)
+            ax.plot([o.filt_key[0] * 1e6], [o.filt_key[1] * 1e6], 'o', ms=7, color=col, mec='k', zorder=5,
+                    gid=f'orbit-key:{k}:{r}')
+            ax.annotate('', xy=(filt[7, 0], filt[7, 1]), xytext=(filt[0, 0], filt[0, 1]),
+                        arrowprops={'arrowstyle': '-|>', 'color': col, 'lw': 1.5, 'mutation_scale': 13}, zorder=6)
             R = max(R, float(np.max(np.abs(raw))) if raw.size else 0.0, float(np.max(np.abs(filt))))
-            heads.append(f"{run_labels[r]}: {np.max(o.pk_pk) * 1e6:.3g} µm {o.whirl[0].upper()}")
+            heads.append(f'{run_labels[r]}: {np.max(o.pk_pk) * 1e6:.3g} µm {o.whirl[0].upper()}')
         R = 1.15 * R if R > 0 else 1.0
         ax.set_xlim(-R, R)
         ax.set_ylim(-R, R)
-        ax.set_aspect("equal")
-        ax.axhline(0, color="0.85", lw=0.6, zorder=0)
-        ax.axvline(0, color="0.85", lw=0.6, zorder=0)
+        ax.set_aspect('equal')
+        ax.axhline(0, color='0.85', lw=0.6, zorder=0)
+        ax.axvline(0, color='0.85', lw=0.6, zorder=0)
         ax.tick_params(labelsize=7)
-        ax.set_title((f"{speed * RPM_PER_RAD_S:.0f} rpm\n" if speed else "") + "1X pk-pk " + ", ".join(heads),
+        ax.set_title((f'{speed * RPM_PER_RAD_S:.0f} rpm\n' if speed else '') + '1X pk-pk ' + ', '.join(heads),
                      fontsize=8)
         if k % ncols == 0:
-            ax.set_ylabel("y [µm]", fontsize=8)
+            ax.set_ylabel('y [µm]', fontsize=8)
         if k + ncols >= n:
-            ax.set_xlabel("x [µm]", fontsize=8)
+            ax.set_xlabel('x [µm]', fontsize=8)
     from matplotlib.lines import Line2D
-    hs = [Line2D([], [], color=run_color(r), lw=2, label=f"run {lab}") for r, lab in enumerate(run_labels)]
-    hs += [Line2D([], [], color="0.3", lw=2, label="1X filtered"),
-           Line2D([], [], color="0.3", lw=0.6, alpha=0.6, label="unfiltered (DC removed)"),
-           Line2D([], [], ls="", marker="o", color="0.3", mec="k", label="keyphasor on 1X (arrow: travel)"),
-           Line2D([], [], ls="", marker="o", mfc="white", mec="0.3", label="keyphasor, unfiltered")]
-    fig.legend(handles=hs, loc="lower center", ncol=min(len(hs), 6), fontsize=8, frameon=False)
-    fig.suptitle(title or "orbits", fontsize=10)
+    hs = [Line2D([], [], color=run_color(r), lw=2, label=f'run {lab}') for r, lab in enumerate(run_labels)]
+    hs += [Line2D([], [], color='0.3', lw=2, label='1X filtered'),
+           Line2D([], [], color='0.3', lw=0.6, alpha=0.6, label='unfiltered (DC removed)'),
+           Line2D([], [], ls='', marker='o', color='0.3', mec='k', label='keyphasor on 1X (arrow: travel)'),
+           Line2D([], [], ls='', marker='o', mfc='white', mec='0.3', label='keyphasor, unfiltered')]
+    fig.legend(handles=hs, loc='lower center', ncol=min(len(hs), 6), fontsize=8, frameon=False)
+    fig.suptitle(title or 'orbits', fontsize=10)
     fig.subplots_adjust(left=0.07, right=0.98, top=1 - 0.85 / fig.get_figheight(),
                         bottom=0.7 / fig.get_figheight(), hspace=0.45, wspace=0.3)
     return fig
 
 
-__all__ = ["orbits_figure"]
+__all__ = ['orbits_figure']

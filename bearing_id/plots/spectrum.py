@@ -1,4 +1,5 @@
-"""Spectrum cascade ("waterfall"): the amplitude spectrum of every steady window, stacked by speed.
+"""
+Spectrum cascade ("waterfall"): the amplitude spectrum of every steady window, stacked by speed.
 
 Each line is the Hann-windowed amplitude spectrum (a sinusoid of amplitude A shows A) of one steady window, drawn on
 a baseline at its speed [rpm] with a common amplitude scale (scale bar).  The 0.5X, 1X and 2X order lines run
@@ -11,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import ORDER_STYLES, order_label, run_color
+from .common import order_label, ORDER_STYLES, run_color
 from .data import ORDERS
 
-_LS = ("-", "--", ":", "-.")
+_LS = ('-', '--', ':', '-.')
 
 
 def _nice(v: float) -> float:
@@ -26,12 +27,16 @@ def _nice(v: float) -> float:
 
 
 def waterfall_figure(cascades, log_spectra, *, fmax: float, title=None):
-    """``cascades`` = [(title, colour index, [(speed rad/s, f Hz, amplitude m), ...])], one panel each (top row);
+    """
+    Plot waterfall cascades (top row) and log spectra (bottom) -> Figure.
+
+    ``cascades`` = [(title, colour index, [(speed rad/s, f Hz, amplitude m), ...])], one panel each (top row);
     ``log_spectra`` = [(label, colour index, line-style index, (speed, f, amplitude))] drawn together on a log scale
-    (bottom) -> Figure."""
+    (bottom).
+    """
     cascades = [c for c in cascades if c[2]]
     if not cascades:
-        raise ValueError("no spectra to draw")
+        raise ValueError('no spectra to draw')
     from matplotlib.figure import Figure
     nc = len(cascades)
     fig = Figure(figsize=(max(5.2 * nc + 0.4, 7.5), 8.2))
@@ -48,31 +53,31 @@ def waterfall_figure(cascades, log_spectra, *, fmax: float, title=None):
         for j, (s, f, a) in reversed(list(enumerate(sp))):
             y0 = rpm[j]
             y = y0 + a * 1e6 * scale
-            ax.fill_between(f, y0, y, color="white", zorder=2 + 2 * (len(sp) - j), lw=0)
-            ax.plot(f, y, color=run_color(ci), lw=0.8, zorder=3 + 2 * (len(sp) - j), gid=f"cascade:{k}:{j}")
-            ax.plot([0, fmax], [y0, y0], color="0.8", lw=0.5, zorder=1)
+            ax.fill_between(f, y0, y, color='white', zorder=2 + 2 * (len(sp) - j), lw=0)
+            ax.plot(f, y, color=run_color(ci), lw=0.8, zorder=3 + 2 * (len(sp) - j), gid=f'cascade:{k}:{j}')
+            ax.plot([0, fmax], [y0, y0], color='0.8', lw=0.5, zorder=1)
         top = rpm[-1] + 2.2 * step
         for o in ORDERS:
             st = ORDER_STYLES[o]
-            ax.plot([0, o * top / 60], [0, top], zorder=100, alpha=0.7, gid=f"order:{order_label(o)}", **st)
+            ax.plot([0, o * top / 60], [0, top], zorder=100, alpha=0.7, gid=f'order:{order_label(o)}', **st)
             xt = min(o * top / 60, fmax * 0.97)
-            ax.text(xt, min(top, 60 * xt / o) * 0.995, order_label(o), ha="center", va="top", fontsize=9,
-                    fontweight="bold", zorder=101, bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1})
+            ax.text(xt, min(top, 60 * xt / o) * 0.995, order_label(o), ha='center', va='top', fontsize=9,
+                    fontweight='bold', zorder=101, bbox={'fc': 'white', 'ec': 'none', 'alpha': 0.8, 'pad': 1})
         bar = _nice(amax / 2)
         xb = fmax * 0.93
-        ax.plot([xb, xb], [rpm[0], rpm[0] + bar * scale], color="k", lw=2.5, zorder=102)
-        ax.text(xb, rpm[0] + bar * scale / 2, f"{bar:g} µm ", ha="right", va="center", fontsize=8, zorder=102,
-                bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1})
+        ax.plot([xb, xb], [rpm[0], rpm[0] + bar * scale], color='k', lw=2.5, zorder=102)
+        ax.text(xb, rpm[0] + bar * scale / 2, f'{bar:g} µm ', ha='right', va='center', fontsize=8, zorder=102,
+                bbox={'fc': 'white', 'ec': 'none', 'alpha': 0.8, 'pad': 1})
         ax.set_xlim(0, fmax)
         ax.set_ylim(rpm[0] - 0.5 * step, top)
-        ax.set_xlabel("frequency [Hz]")
+        ax.set_xlabel('frequency [Hz]')
         if k == 0:
-            ax.set_ylabel("rotor speed [rpm] (baseline of each spectrum)")
+            ax.set_ylabel('rotor speed [rpm] (baseline of each spectrum)')
         ax.set_title(head, fontsize=10)
     stats = []
     for label, ci, li, (s, f, a) in log_spectra:
         ax2.semilogy(f, np.maximum(a * 1e6, 1e-6), color=run_color(ci), ls=_LS[li % len(_LS)], lw=0.9,
-                     gid=f"logspec:{label}", label=f"{label} at {s * 60 / (2 * np.pi):.0f} rpm")
+                     gid=f'logspec:{label}', label=f'{label} at {s * 60 / (2 * np.pi):.0f} rpm')
         stats.append((s, float(np.median(a)) * 1e6, float(np.max(a)) * 1e6))
     if stats:
         s = max(v[0] for v in stats)
@@ -80,19 +85,19 @@ def waterfall_figure(cascades, log_spectra, *, fmax: float, title=None):
         fr = s / (2 * np.pi)
         for o in ORDERS:
             ax2.axvline(o * fr, **ORDER_STYLES[o])
-            ax2.text(o * fr, 1.0, f" {order_label(o)}", transform=ax2.get_xaxis_transform(), va="top", fontsize=8)
-        ax2.axhline(floor, color="0.6", lw=0.8, ls="-.")
-        ax2.text(fmax * 0.995, floor, "median (noise floor)", ha="right", va="bottom", fontsize=7, color="0.4")
+            ax2.text(o * fr, 1.0, f' {order_label(o)}', transform=ax2.get_xaxis_transform(), va='top', fontsize=8)
+        ax2.axhline(floor, color='0.6', lw=0.8, ls='-.')
+        ax2.text(fmax * 0.995, floor, 'median (noise floor)', ha='right', va='bottom', fontsize=7, color='0.4')
         ax2.set_ylim(max(floor / 30, 1e-6), max(v[2] for v in stats) * 3)
-        ax2.legend(fontsize=8, loc="upper right")
+        ax2.legend(fontsize=8, loc='upper right')
     ax2.set_xlim(0, fmax)
-    ax2.set_xlabel("frequency [Hz]")
-    ax2.set_ylabel("amplitude [µm]")
-    ax2.set_title("highest speed, log scale (order lines at its speed)", fontsize=9)
-    ax2.grid(alpha=0.25, which="both")
-    fig.suptitle(title or "spectrum cascade", fontsize=10)
+    ax2.set_xlabel('frequency [Hz]')
+    ax2.set_ylabel('amplitude [µm]')
+    ax2.set_title('highest speed, log scale (order lines at its speed)', fontsize=9)
+    ax2.grid(alpha=0.25, which='both')
+    fig.suptitle(title or 'spectrum cascade', fontsize=10)
     fig.subplots_adjust(left=0.1 if nc == 1 else 0.07, right=0.98, top=0.93, bottom=0.07, hspace=0.3, wspace=0.2)
     return fig
 
 
-__all__ = ["waterfall_figure"]
+__all__ = ['waterfall_figure']

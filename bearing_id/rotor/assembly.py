@@ -1,4 +1,5 @@
-"""Global FE rotor model: assembly from the rig parameters, bearings, frequency response, state space, statics.
+"""
+Global FE rotor model: assembly from the rig parameters, bearings, frequency response, state space, statics.
 
 Equation of motion (see :mod:`bearing_id.conventions`)::
 
@@ -16,14 +17,15 @@ from functools import cached_property
 
 import numpy as np
 
-from ..conventions import DOF_PER_NODE, GRAVITY, LOCAL_DOF, dof_index, node_index
-from ..params import RigParams
 from .elements import DiscElement, ShaftElement
+from ..conventions import dof_index, DOF_PER_NODE, GRAVITY, LOCAL_DOF, node_index
+from ..params import RigParams
 
 
 @dataclass(eq=False)
 class RotorModel:
-    """Assembled rotor (no bearings).  Arrays are SI; ``ndof = 4 n_nodes``.
+    """
+    Assembled rotor (no bearings).  Arrays are SI; ``ndof = 4 n_nodes``.
 
     Attributes
     ----------
@@ -32,7 +34,9 @@ class RotorModel:
     M_shaft, K_shaft : the shaft-only parts (for proportional damping and model updating).
     bearing_nodes : tuple of 1-based bearing node numbers.   rig : the RigParams it was built from (or None).
     elements : list of ShaftElement.   discs : dict {node: DiscElement}.
+
     """
+
     n_nodes: int
     node_z: np.ndarray
     M: np.ndarray
@@ -57,7 +61,7 @@ class RotorModel:
 
     @classmethod
     def from_elements(cls, elements, discs=None, *, damping_alpha=0.0, damping_beta=0.0, bearing_nodes=(), rig=None):
-        """Assemble ``elements`` (ShaftElement list; element i joins nodes i+1, i+2) and ``discs`` {node: DiscElement}."""
+        """Assemble ``elements`` (ShaftElement list; element i joins nodes i+1, i+2), ``discs`` {node: DiscElement}."""
         n_nodes = len(elements) + 1
         nd = DOF_PER_NODE * n_nodes
         Ms, Ks, G = np.zeros((nd, nd)), np.zeros((nd, nd)), np.zeros((nd, nd))
@@ -80,8 +84,9 @@ class RotorModel:
 
     @classmethod
     def from_params(cls, rig: RigParams, *, shaft_mass_factor: float = 1.0, stiffness_factor: float = 1.0,
-                    shear_method: str = "hutchinson") -> "RotorModel":
-        """Build the model of ``rig``.
+                    shear_method: str = 'hutchinson') -> 'RotorModel':
+        """
+        Build the model of ``rig``.
 
         Discs use ``params.Disc`` mass and inertias (which include the disc's ``mass_factor``).  The optional factors
         are the model-updating hooks: ``shaft_mass_factor`` scales the shaft density (translational and rotary
@@ -113,7 +118,7 @@ class RotorModel:
 
 # ------------------------------------------------------------------------------------------------- bearings
 def _xy_index(model: RotorModel, node: int) -> int:
-    return dof_index(node, "x", model.n_nodes)
+    return dof_index(node, 'x', model.n_nodes)
 
 
 def add_bearings(model: RotorModel, K: np.ndarray, C: np.ndarray, coeffs: dict) -> None:
@@ -142,7 +147,8 @@ def system_matrices(model: RotorModel, speed: float, coeffs: dict) -> tuple[np.n
 
 # ------------------------------------------------------------------------------------------------- responses
 def dynamic_stiffness(model: RotorModel, speed: float, omega: float, coeffs: dict) -> np.ndarray:
-    """Z = K + Kb - omega^2 M + j omega (C + Cb + speed G), complex (ndof, ndof).
+    """
+    Z = K + Kb - omega^2 M + j omega (C + Cb + speed G), complex (ndof, ndof).
 
     ``speed`` is the spin speed [rad/s], ``omega`` the excitation frequency [rad/s] (= speed for 1X).
     """
@@ -170,18 +176,23 @@ def state_space(model: RotorModel, speed: float, coeffs: dict) -> tuple[np.ndarr
 
 
 def probe_matrix(model: RotorModel, probes) -> np.ndarray:
-    """Selection matrix (nch, ndof) picking each probe's DOF; ``probes`` are params.Probe or (node, direction)."""
+    """
+    Return the selection matrix (nch, ndof) picking each probe's DOF.
+
+    ``probes`` are params.Probe or (node, direction).
+    """
     probes = list(probes)
     S = np.zeros((len(probes), model.ndof))
     for i, p in enumerate(probes):
-        node, direction = (p.node, p.direction) if hasattr(p, "node") else p
+        node, direction = (p.node, p.direction) if hasattr(p, 'node') else p
         S[i, dof_index(node, direction, model.n_nodes)] = 1.0
     return S
 
 
 # ------------------------------------------------------------------------------------------------- statics
 def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, float]:
-    """Weight carried by each bearing [N] (positive = the bearing pushes the shaft up), gravity along -y.
+    """
+    Weight carried by each bearing [N] (positive = the bearing pushes the shaft up), gravity along -y.
 
     The bearings are rigid vertical supports; the statics is solved in the vertical plane (y, tx) with the
     consistent gravity load f = -g M u_y, so the reactions satisfy force and moment balance exactly (two supports:
@@ -189,14 +200,14 @@ def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, flo
     """
     nodes = tuple(bearing_nodes if bearing_nodes is not None else model.bearing_nodes)
     if len(nodes) < 2:
-        raise ValueError("static bearing loads need at least two bearings (the vertical plane must be supported)")
+        raise ValueError('static bearing loads need at least two bearings (the vertical plane must be supported)')
     n = model.n_nodes
-    plane = np.sort(np.concatenate([np.arange(n) * DOF_PER_NODE + LOCAL_DOF["y"],
-                                    np.arange(n) * DOF_PER_NODE + LOCAL_DOF["tx"]]))
+    plane = np.sort(np.concatenate([np.arange(n) * DOF_PER_NODE + LOCAL_DOF['y'],
+                                    np.arange(n) * DOF_PER_NODE + LOCAL_DOF['tx']]))
     uy = np.zeros(model.ndof)
-    uy[LOCAL_DOF["y"]::DOF_PER_NODE] = 1.0
+    uy[LOCAL_DOF['y']::DOF_PER_NODE] = 1.0
     f = -GRAVITY * (model.M @ uy)
-    sup = np.array([dof_index(b, "y", n) for b in nodes])
+    sup = np.array([dof_index(b, 'y', n) for b in nodes])
     free = np.setdiff1d(plane, sup)
     K = model.K
     qf = np.linalg.solve(K[np.ix_(free, free)], f[free])
@@ -204,5 +215,5 @@ def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, flo
     return {int(b): float(v) for b, v in zip(nodes, r)}
 
 
-__all__ = ["RotorModel", "add_bearings", "bearing_matrices", "system_matrices", "dynamic_stiffness",
-           "harmonic_response", "state_space", "probe_matrix", "static_bearing_loads"]
+__all__ = ['RotorModel', 'add_bearings', 'bearing_matrices', 'system_matrices', 'dynamic_stiffness',
+           'harmonic_response', 'state_space', 'probe_matrix', 'static_bearing_loads']

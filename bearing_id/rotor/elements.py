@@ -1,4 +1,5 @@
-"""Finite elements of the rotor: the Nelson (1980) Timoshenko shaft element and the rigid disc.
+"""
+Finite elements of the rotor: the Nelson (1980) Timoshenko shaft element and the rigid disc.
 
 DOFs per node ``[x, y, tx, ty]`` with tx = -dy/dz and ty = +dx/dz (see :mod:`bearing_id.conventions`); the element
 matrices are 8x8 on ``[x1, y1, tx1, ty1, x2, y2, tx2, ty2]``.  Equation of motion
@@ -21,8 +22,8 @@ Shear deformation
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -33,14 +34,14 @@ _T_YZ = np.zeros((4, 8))
 _T_YZ[[0, 1, 2, 3], [1, 2, 5, 6]] = [1.0, -1.0, 1.0, -1.0]   # (y1, -tx1, y2, -tx2): tx = -dy/dz
 
 
-def shear_coefficient(outer_d: float, inner_d: float, nu: float, method: str = "hutchinson") -> float:
+def shear_coefficient(outer_d: float, inner_d: float, nu: float, method: str = 'hutchinson') -> float:
     """Timoshenko shear coefficient kappa [-] of a (hollow) circular section."""
     r2 = (inner_d / outer_d) ** 2
     r12 = (1.0 + r2) ** 2
-    if method == "hutchinson":
+    if method == 'hutchinson':
         return 6.0 * r12 * (1.0 + nu) ** 2 / (r12 * (7.0 + 12.0 * nu + 4.0 * nu**2)
                                               + 4.0 * r2 * (5.0 + 6.0 * nu + 2.0 * nu**2))
-    if method == "cowper":
+    if method == 'cowper':
         return 6.0 * r12 * (1.0 + nu) / (r12 * (7.0 + 6.0 * nu) + r2 * (20.0 + 12.0 * nu))
     raise ValueError(f"shear coefficient method must be 'hutchinson' or 'cowper', got {method!r}")
 
@@ -50,27 +51,29 @@ def _planar(T: np.ndarray, P: np.ndarray) -> np.ndarray:
 
 
 class ShaftElement:
-    """Uniform Timoshenko shaft element (Nelson 1980).
+    """
+    Uniform Timoshenko shaft element (Nelson 1980).
 
     Parameters
     ----------
     length : m.   outer_d, inner_d : m.   E, G : Pa (Young's and shear modulus).   rho : kg/m^3.
     shear : include shear deformation (phi).   rotary_inertia : include rotary inertia (and gyroscopics).
     shear_method : 'hutchinson' (default) or 'cowper'.
+
     """
 
     def __init__(self, length, outer_d, inner_d, E, G, rho, *, shear=True, rotary_inertia=True,
-                 shear_method="hutchinson"):
+                 shear_method='hutchinson'):
         if not (length > 0 and outer_d > inner_d >= 0 and E > 0 and G > 0 and rho > 0):
-            raise ValueError("shaft element needs length > 0, outer_d > inner_d >= 0, E, G, rho > 0")
+            raise ValueError('shaft element needs length > 0, outer_d > inner_d >= 0, E, G, rho > 0')
         self.length, self.outer_d, self.inner_d = float(length), float(outer_d), float(inner_d)
         self.E, self.G_mod, self.rho = float(E), float(G), float(rho)
         self.shear, self.rotary_inertia, self.shear_method = bool(shear), bool(rotary_inertia), shear_method
         shear_coefficient(1.0, 0.0, 0.3, shear_method)  # validates the method name
 
     def __repr__(self):
-        return (f"ShaftElement(length={self.length}, outer_d={self.outer_d}, inner_d={self.inner_d}, E={self.E}, "
-                f"G={self.G_mod}, rho={self.rho})")
+        return (f'ShaftElement(length={self.length}, outer_d={self.outer_d}, inner_d={self.inner_d}, E={self.E}, '
+                f'G={self.G_mod}, rho={self.rho})')
 
     # section properties
     @property
@@ -151,6 +154,7 @@ class ShaftElement:
 @dataclass(frozen=True)
 class DiscElement:
     """Rigid disc at one node: mass ``m`` [kg], diametral inertia ``Id`` and polar inertia ``Ip`` [kg m^2]."""
+
     m: float
     Id: float
     Ip: float
@@ -167,4 +171,4 @@ class DiscElement:
         return g
 
 
-__all__ = ["ShaftElement", "DiscElement", "shear_coefficient"]
+__all__ = ['ShaftElement', 'DiscElement', 'shear_coefficient']

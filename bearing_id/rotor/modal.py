@@ -1,4 +1,5 @@
-"""Modal analysis of the rotor: damped modes with whirl direction, free-free modes, Campbell data, critical speeds.
+"""
+Modal analysis of the rotor: damped modes with whirl direction, free-free modes, Campbell data, critical speeds.
 
 All frequencies in rad/s.  A mode with eigenvalue lambda = sigma + j wd (wd > 0) has damped frequency wd, natural
 frequency |lambda|, damping ratio zeta = -sigma / |lambda| and logarithmic decrement delta = -2 pi sigma / wd
@@ -13,18 +14,20 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.optimize import brentq
 
-from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, whirl_direction
 from .assembly import RotorModel, state_space
+from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, whirl_direction
 
 
 @dataclass(frozen=True)
 class DampedModes:
-    """The lowest ``n`` underdamped modes at one speed, sorted by damped frequency.
+    """
+    The lowest ``n`` underdamped modes at one speed, sorted by damped frequency.
 
     frequency : (n,) damped natural frequency wd [rad/s].   natural_frequency : (n,) |lambda| [rad/s].
     damping_ratio : (n,) [-].   log_dec : (n,) [-].   whirl : tuple of 'forward' | 'backward'.
     eigenvalues : (n,) complex [1/s].   shapes : (ndof, n) complex displacement part of the eigenvectors.
     """
+
     frequency: np.ndarray
     natural_frequency: np.ndarray
     damping_ratio: np.ndarray
@@ -36,17 +39,18 @@ class DampedModes:
 
 def mode_whirl(model: RotorModel, shape: np.ndarray) -> str:
     """'forward' or 'backward' for a complex mode shape (ndof,), voting the node orbits by their size."""
-    X = shape[LOCAL_DOF["x"]::DOF_PER_NODE]
-    Y = shape[LOCAL_DOF["y"]::DOF_PER_NODE]
+    X = shape[LOCAL_DOF['x']::DOF_PER_NODE]
+    Y = shape[LOCAL_DOF['y']::DOF_PER_NODE]
     score = 0.0
     for xi, yi in zip(X, Y):
         major, _ = orbit_semi_axes(xi, yi)
-        score += major if whirl_direction(xi, yi) == "forward" else -major
-    return "forward" if score >= 0 else "backward"
+        score += major if whirl_direction(xi, yi) == 'forward' else -major
+    return 'forward' if score >= 0 else 'backward'
 
 
 def damped_modes(model: RotorModel, speed: float, coeffs: dict, n: int = 8) -> DampedModes:
-    """Damped modes of the rotor on bearings ``coeffs`` at spin ``speed`` [rad/s]; the lowest ``n`` by wd.
+    """
+    Damped modes of the rotor on bearings ``coeffs`` at spin ``speed`` [rad/s]; the lowest ``n`` by wd.
 
     Overdamped (real) eigenvalues are not modes of vibration and are left out.
     """
@@ -65,13 +69,14 @@ def damped_modes(model: RotorModel, speed: float, coeffs: dict, n: int = 8) -> D
 
 
 def free_free_frequencies(model: RotorModel, n: int = 4, return_shapes: bool = False):
-    """Lowest ``n`` elastic free-free bending frequencies [rad/s] at zero speed (no bearings).
+    """
+    Lowest ``n`` elastic free-free bending frequencies [rad/s] at zero speed (no bearings).
 
     Solved in the x-z plane (x, ty DOFs; the y-z plane gives the same frequencies); the two rigid-body modes
     (translation, tilt) are excluded.  With ``return_shapes`` also the (n_nodes,) lateral shapes (n_nodes, n).
     """
-    idx = np.sort(np.concatenate([np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF["x"],
-                                  np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF["ty"]]))
+    idx = np.sort(np.concatenate([np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF['x'],
+                                  np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF['ty']]))
     K = model.K[np.ix_(idx, idx)]
     M = model.M[np.ix_(idx, idx)]
     w2, V = eigh(K, M)
@@ -84,8 +89,13 @@ def free_free_frequencies(model: RotorModel, n: int = 4, return_shapes: bool = F
 
 @dataclass(frozen=True)
 class Campbell:
-    """Campbell data: ``speeds`` (ns,) [rad/s]; ``frequency``, ``log_dec``, ``damping_ratio`` (ns, n); ``whirl``
-    (ns, n) array of 'forward'/'backward'."""
+    """
+    Campbell data.
+
+    ``speeds`` (ns,) [rad/s]; ``frequency``, ``log_dec``, ``damping_ratio`` (ns, n); ``whirl`` (ns, n) array of
+    'forward'/'backward'.
+    """
+
     speeds: np.ndarray
     frequency: np.ndarray
     damping_ratio: np.ndarray
@@ -94,7 +104,8 @@ class Campbell:
 
 
 def campbell(model: RotorModel, speeds, bearing_fn, n: int = 8) -> Campbell:
-    """Damped modes over ``speeds`` [rad/s] with speed-dependent bearings ``bearing_fn(speed) -> coeffs``.
+    """
+    Damped modes over ``speeds`` [rad/s] with speed-dependent bearings ``bearing_fn(speed) -> coeffs``.
 
     Modes are ordered by frequency at each speed (no mode tracking); NaN where fewer than ``n`` modes exist.
     """
@@ -102,7 +113,7 @@ def campbell(model: RotorModel, speeds, bearing_fn, n: int = 8) -> Campbell:
     F = np.full((speeds.size, n), np.nan)
     Z = np.full_like(F, np.nan)
     D = np.full_like(F, np.nan)
-    Wh = np.full(F.shape, "", dtype=object)
+    Wh = np.full(F.shape, '', dtype=object)
     for i, s in enumerate(speeds):
         m = damped_modes(model, s, bearing_fn(s), n)
         k = m.frequency.size
@@ -113,18 +124,19 @@ def campbell(model: RotorModel, speeds, bearing_fn, n: int = 8) -> Campbell:
 
 def _forward_frequencies(model, speed, bearing_fn, n):
     m = damped_modes(model, speed, bearing_fn(speed), n)
-    return np.array([f for f, w in zip(m.frequency, m.whirl) if w == "forward"])
+    return np.array([f for f, w in zip(m.frequency, m.whirl) if w == 'forward'])
 
 
 def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60, n_modes: int = 8) -> np.ndarray:
-    """Synchronous critical speeds [rad/s]: where a forward-whirl damped frequency crosses the 1X line.
+    """
+    Return the synchronous critical speeds [rad/s]: where a forward-whirl damped frequency crosses the 1X line.
 
     ``speed_range`` = (lo, hi) [rad/s], lo > 0.  The k-th forward mode's wd(Omega) - Omega is sampled on ``n_grid``
     speeds, each sign change refined with Brent's method.  Returns the sorted crossings inside the range.
     """
     lo, hi = map(float, speed_range)
     if not 0 < lo < hi:
-        raise ValueError("speed_range must be (lo, hi) with 0 < lo < hi [rad/s]")
+        raise ValueError('speed_range must be (lo, hi) with 0 < lo < hi [rad/s]')
     grid = np.linspace(lo, hi, n_grid)
     fw = [_forward_frequencies(model, s, bearing_fn, n_modes) for s in grid]
     kmax = min(len(f) for f in fw)
@@ -142,5 +154,5 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
     return np.array(sorted(out))
 
 
-__all__ = ["DampedModes", "damped_modes", "mode_whirl", "free_free_frequencies", "Campbell", "campbell",
-           "critical_speeds"]
+__all__ = ['DampedModes', 'damped_modes', 'mode_whirl', 'free_free_frequencies', 'Campbell', 'campbell',
+           'critical_speeds']
