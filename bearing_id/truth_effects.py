@@ -1,4 +1,5 @@
-"""Simulator-side physics that the nominal model leaves out: concealed effects for the simulated rig.
+"""
+Simulator-side physics that the nominal model leaves out: concealed effects for the simulated rig.
 
 These objects are passed to :func:`bearing_id.rig.simulate` as ``effects=[...]`` (see docs/ARCHITECTURE.md, "rig.py
 truth effects").  They are written *independently* of the fitting-side models in :mod:`bearing_id.diagnose.effects`
@@ -24,8 +25,8 @@ f(t) = Re{F exp(j r phi)}; a forward rotating vector has F_y = -j F_x.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
@@ -33,19 +34,23 @@ from .conventions import dof_index
 
 
 def _node_xy(node: int, n_nodes: int) -> int:
-    return dof_index(node, "x", n_nodes)
+    return dof_index(node, 'x', n_nodes)
 
 
 # --------------------------------------------------------------------------------------------- system effects
 @dataclass
 class SupportFlexibility:
-    """Flexible pedestal under the bearing at ``bearing_node``: mass ``mass`` [kg], stiffness ``k`` [N/m], damping
+    """
+    Flexible pedestal under a bearing (truth: pedestal DOFs appended).
+
+    Flexible pedestal under the bearing at ``bearing_node``: mass ``mass`` [kg], stiffness ``k`` [N/m], damping
     ``c`` [N s/m] per direction, ``None`` for a rigid direction, e.g. ``k=(None, 3e5)`` = vertical only.
 
     Truth route: one DOF is appended per flexible direction; the oil film (the bearing block that the rig already
     put on the journal DOFs) is re-routed to act on the *relative* journal-pedestal displacement, and the pedestal
     is tied to ground by k and c.  Put this effect before others that change the same bearing block.
     """
+
     bearing_node: int
     k: tuple = (None, 3e5)
     c: tuple = (0.0, 0.0)
@@ -88,11 +93,13 @@ class SupportFlexibility:
 
 @dataclass
 class DiscMassError:
-    """The disc at ``node`` is ``factor`` times as heavy as the model says (mass, diametral and polar inertia).
+    """
+    The disc at ``node`` is ``factor`` times as heavy as the model says (mass, diametral and polar inertia).
 
     Truth route: the disc's own m, Id, Ip are recomputed from the rig geometry (thick annulus) and the extra
     ``(factor - 1)`` share is written into M (x, y, theta) and into the gyroscopic term speed * Ip of C.
     """
+
     rig: object
     node: int
     factor: float = 1.2
@@ -100,7 +107,7 @@ class DiscMassError:
     def modify_system(self, M, C, K, speed, model):
         discs = [d for d in self.rig.discs if d.node == self.node]
         if not discs:
-            raise ValueError(f"no disc at node {self.node}")
+            raise ValueError(f'no disc at node {self.node}')
         m = sum(d.mass for d in discs)
         ro2 = [((d.outer_diameter / 2) ** 2, (d.inner_diameter / 2) ** 2, d.thickness, d.mass) for d in discs]
         Ip = sum(mm * (a + b) / 2 for a, b, _, mm in ro2)
@@ -123,6 +130,7 @@ class DiscMassError:
 @dataclass
 class ResidualUnbalance:
     """An unbalance ``me`` [kg m] at ``node``, ``phase`` [rad] from the key mark, that the model does not know."""
+
     node: int
     me: float
     phase: float = 0.0
@@ -137,12 +145,16 @@ class ResidualUnbalance:
 
 @dataclass
 class ShaftBow:
-    """A permanently bent shaft: bow ``amplitude`` [m] at its crest, at ``phase`` [rad] from the key mark, shaped as
+    """
+    A permanently bent shaft (truth: a half-sine bow).
+
+    A permanently bent shaft: bow ``amplitude`` [m] at its crest, at ``phase`` [rad] from the key mark, shaped as
     a half sine over the whole shaft (zero at both shaft ends).
 
     Truth route: the unstressed shaft is bent, so the elastic force is K_shaft (q - b) and the bow acts as the
     rotating force K_shaft b (1X, forward; constant amplitude with speed, unlike an unbalance).
     """
+
     rig: object
     amplitude: float
     phase: float = 0.0
@@ -175,31 +187,41 @@ class ShaftBow:
 
 @dataclass
 class Misalignment:
-    """Coupling misalignment: a 2X force of ``magnitude`` [N] at ``node`` (the coupling end), ``phase`` [rad],
-    ``direction`` 'x', 'y' or 'forward' (rotating at 2X)."""
+    """
+    Coupling misalignment: a 2X force at the coupling end.
+
+    Coupling misalignment: a 2X force of ``magnitude`` [N] at ``node`` (the coupling end), ``phase`` [rad],
+    ``direction`` 'x', 'y' or 'forward' (rotating at 2X).
+    """
+
     node: int = 1
     magnitude: float = 2.0
     phase: float = 0.0
-    direction: str = "forward"
+    direction: str = 'forward'
 
     def forces(self, speed, ndof):
         F = np.zeros(ndof, dtype=complex)
         i = 4 * (self.node - 1)
         f = self.magnitude * complex(math.cos(self.phase), math.sin(self.phase))
-        if self.direction in ("x", "forward"):
+        if self.direction in ('x', 'forward'):
             F[i] = f
-        if self.direction == "y":
+        if self.direction == 'y':
             F[i + 1] = f
-        if self.direction == "forward":
+        if self.direction == 'forward':
             F[i + 1] = -1j * f
         return {2.0: F}
 
 
 @dataclass
 class OilWhirl:
-    """Oil whirl: above ``onset_rpm`` the film at ``bearing_node`` drives a forward whirl at ``ratio`` x speed,
+    """
+    Oil whirl above an onset speed (truth: a forward sub-synchronous force).
+
+    Oil whirl: above ``onset_rpm`` the film at ``bearing_node`` drives a forward whirl at ``ratio`` x speed,
     simulated as a forward rotating force of ``magnitude`` [N] at that frequency (a linear stand-in for the
-    limit cycle)."""
+    limit cycle).
+    """
+
     bearing_node: int = 2
     onset_rpm: float = 2000.0
     ratio: float = 0.45
@@ -222,8 +244,13 @@ def _phase_angle(angle):
 
 @dataclass
 class ProbeRunout:
-    """Electrical/mechanical runout on probe ``probe`` (channel name): an extra reading
-    ``amplitude cos(phi + phase)`` [m] locked to the rotor angle, the same at every speed (slow roll included)."""
+    """
+    Runout on one probe: a 1X reading locked to the rotor angle.
+
+    Electrical/mechanical runout on probe ``probe`` (channel name): an extra reading
+    ``amplitude cos(phi + phase)`` [m] locked to the rotor angle, the same at every speed (slow roll included).
+    """
+
     probe: str
     amplitude: float
     phase: float = 0.0
@@ -231,7 +258,7 @@ class ProbeRunout:
     def measure(self, samples, angle, speed, probes):
         names = [p.name for p in probes]
         if self.probe not in names:
-            raise ValueError(f"runout probe {self.probe!r} is not recorded ({names})")
+            raise ValueError(f'runout probe {self.probe!r} is not recorded ({names})')
         out = np.array(samples, dtype=float, copy=True)
         out[:, names.index(self.probe)] += self.amplitude * np.cos(_phase_angle(angle) + self.phase)
         return out
@@ -239,10 +266,15 @@ class ProbeRunout:
 
 @dataclass
 class ProbeOrientation:
-    """Probe ``probe`` is turned by ``angle`` [rad] (from its nominal axis towards the other axis, +x -> +y) and
+    """
+    One probe turned and gained.
+
+    Probe ``probe`` is turned by ``angle`` [rad] (from its nominal axis towards the other axis, +x -> +y) and
     reads with ``gain`` [-]: reading = gain (cos a * u_nominal + sin a * u_perp) where u_perp is the displacement
     along the nominal axis turned by +90 deg.  Needs the perpendicular probe at the same node in the recording
-    (its *clean* signal supplies the perpendicular displacement)."""
+    (its *clean* signal supplies the perpendicular displacement).
+    """
+
     probe: str
     angle: float = math.radians(8.0)
     gain: float = 1.0
@@ -251,16 +283,48 @@ class ProbeOrientation:
         names = [p.name for p in probes]
         i = names.index(self.probe)
         p = probes[i]
-        other = "y" if p.direction == "x" else "x"
+        other = 'y' if p.direction == 'x' else 'x'
         j = next((k for k, q in enumerate(probes) if q.node == p.node and q.direction == other), None)
         if j is None:
-            raise ValueError(f"probe orientation needs a {other} probe at node {p.node} in the recording")
+            raise ValueError(f'probe orientation needs a {other} probe at node {p.node} in the recording')
         # perpendicular direction turned +90 deg from nominal: x -> +y, y -> -x
-        perp = samples[:, j] if p.direction == "x" else -samples[:, j]
+        perp = samples[:, j] if p.direction == 'x' else -samples[:, j]
         out = np.array(samples, dtype=float, copy=True)
         out[:, i] = self.gain * (math.cos(self.angle) * samples[:, i] + math.sin(self.angle) * perp)
         return out
 
 
-__all__ = ["SupportFlexibility", "DiscMassError", "ResidualUnbalance", "ShaftBow", "Misalignment", "OilWhirl",
-           "ProbeRunout", "ProbeOrientation"]
+@dataclass
+class ProbePairOrientation:
+    """
+    An x/y probe pair mounted turned as a rigid pair, each probe with its own gain.
+
+    The x/y probe pair at ``node`` is mounted turned by ``angle`` [rad] as a rigid pair (from +x towards +y), and
+    each probe reads with its own gain: the x probe's axis is (cos a, sin a), the y probe's (-sin a, cos a), so
+
+        reading_x = gain_x (cos a * x + sin a * y),     reading_y = gain_y (-sin a * x + cos a * y)
+
+    with (x, y) the true (clean) displacement.  Both readings come from the clean signals of the pair (unlike two
+    :class:`ProbeOrientation` in a row, where the second would see the first one's turned reading).
+    """
+
+    node: int
+    angle: float = math.radians(10.0)
+    gain_x: float = 1.0
+    gain_y: float = 1.0
+
+    def measure(self, samples, angle, speed, probes):
+        ix = next((k for k, p in enumerate(probes) if p.node == self.node and p.direction == 'x'), None)
+        iy = next((k for k, p in enumerate(probes) if p.node == self.node and p.direction == 'y'), None)
+        if ix is None or iy is None:
+            raise ValueError(f'probe pair orientation needs an x and a y probe at node {self.node}')
+        x, y = samples[:, ix].copy(), samples[:, iy].copy()
+        ca, sa = math.cos(self.angle), math.sin(self.angle)
+        out = np.array(samples, dtype=float, copy=True)
+        out[:, ix] = self.gain_x * (ca * x + sa * y)
+        out[:, iy] = self.gain_y * (-sa * x + ca * y)
+        return out
+
+
+__all__ = ['SupportFlexibility', 'DiscMassError', 'ResidualUnbalance', 'ShaftBow', 'Misalignment', 'OilWhirl',
+           'ProbeRunout', 'ProbeOrientation', 'ProbePairOrientation']

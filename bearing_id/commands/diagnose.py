@@ -1,4 +1,5 @@
-"""``bearing-id diagnose``: locate where recordings and the model disagree, name the missing physics, model it.
+"""
+``bearing-id diagnose``: locate where recordings and the model disagree, name the missing physics, model it.
 
 Exit codes: 0 a verdict was reached ('none' included), 2 bad input.
 """
@@ -7,46 +8,50 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..params import ParamError, load_rig
+from ..params import load_rig, ParamError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("diagnose", help="find the physics the model leaves out (support flexibility, unbalance, bow, "
-                                        "runout, misalignment, oil whirl, probe orientation, disc mass)",
-                       description="Compare recordings with the model of --params (harmonic vectors per probe, "
-                                   "order and speed, sub-synchronous lines, slow roll), fit candidate effects, rank "
-                                   "them by BIC with held-out validation, and write the verdict, the augmented "
-                                   "params file and a before/after report.")
-    p.add_argument("recordings", nargs="+", help="recording files: .npz (bearing-id simulate / DAQ export), .csv "
-                                                  "(DAQ export) or a bag directory (one run per /rotor/excitation)")
-    p.add_argument("--params", help="nominal rig YAML (default: the packaged params/rig.yaml)")
-    p.add_argument("--json", help="write the diagnosis JSON here")
-    p.add_argument("--report", help="directory for plots, summary.txt and augmented_params.yaml")
-    p.add_argument("--augmented", help="path of the augmented params YAML (default: REPORT/augmented_params.yaml, "
-                                       "or next to --json)")
-    p.add_argument("--held-out", choices=("speeds", "runs"), default="speeds",
-                   help="validation split: alternate speeds (default) or alternate recordings")
-    p.add_argument("--rel-tol", type=float, default=0.02,
-                   help="model tolerance as a fraction of the measured amplitude (default 0.02)")
-    p.add_argument("--identify", metavar="METHOD", choices=("physical", "direct"),
-                   help="re-run identification with METHOD (physical or direct) on the nominal and on the augmented "
-                        "model (measurement effects removed from the data, force effects added to the excitation, "
-                        "flexible supports / disc corrections in the dynamic stiffness) and print both, with their "
-                        "error vs truth when the recordings carry it")
-    p.add_argument("--fixed-bearings", action="store_true",
-                   help="trust the nominal bearing theory (do not refit viscosity/clearance factors as nuisance)")
+    p = sub.add_parser('diagnose', help='find the physics the model leaves out (support flexibility, unbalance, bow, '
+                                        'runout, misalignment, oil whirl, probe orientation, disc mass)',
+                       description='Compare recordings with the model of --params (harmonic vectors per probe, '
+                                   'order and speed, sub-synchronous lines, slow roll), fit candidate effects, rank '
+                                   'them by BIC with held-out validation, and write the verdict, the augmented '
+                                   'params file and a before/after report.')
+    p.add_argument('recordings', nargs='+', help='recording files: .npz (bearing-id simulate / DAQ export), .csv '
+                                                 '(DAQ export) or a bag directory (one run per /rotor/excitation)')
+    p.add_argument('--params', help='nominal rig YAML (default: the packaged params/rig.yaml)')
+    p.add_argument('--json', help='write the diagnosis JSON here')
+    p.add_argument('--report', help='directory for plots, summary.txt and augmented_params.yaml')
+    p.add_argument('--augmented', help='path of the augmented params YAML (default: REPORT/augmented_params.yaml, '
+                                       'or next to --json)')
+    p.add_argument('--held-out', choices=('speeds', 'runs'), default='speeds',
+                   help='validation split: alternate speeds (default) or alternate recordings')
+    p.add_argument('--rel-tol', type=float, default=0.02,
+                   help='model tolerance as a fraction of the measured amplitude (default 0.02)')
+    p.add_argument('--identify', metavar='METHOD', choices=('physical', 'direct'),
+                   help='re-run identification with METHOD (physical or direct) on the nominal and on the augmented '
+                        'model (measurement effects removed from the data, force effects added to the excitation, '
+                        'flexible supports / disc corrections in the dynamic stiffness) and print both, with their '
+                        'error vs truth when the recordings carry it')
+    p.add_argument('--fixed-bearings', action='store_true',
+                   help='trust the nominal bearing theory (do not refit viscosity/clearance factors as nuisance)')
     return p
 
 
 def _load(paths) -> list:
-    """Recordings from .npz / .csv files and bags (one per excitation run); ParamError (exit 2) for any bad input."""
+    """
+    Load the recordings from .npz / .csv files and bags (one per excitation run).
+
+    ParamError (exit 2) for any bad input.
+    """
     from .inputs import load_recordings
     return load_recordings(paths)
 
 
 def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
-        raise ParamError("--rel-tol must be in [0, 1)")
+        raise ParamError('--rel-tol must be in [0, 1)')
     from .inputs import attach_excitation, check_probe_nodes
     rig = load_rig(args.params)
     recs = attach_excitation(_load(args.recordings), rig, required=False)   # all checked before the heavy imports
@@ -56,44 +61,44 @@ def run(args) -> int:
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings)
     except ValueError as exc:
-        raise ParamError(f"cannot diagnose these recordings: {exc}") from None
-    aug = args.augmented or (Path(args.report) / "augmented_params.yaml" if args.report else
-                             (Path(args.json).with_name(Path(args.json).stem + "_augmented_params.yaml")
+        raise ParamError(f'cannot diagnose these recordings: {exc}') from None
+    aug = args.augmented or (Path(args.report) / 'augmented_params.yaml' if args.report else
+                             (Path(args.json).with_name(Path(args.json).stem + '_augmented_params.yaml')
                               if args.json else None))
     if aug is not None:
         write_params(d, rig, aug)
-    print(f"verdict: {d.verdict}")
+    print(f'verdict: {d.verdict}')
     for s in d.sentences:
-        print(f"  {s}")
+        print(f'  {s}')
     if d.mismatch:
-        print("located mismatch (largest first):")
+        print('located mismatch (largest first):')
         for m in d.mismatch[:8]:
-            print(f"  {m.where:32s} {m.order:34s} {m.size * 1e6:9.3g} um {m.significance:7.1f} sigma  at "
-                  + ", ".join(f"{s:.0f}" for s in m.speeds_rpm) + " rpm")
-    print("hypotheses (first step, best BIC first):")
-    for h in [h for h in d.hypotheses if h["step"] == 0][:8]:
+            print(f'  {m.where:32s} {m.order:34s} {m.size * 1e6:9.3g} um {m.significance:7.1f} sigma  at '
+                  + ', '.join(f'{s:.0f}' for s in m.speeds_rpm) + ' rpm')
+    print('hypotheses (first step, best BIC first):')
+    for h in [h for h in d.hypotheses if h['step'] == 0][:8]:
         print(f"  {h['effect']:20s} {h['where']:40s} dBIC {h['delta_bic']:10.1f}  explains "
               f"{h['explained_fraction']:6.1%}  validated {h['validated']}")
     if args.json:
         write_json(d, args.json)
-        print(f"wrote {args.json}")
+        print(f'wrote {args.json}')
     if args.identify:
         from ..diagnose.reidentify import format_table, reidentify
         from ..diagnose.report import augmented_rig
         try:
             ri = reidentify(recs, rig, augmented_rig(d, rig), args.identify)
         except ValueError as exc:
-            raise ParamError(f"cannot re-run identification: {exc}") from None
+            raise ParamError(f'cannot re-run identification: {exc}') from None
         for line in format_table(ri):
             print(line)
         if args.json:
             import json
             j = json.loads(Path(args.json).read_text())
-            j["identification"] = ri.as_json()
+            j['identification'] = ri.as_json()
             Path(args.json).write_text(json.dumps(j, indent=2, default=float))
     if args.report:
         files = write_report(d, args.report)
-        print(f"wrote {len(files)} report files to {args.report}")
+        print(f'wrote {len(files)} report files to {args.report}')
     if aug is not None:
-        print(f"augmented params: {aug}")
+        print(f'augmented params: {aug}')
     return 0

@@ -1,4 +1,5 @@
-"""The augmented model of a diagnosis, in the form identification consumes (``bearing-id diagnose --identify``).
+"""
+The augmented model of a diagnosis, in the form identification consumes (``bearing-id diagnose --identify``).
 
 An augmented params file (``extra: {effects: [...]}``, written by :func:`report.write_params`) holds three kinds of
 physics the nominal model left out, and each enters identification at a different place:
@@ -25,7 +26,8 @@ from . import effects as fx
 
 
 class AugmentedModel:
-    """Hook object for identification on the augmented model.
+    """
+    Hook object for identification on the augmented model.
 
     Parameters
     ----------
@@ -34,6 +36,7 @@ class AugmentedModel:
 
     Protocol used by :mod:`bearing_id.identify.physical` / :mod:`bearing_id.identify.direct`:
     ``dynamic_stiffness(speed, omega, coeffs) -> Z (ndof, ndof)`` and ``extra_forces(speed) -> {ratio: F (ndof,)}``.
+
     """
 
     def __init__(self, model, rig):
@@ -43,17 +46,22 @@ class AugmentedModel:
 
     @property
     def names(self) -> list:
-        return [e.name for e, _, _ in self._effects] + [d["effect"] for d in self._corrections]
+        return [e.name for e, _, _ in self._effects] + [d['effect'] for d in self._corrections]
 
     @property
     def changes_system(self) -> bool:
-        """True when an effect changes the dynamic stiffness (the identification Jacobian is then numerical)."""
-        return any(type(e).bearing_impedance is not fx.Effect.bearing_impedance or type(e).add_dZ is not fx.Effect.add_dZ
+        """Return True when an effect changes the dynamic stiffness (the identification Jacobian is then numerical)."""
+        return any(type(e).bearing_impedance is not fx.Effect.bearing_impedance
+                   or type(e).add_dZ is not fx.Effect.add_dZ
                    for e, _, _ in self._effects)
 
     def dynamic_stiffness(self, speed: float, omega: float, coeffs: dict) -> np.ndarray:
-        """Z (ndof, ndof) of the rotor on ``coeffs`` ({node: (K, C)}) with the model effects, spin ``speed``,
-        frequency ``omega`` [rad/s]."""
+        """
+        Return the dynamic stiffness of the augmented rotor.
+
+        Z (ndof, ndof) of the rotor on ``coeffs`` ({node: (K, C)}) with the model effects, spin ``speed``,
+        frequency ``omega`` [rad/s].
+        """
         return fx.augmented_dynamic_stiffness(self.model, self.rig, speed, omega, coeffs, effects=self._effects)
 
     def extra_forces(self, speed: float) -> dict:
@@ -61,31 +69,45 @@ class AugmentedModel:
         return fx.augmented_forces(self.model, self.rig, speed, effects=self._effects)
 
     def correct_phasors(self, X: np.ndarray, probes) -> np.ndarray:
-        """Measured 1X phasors X (..., nch) [m] with the measurement effects removed (a corrected copy)."""
+        """
+        Measured 1X phasors X (..., nch) [m] with the measurement effects removed (a corrected copy).
+
+        Runout vectors are subtracted first.  Turned/gained probes are undone per x/y pair: the pair's readings are
+        r = T u with T's row for a turned probe g (cos a e_self + sin a e_perp) (its axis turned by a towards +90 deg,
+        e_perp = +y for an x probe, -x for a y probe) and the unit row for an untouched one; u = T^-1 r.  This undoes a
+        single turned probe and a pair turned together alike (each reading is re-projected with the partner's
+        *displacement*, not its reading).
+        """
         X = np.array(X, dtype=complex, copy=True)
         names = [p.name for p in probes]
-        # runout first: a turned probe is re-projected with its partner's *displacement*, free of runout
-        order = sorted(self._corrections, key=lambda d: d["effect"] != "probe_runout")
-        for d in order:
-            if d["probe"] not in names:
-                continue
-            i = names.index(d["probe"])
-            if d["effect"] == "probe_runout":
-                X[..., i] -= d["runout"] * np.exp(1j * math.radians(d.get("phase_deg", 0.0)))
-            elif d["effect"] == "probe_orientation":
-                p = probes[i]
-                other = "y" if p.direction == "x" else "x"
-                j = next((k for k, q in enumerate(probes) if q.node == p.node and q.direction == other), None)
-                if j is None:
-                    continue            # no partner to re-project with: left as measured
-                a, g = math.radians(d["angle_deg"]), float(d.get("gain", 1.0))
-                perp = X[..., j] if p.direction == "x" else -X[..., j]
-                X[..., i] = (X[..., i] / g - math.sin(a) * perp) / math.cos(a)
+        for d in self._corrections:
+            if d['effect'] == 'probe_runout' and d['probe'] in names:
+                X[..., names.index(d['probe'])] -= d['runout'] * np.exp(1j * math.radians(d.get('phase_deg', 0.0)))
+        by_node: dict = {}
+        for d in self._corrections:
+            if d['effect'] == 'probe_orientation' and d['probe'] in names:
+                by_node.setdefault(probes[names.index(d['probe'])].node, []).append(d)
+        for node, ds in by_node.items():
+            ix = next((k for k, q in enumerate(probes) if q.node == node and q.direction == 'x'), None)
+            iy = next((k for k, q in enumerate(probes) if q.node == node and q.direction == 'y'), None)
+            if ix is None or iy is None:
+                continue            # no partner to re-project with: left as measured
+            T = np.eye(2)
+            for d in ds:
+                a, g = math.radians(d['angle_deg']), float(d.get('gain', 1.0))
+                if probes[names.index(d['probe'])].direction == 'x':
+                    T[0] = g * np.array([math.cos(a), math.sin(a)])
+                else:
+                    T[1] = g * np.array([-math.sin(a), math.cos(a)])
+            Ti = np.linalg.inv(T)
+            rx, ry = X[..., ix].copy(), X[..., iy].copy()
+            X[..., ix] = Ti[0, 0] * rx + Ti[0, 1] * ry
+            X[..., iy] = Ti[1, 0] * rx + Ti[1, 1] * ry
         return X
 
     def correct_data(self, data):
-        """A copy of harmonic data (``identify.harmonics.HarmonicData``) with the measurement effects removed."""
+        """Return a copy of harmonic data (``identify.harmonics.HarmonicData``) with the measurement effects removed."""
         return dataclasses.replace(data, X=self.correct_phasors(data.X, data.probes))
 
 
-__all__ = ["AugmentedModel"]
+__all__ = ['AugmentedModel']

@@ -1,4 +1,5 @@
-"""Locate where recordings and the model disagree: measured harmonic vectors per window, residuals, significance.
+"""
+Locate where recordings and the model disagree: measured harmonic vectors per window, residuals, significance.
 
 Measured side (:func:`observe`)
     Each recording is cut into steady-speed windows (:func:`bearing_id.signals.steady_windows`); the first
@@ -9,7 +10,9 @@ Measured side (:func:`observe`)
     the same regression as the nX vectors (so that it does not leak into them).  It counts as a *whirl* only when its
     ratio lies in ``whirl_band`` (0.3-0.6X), it whirls forward and it does not decay within the window; otherwise it
     is the free vibration left by a speed change (a lightly damped mode at a fixed frequency) and is noted.  When any
-    window holds a whirl, every window gets a sub-synchronous vector at that ratio (zero where there is none).
+    window holds a whirl, every other window gets a sub-synchronous vector at the median whirl ratio of the windows
+    a fit may learn from (:meth:`Observations.assign_sub`: all windows in-sample, the training windows for held-out
+    validation), so that nothing about a whirl is learnt from a held-out window.
 
 Noise floor
     The 1-sigma std of each harmonic vector comes from the fit residual (white-noise least squares).  The
@@ -25,8 +28,8 @@ Located mismatch (:func:`locate`)
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
@@ -38,14 +41,19 @@ DEFAULT_ORDERS = (1, 2, 3)
 
 @dataclass
 class Window:
-    """One steady-speed window of one recording.
+    """
+    One steady-speed window of one recording.
 
     rec : recording index.   i0, i1 : sample range used.   speed : mean speed [rad/s].
     X, std : complex (n_orders, nch) harmonic vectors [m] and their 1-sigma std [m].
     sub_ratio : sub-synchronous ratio fitted (frequency / speed) or None.   X_sub, std_sub : (nch,) or None.
     sub_snr : peak-to-floor ratio of the strongest sub-synchronous line found in this window (0 if not searched).
     whirl : 'forward' / 'backward' of that line for the first x/y probe pair, or None.
+    own_ratio : the whirl ratio detected in *this* window (None when it holds no whirl); ``sub_ratio`` may instead be
+    a ratio assigned from other windows (the median of the whirl windows of the fit's data, see
+    :meth:`Observations.assign_sub`).   transient_ratio : ratio of a free-vibration line kept in the regression.
     """
+
     rec: int
     i0: int
     i1: int
@@ -57,6 +65,9 @@ class Window:
     std_sub: np.ndarray | None = None
     sub_snr: float = 0.0
     whirl: str | None = None
+    own_ratio: float | None = None
+    transient_ratio: float | None = None
+    own_sub: tuple | None = field(default=None, repr=False)
 
     @property
     def rpm(self) -> float:
@@ -65,32 +76,98 @@ class Window:
 
 @dataclass
 class Observations:
-    """Measured harmonic vectors of all recordings: ``windows`` (list of Window), ``orders``, and the recordings.
+    """
+    Measured harmonic vectors of all recordings: ``windows`` (list of Window), ``orders``, and the recordings.
 
     ``sub_present`` is True when a sub-synchronous line above the SNR threshold was found in some window.
     """
+
     recordings: list
     windows: list
     orders: tuple
     sub_present: bool = False
     sub_snr_threshold: float = 10.0
     notes: list = field(default_factory=list)
+    sub_ratio_train: float | None = None
+    sub_cache: dict = field(default_factory=dict, repr=False)     # (window, ratio) -> sub-synchronous vector
 
     def probes(self, rec: int):
         return tuple(self.recordings[rec].probes)
+
+    def sub_vector(self, k: int, ratio: float):
+        """
+        Return the sub-synchronous vector of window ``k`` at ``ratio`` x speed.
+
+        (X_sub (nch,), std_sub (nch,)) of window k at ``ratio`` x speed: the window's own fit when ``ratio`` is
+        the whirl it holds, else a regression at that ratio (jointly with the nX orders and the window's
+        free-vibration line), cached.
+        """
+        w = self.windows[k]
+        if w.own_ratio is not None and abs(ratio - w.own_ratio) < 1e-12 and w.own_sub is not None:
+            return w.own_sub
+        cache = self.sub_cache
+        key = (k, round(float(ratio), 12))
+        v = cache.get(key)
+        if v is None:
+            rec = self.recordings[w.rec]
+            x = np.asarray(rec.samples[w.i0:w.i1], dtype=float)
+            subs = [float(ratio)] + ([w.transient_ratio] if w.transient_ratio is not None else [])
+            fit = signals.harmonic_vectors(x, rec.angle[w.i0:w.i1], self.orders, subsync=subs, nonfinite='drop')
+            v = (fit.X_sub[0], np.sqrt(fit.std_sub[0] ** 2 + (FLOOR_TOL * np.abs(fit.X[0])) ** 2))
+            cache[key] = v
+        return v
+
+    def whirl_windows(self, windows=None) -> list:
+        """Return the indices (among ``windows``, default all) of the windows holding a whirl of their own."""
+        ks = range(len(self.windows)) if windows is None else windows
+        return [k for k in ks if self.windows[k].own_ratio is not None]
+
+    def assign_sub(self, train=None):
+        """
+        Return a copy whose sub-synchronous data come from the windows ``train`` only.
+
+        Copy of these observations whose sub-synchronous data come from the windows ``train`` only (default
+        all): a whirl window of ``train`` keeps its own ratio; every other window (of ``train`` or held out) gets
+        the median whirl ratio of ``train``'s whirl windows, and its vector at that ratio.  Without a whirl window in
+        ``train`` no window has sub-synchronous data (``sub_present`` False): nothing about a whirl is learnt from
+        held-out windows.
+        """
+        import copy
+        train = set(range(len(self.windows)) if train is None else train)
+        own = [k for k in self.whirl_windows() if k in train]
+        out = copy.copy(self)
+        wins = []
+        med = float(np.median([self.windows[k].own_ratio for k in own])) if own else None
+        for k, w in enumerate(self.windows):
+            w2 = copy.copy(w)
+            if med is None:
+                w2.sub_ratio, w2.X_sub, w2.std_sub = None, None, None
+            else:
+                r = w.own_ratio if (k in train and w.own_ratio is not None) else med
+                w2.sub_ratio = float(r)
+                w2.X_sub, w2.std_sub = self.sub_vector(k, r)
+            wins.append(w2)
+        out.windows = wins
+        out.sub_present = med is not None
+        out.sub_ratio_train = med
+        return out
 
 
 def _xy_pair(probes):
     for i, p in enumerate(probes):
         for j, q in enumerate(probes):
-            if p.node == q.node and p.direction == "x" and q.direction == "y":
+            if p.node == q.node and p.direction == 'x' and q.direction == 'y':
                 return i, j
     return None
 
 
 def _stationary(x, ang, ratio, keep: float = 0.6) -> bool:
-    """True when the ``ratio`` component has about the same amplitude in both halves of the window (a whirl);
-    False when it decays (the free vibration left by a speed change)."""
+    """
+    Return True when the ``ratio`` component keeps its amplitude over the window (a whirl).
+
+    True when the ``ratio`` component has about the same amplitude in both halves of the window (a whirl);
+    False when it decays (the free vibration left by a speed change).
+    """
     h = x.shape[0] // 2
     amp = []
     for sl in (slice(0, h), slice(h, None)):
@@ -103,15 +180,16 @@ WHIRL_BAND = (0.3, 0.6)   # frequency ratios accepted as oil whirl (classically 
 
 
 def _is_whirl(w, x, ang, band) -> bool:
-    """A sub-synchronous line is a whirl when its ratio is in ``band``, it whirls forward and it does not decay."""
-    if not band[0] <= w.sub_ratio <= band[1] or w.whirl == "backward":
+    """Return True when a sub-synchronous line is a whirl: ratio in ``band``, forward, not decaying."""
+    if not band[0] <= w.sub_ratio <= band[1] or w.whirl == 'backward':
         return False
     return _stationary(x, ang, w.sub_ratio)
 
 
 def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_duration: float = 0.25,
             tol_rel: float = 0.005, sub_snr: float = 10.0, whirl_band=WHIRL_BAND) -> Observations:
-    """Harmonic vectors of every steady window of every recording (see module docstring).
+    """
+    Harmonic vectors of every steady window of every recording (see module docstring).
 
     recordings : sequence of objects with ``t`` (N,) s, ``speed`` (N,) rad/s, ``angle`` (N,) rad, ``samples``
     (N, nch) m, ``sample_rate`` Hz and ``probes`` (as :class:`bearing_id.rig.Recording`).
@@ -121,18 +199,18 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
     transient = {}          # window index -> ratio of a free-vibration line kept in the regression
     for r, rec in enumerate(recordings):
         fs = float(rec.sample_rate)
-        t = np.asarray(rec.t) if getattr(rec, "t", None) is not None else np.arange(len(rec.speed)) / fs
+        t = np.asarray(rec.t) if getattr(rec, 't', None) is not None else np.arange(len(rec.speed)) / fs
         pair = _xy_pair(rec.probes)
         for a, b in signals.steady_windows(t, rec.speed, tol_rel=tol_rel, min_duration=min_duration):
             skip = min(int(round((settle + 0.2 * (b - a) / fs) * fs)), (b - a) // 2)
             a2 = a + skip
             ang = np.asarray(rec.angle[a2:b], dtype=float)
             if (ang[-1] - ang[0]) < 2 * math.pi * 1.05:
-                notes.append(f"recording {r}: window at {rad_s_to_rpm(np.mean(rec.speed[a2:b])):.0f} rpm "
-                             f"skipped (less than one revolution after settling)")
+                notes.append(f'recording {r}: window at {rad_s_to_rpm(np.mean(rec.speed[a2:b])):.0f} rpm '
+                             f'skipped (less than one revolution after settling)')
                 continue
             x = np.asarray(rec.samples[a2:b], dtype=float)
-            fit = signals.harmonic_vectors(x, ang, orders, nonfinite="drop")
+            fit = signals.harmonic_vectors(x, ang, orders, nonfinite='drop')
             w = Window(rec=r, i0=a2, i1=b, speed=float(np.mean(rec.speed[a2:b])), X=fit.X, std=fit.std)
             lines = []          # (ratio, snr, whirl direction)
             for band in ((0.05, 0.95), tuple(whirl_band)):
@@ -143,7 +221,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
                     pass
             strong = [ln for ln in lines if ln[1] >= sub_snr]
             whirl = next((ln for ln in reversed(strong) if whirl_band[0] <= ln[0] <= whirl_band[1]
-                          and ln[2] != "backward" and _stationary(x, ang, ln[0])), None)
+                          and ln[2] != 'backward' and _stationary(x, ang, ln[0])), None)
             if whirl is not None:
                 w.sub_ratio, w.sub_snr, w.whirl = whirl
             others = [ln for ln in strong if whirl is None or abs(ln[0] - whirl[0]) > 0.02]
@@ -151,37 +229,37 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
                 # free vibration: fitted in the regression so that it does not leak into the nX vectors
                 ln = others[0]
                 transient[len(windows)] = ln[0]
-                notes.append(f"recording {r}: a {ln[0] * w.speed / (2 * math.pi):.1f} Hz ({ln[0]:.2f}X, {ln[2]}) "
-                             f"line at {w.rpm:.0f} rpm is free vibration (decaying, backward or outside the whirl "
-                             f"band), removed from the nX vectors, not a whirl")
+                notes.append(f'recording {r}: a {ln[0] * w.speed / (2 * math.pi):.1f} Hz ({ln[0]:.2f}X, {ln[2]}) '
+                             f'line at {w.rpm:.0f} rpm is free vibration (decaying, backward or outside the whirl '
+                             f'band), removed from the nX vectors, not a whirl')
             subs = ([w.sub_ratio] if whirl is not None else []) + ([transient[len(windows)]] if others else [])
+            if others:
+                w.transient_ratio = float(transient[len(windows)])
             if subs:
-                fit = signals.harmonic_vectors(x, ang, orders, subsync=subs, nonfinite="drop")
+                fit = signals.harmonic_vectors(x, ang, orders, subsync=subs, nonfinite='drop')
                 w.X, w.std = fit.X, fit.std
+                if whirl is not None:
+                    w.own_ratio = float(w.sub_ratio)
+                    w.own_sub = (fit.X_sub[0], np.sqrt(fit.std_sub[0] ** 2 + (FLOOR_TOL * np.abs(fit.X[0])) ** 2))
             windows.append(w)
-    present = [w for w in windows if w.sub_snr >= sub_snr]
-    if present:
-        median_ratio = float(np.median([w.sub_ratio for w in present]))
-        for k, w in enumerate(windows):
-            rec = recordings[w.rec]
-            ratio = w.sub_ratio if w.sub_snr >= sub_snr else median_ratio
-            x = np.asarray(rec.samples[w.i0:w.i1], dtype=float)
-            subs = [ratio] + ([transient[k]] if k in transient else [])
-            fit = signals.harmonic_vectors(x, rec.angle[w.i0:w.i1], orders, subsync=subs, nonfinite="drop")
-            w.X, w.std = fit.X, fit.std
-            w.sub_ratio, w.X_sub = float(ratio), fit.X_sub[0]
-            w.std_sub = np.sqrt(fit.std_sub[0] ** 2 + (FLOOR_TOL * np.abs(fit.X[0])) ** 2)
-    return Observations(recordings=list(recordings), windows=windows, orders=tuple(orders),
-                        sub_present=bool(present), sub_snr_threshold=sub_snr, notes=notes)
+    # the nX vectors of a window come from its own regression only (its own whirl / free-vibration lines); the
+    # sub-synchronous data of the windows without a whirl of their own are assigned per fit (assign_sub)
+    obs = Observations(recordings=list(recordings), windows=windows, orders=tuple(orders),
+                       sub_present=False, sub_snr_threshold=sub_snr, notes=notes)
+    return obs.assign_sub() if obs.whirl_windows() else obs
 
 
 FLOOR_TOL = 0.003   # harmonic content below 0.3 % of the channel's 1X is not diagnosed
 
 
 def sigma(X, std, rel_tol: float, floor_tol: float = FLOOR_TOL):
-    """Effective 1-sigma of harmonic vectors X (n_orders, nch) [m]:
+    """
+    Return the effective 1-sigma of harmonic vectors.
+
+    Effective 1-sigma of harmonic vectors X (n_orders, nch) [m]:
     sqrt(std^2 + (rel_tol |X|)^2 + (floor_tol |X_1X|)^2), floored at 1e-15 m.  The last term (first row of X is
-    taken as the 1X) keeps leakage and residual transients of a strong 1X from posing as nX content."""
+    taken as the 1X) keeps leakage and residual transients of a strong 1X from posing as nX content.
+    """
     X = np.asarray(X)
     ref = np.abs(X[:1]) if X.ndim == 2 else np.abs(X)
     return np.maximum(np.sqrt(np.asarray(std) ** 2 + (rel_tol * np.abs(X)) ** 2 + (floor_tol * ref) ** 2), 1e-15)
@@ -190,9 +268,14 @@ def sigma(X, std, rel_tol: float, floor_tol: float = FLOOR_TOL):
 # --------------------------------------------------------------------------------------------- locate
 @dataclass
 class Mismatch:
-    """A located mismatch: ``where`` (probe text), ``order`` ('1X', '2X', '1X slow roll', '0.45X forward' ...),
+    """
+    A located mismatch.
+
+    A located mismatch: ``where`` (probe text), ``order`` ('1X', '2X', '1X slow roll', '0.45X forward' ...),
     ``speeds_rpm`` where it is significant, ``size`` [m] (largest |residual|), ``relative`` (size / |measured|
-    there), ``significance`` (largest |residual| / sigma)."""
+    there), ``significance`` (largest |residual| / sigma).
+    """
+
     where: str
     order: str
     speeds_rpm: list
@@ -201,9 +284,9 @@ class Mismatch:
     significance: float
 
     def as_dict(self) -> dict:
-        return {"where": self.where, "order": self.order, "speeds_rpm": [round(s, 1) for s in self.speeds_rpm],
-                "size": self.size, "size_um": self.size * 1e6, "relative": self.relative,
-                "significance": self.significance}
+        return {'where': self.where, 'order': self.order, 'speeds_rpm': [round(s, 1) for s in self.speeds_rpm],
+                'size': self.size, 'size_um': self.size * 1e6, 'relative': self.relative,
+                'significance': self.significance}
 
 
 def _probe_text(p) -> str:
@@ -212,7 +295,8 @@ def _probe_text(p) -> str:
 
 def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel_tol: float = 0.02,
            threshold: float = 5.0, slow_roll_rpm: float = 400.0) -> list[Mismatch]:
-    """Group the residuals ``measured - predicted`` and report the significant groups.
+    """
+    Group the residuals ``measured - predicted`` and report the significant groups.
 
     pred_X : per window, complex (n_orders, nch) predicted harmonic vectors [m] (same layout as Window.X).
     pred_sub : per window, complex (nch,) predicted sub-synchronous vectors (phase-aligned), or None (zero).
@@ -225,15 +309,15 @@ def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel
         S = sigma(w.X, w.std, rel_tol)
         for o, order in enumerate(obs.orders):
             for c, p in enumerate(probes):
-                label = f"{order}X" + (" slow roll" if slow else "")
+                label = f'{order}X' + (' slow roll' if slow else '')
                 groups.setdefault((_probe_text(p), label), []).append(
                     (w.rpm, abs(R[o, c]), abs(R[o, c]) / S[o, c], abs(w.X[o, c])))
         if obs.sub_present and w.X_sub is not None:
             Ps = np.zeros_like(w.X_sub) if pred_sub is None or pred_sub[k] is None else pred_sub[k]
             Rs = np.abs(w.X_sub) - np.abs(Ps)
             for c, p in enumerate(probes):
-                label = f"sub-synchronous {w.sub_ratio:.2f}X" + (f" {w.whirl} whirl" if w.whirl else "")
-                key = (_probe_text(p), "sub-synchronous")
+                label = f'sub-synchronous {w.sub_ratio:.2f}X' + (f' {w.whirl} whirl' if w.whirl else '')
+                key = (_probe_text(p), 'sub-synchronous')
                 groups.setdefault(key, []).append((w.rpm, abs(Rs[c]), abs(Rs[c]) / max(w.std_sub[c], 1e-15),
                                                    abs(w.X_sub[c]), label))
     out = []
@@ -259,10 +343,10 @@ def orbit_table(obs: Observations, pred_X: list) -> list[dict]:
         i, j = pair
         mx, my = w.X[0, i], w.X[0, j]
         px, py = pred_X[k][0, i], pred_X[k][0, j]
-        rows.append({"rpm": w.rpm, "node": obs.probes(w.rec)[i].node,
-                     "measured_axes": orbit_semi_axes(mx, my), "predicted_axes": orbit_semi_axes(px, py),
-                     "measured_whirl": whirl_direction(mx, my), "predicted_whirl": whirl_direction(px, py)})
+        rows.append({'rpm': w.rpm, 'node': obs.probes(w.rec)[i].node,
+                     'measured_axes': orbit_semi_axes(mx, my), 'predicted_axes': orbit_semi_axes(px, py),
+                     'measured_whirl': whirl_direction(mx, my), 'predicted_whirl': whirl_direction(px, py)})
     return rows
 
 
-__all__ = ["Window", "Observations", "observe", "sigma", "Mismatch", "locate", "orbit_table", "DEFAULT_ORDERS"]
+__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate', 'orbit_table', 'DEFAULT_ORDERS']

@@ -1,4 +1,5 @@
-"""Predicted harmonic vectors of the (augmented) model for the measured windows: the engine every hypothesis uses.
+"""
+Predicted harmonic vectors of the (augmented) model for the measured windows: the engine every hypothesis uses.
 
 For window k at speed Omega and harmonic order r the model's probe readings are
 
@@ -19,17 +20,140 @@ Bearing uncertainty (nuisance)
 """
 from __future__ import annotations
 
+import inspect
+import math
+
 import numpy as np
 
+from .locate import FLOOR_TOL, Observations, sigma
 from .. import bearings as bearings_mod
 from ..conventions import dof_index
 from ..excitation import harmonic_forces
-from ..rotor.assembly import RotorModel, dynamic_stiffness
-from .locate import Observations, sigma
+from ..rotor.assembly import dynamic_stiffness, RotorModel
+
+
+# ------------------------------------------------------------------------------------------------ bearing model forms
+def model_forms() -> list[tuple[str, str | None]]:
+    """
+    Return every bearing model form the physics core offers.
+
+    Every bearing model form the physics core offers, as (model, cavitation) pairs: the short (Ocvirk, pi film)
+    bearing and the finite-length Reynolds bearing under each cavitation condition that
+    :func:`bearing_id.bearings.coefficients` accepts (``cavitation=None``: the core's one default condition, Reynolds
+    / Swift-Stieber for the finite bearing).
+    """
+    forms = []
+    cav = _cavitation_options()
+    for m in bearings_mod.MODELS:
+        if m == 'finite' and cav:
+            forms += [(m, c) for c in cav]
+        else:
+            forms.append((m, None))
+    return forms
+
+
+def _cavitation_options() -> tuple:
+    """
+    Return the cavitation conditions the core offers for the finite bearing.
+
+    Cavitation conditions of the finite bearing, when the core exposes a choice (a ``cavitation`` keyword of
+    ``bearings.coefficients`` and a tuple of names ``CAVITATION_MODELS``); () when it offers one condition only.
+    """
+    try:
+        params = inspect.signature(bearings_mod.coefficients).parameters
+    except (TypeError, ValueError):
+        return ()
+    if 'cavitation' not in params:
+        return ()
+    for mod in (bearings_mod, getattr(bearings_mod, 'finite', None)):
+        opts = getattr(mod, 'CAVITATION_MODELS', None)
+        if opts:
+            return tuple(opts)
+    return ()
+
+
+def form_label(form) -> str:
+    """Plain words for a (model, cavitation) form."""
+    model, cav = form
+    if model == 'short':
+        return 'short bearing (Ocvirk, pi film)'
+    if model == 'finite':
+        return 'finite-length bearing (Reynolds equation, ' + (f'{cav} cavitation)' if cav else 'Reynolds cavitation)')
+    return f'{model} bearing' + (f' ({cav} cavitation)' if cav else '')
+
+
+class FormTable:
+    """
+    Dimensionless coefficients of one bearing geometry (D, L) under one model form, tabulated in ln S.
+
+    For a plain journal bearing of fixed L/D, K c / W and C c Omega / W depend on the Sommerfeld number
+    S = mu N L D / W (R/c)^2 alone (isoviscous film; exact for the short and for the finite Reynolds model), so
+    the coefficients at any viscosity, clearance, speed and load follow from one curve.  Nodes sit on a fixed grid
+    in ln S (step ``h``) and are computed on demand through the public API :func:`bearing_id.bearings.coefficients`
+    (the finite model is the expensive one: a Reynolds solve per node; tables are shared per process, see
+    :func:`form_table`); values between nodes come from 4-point cubic Lagrange interpolation.  Accuracy: 1e-4
+    relative for the short bearing; for the finite-difference Reynolds bearing about 1-3 %, which is the size of
+    that model's own cell-by-cell jitter along S (its cavitation boundary moves one grid cell at a time), so the
+    table is a slightly smoothed finite bearing.
+    """
+
+    def __init__(self, bearing, form, h: float = 0.25):
+        self.bearing, self.form, self.h = bearing, tuple(form), float(h)
+        self._nodes: dict = {}
+        D, L = float(bearing.diameter), float(bearing.length)
+        self._geom = L * D * (0.5 * D) ** 2          # S = mu N L D R^2 / (W c^2) = mu N geom / (W c^2)
+
+    def sommerfeld(self, mu: float, c: float, speed: float, load: float) -> float:
+        return mu * (speed / (2 * math.pi)) * self._geom / (load * c * c)
+
+    def _node(self, i: int) -> np.ndarray:
+        v = self._nodes.get(i)
+        if v is None:
+            S = math.exp(i * self.h)
+            c, W, Om = float(self.bearing.clearance), 10.0, 200.0     # any positive values: the scaling is exact
+            mu = S * W * c * c / ((Om / (2 * math.pi)) * self._geom)
+            kw = {'viscosity': mu, 'clearance': c, 'model': self.form[0]}
+            if self.form[1] is not None:
+                kw['cavitation'] = self.form[1]
+            K, C = bearings_mod.coefficients(self.bearing, Om, W, **kw)
+            v = np.concatenate([np.asarray(K, float).reshape(4) * c / W, np.asarray(C, float).reshape(4) * c * Om / W])
+            self._nodes[i] = v
+        return v
+
+    def coefficients(self, mu: float, c: float, speed: float, load: float):
+        """
+        Return (K [N/m], C [N s/m]) at a viscosity, clearance, speed and load.
+
+        (K [N/m], C [N s/m]) 2x2 at viscosity ``mu`` [Pa s], clearance ``c`` [m], ``speed`` [rad/s] and static
+        ``load`` [N].
+        """
+        x = math.log(self.sommerfeld(mu, c, speed, load)) / self.h
+        i0 = int(math.floor(x)) - 1
+        t = x - (i0 + 1)                    # position between nodes i0+1 and i0+2, in [0, 1)
+        w = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
+             (t + 1) * t * (t - 1) / 6)    # 4-point Lagrange weights at nodes -1, 0, 1, 2 (relative to i0 + 1)
+        v = sum(wi * self._node(i0 + j) for j, wi in enumerate(w))
+        return v[:4].reshape(2, 2) * load / c, v[4:].reshape(2, 2) * load / (c * speed)
+
+
+_TABLES: dict = {}
+# the physics core evaluates the finite bearing from its own precomputed Sommerfeld table (fast, smooth): call it
+# directly; with a core that solves Reynolds at every call, go through FormTable (a few dozen solves per geometry)
+_FAST_CORE = hasattr(bearings_mod, 'finite_table')
+
+
+def form_table(bearing, form) -> FormTable:
+    """Return the process-wide :class:`FormTable` of ``bearing``'s geometry (D, L) under ``form``."""
+    key = (float(bearing.diameter), float(bearing.length), tuple(form))
+    t = _TABLES.get(key)
+    if t is None:
+        t = _TABLES[key] = FormTable(bearing, form)
+    return t
 
 
 class Problem:
-    """Measured data + nominal model for hypothesis fits.
+    """
+    Measured data + nominal model for hypothesis fits.
 
     Attributes
     ----------
@@ -37,14 +161,16 @@ class Problem:
     y, sig : flat complex measured vectors and their effective sigma [m] over all (window, order, channel) entries.
     win_of : (n_entries,) window index of each entry.   sub_y, sub_sig : per window (nch,) sub-synchronous data.
     n_nuis : number of nuisance parameters (2 per bearing, or 0).
+
     """
 
     def __init__(self, obs: Observations, rig, *, model=None, rel_tol: float = 0.02, nuisance: bool = True,
-                 prior_sigma: float = 0.3):
+                 prior_sigma: float = 0.3, floor_tol: float = FLOOR_TOL):
         self.obs = obs
         self.rig = rig
         self.model = model or RotorModel.from_params(rig)
         self.rel_tol = float(rel_tol)
+        self.floor_tol = float(floor_tol)
         self.nuisance = bool(nuisance)
         self.prior_sigma = float(prior_sigma)
         self.nb = len(rig.bearings)
@@ -58,10 +184,10 @@ class Problem:
             Q = np.zeros_like(P)
             for c, p in enumerate(rec.probes):
                 P[c, dof_index(p.node, p.direction, n)] = 1.0
-                if p.direction == "x":
-                    Q[c, dof_index(p.node, "y", n)] = 1.0
+                if p.direction == 'x':
+                    Q[c, dof_index(p.node, 'y', n)] = 1.0
                 else:
-                    Q[c, dof_index(p.node, "x", n)] = -1.0
+                    Q[c, dof_index(p.node, 'x', n)] = -1.0
             self.P.append(P)
             self.Pperp.append(Q)
         ys, ss, wk, ok, ck = [], [], [], [], []
@@ -70,7 +196,7 @@ class Problem:
         for k, w in enumerate(obs.windows):
             no, nch = w.X.shape
             ys.append(w.X.reshape(-1))
-            ss.append(sigma(w.X, w.std, rel_tol).reshape(-1))
+            ss.append(sigma(w.X, w.std, rel_tol, floor_tol).reshape(-1))
             wk += [k] * (no * nch)
             ok += [o for o in range(no) for _ in range(nch)]
             ck += [c for _ in range(no) for c in range(nch)]
@@ -88,6 +214,19 @@ class Problem:
         self._loads = None
 
     # ----------------------------------------------------------------------------------------- helpers
+    def for_fold(self, train) -> 'Problem':
+        """
+        Return this problem as a fit on the windows ``train`` sees it.
+
+        This problem with its sub-synchronous data assigned from the windows ``train`` only
+        (:meth:`locate.Observations.assign_sub`): all that a fit on ``train`` may know about a whirl.
+        """
+        import copy
+        p = copy.copy(self)
+        p.obs = self.obs.assign_sub(train)
+        p.has_sub = bool(p.obs.sub_present)
+        return p
+
     @property
     def windows(self):
         return self.obs.windows
@@ -112,22 +251,35 @@ class Problem:
         th = np.asarray(theta, dtype=float)
         return tuple(np.exp(th[:self.nb])), tuple(np.exp(th[self.nb:2 * self.nb]))
 
-    def coeffs(self, theta, speed: float, factors=None) -> dict:
-        """Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached).
+    def coeffs(self, theta, speed: float, factors=None, form=None) -> dict:
+        """
+        Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached).
 
         ``factors`` : optional (viscosity factors, clearance factors) per bearing multiplying the nuisance ones
-        (an effect that re-fits the bearing theory, :class:`effects.BearingModelForm`)."""
+        (an effect that re-fits the bearing theory, :class:`effects.BearingModelForm`).   ``form`` : optional
+        (model, cavitation) replacing every bearing's model form (default: each bearing's ``model``).  Through
+        :func:`bearing_id.bearings.coefficients` (the core's finite bearing is a precomputed Sommerfeld table);
+        with a core that solves the finite bearing at every call, through :class:`FormTable`.
+        """
         vf, cf = self.nuisance_factors(theta)
         if factors is not None:
             vf = tuple(a * b for a, b in zip(vf, factors[0]))
             cf = tuple(a * b for a, b in zip(cf, factors[1]))
-        key = (tuple(np.round(np.log(np.concatenate([vf, cf])), 13)), float(speed))
+        key = (tuple(np.round(np.log(np.concatenate([vf, cf])), 13)), float(speed), form)
         c = self._coeff_cache.get(key)
         if c is None:
             if self._loads is None:
                 self._loads = bearings_mod.static_loads(self.rig)
-            fn = bearings_mod.bearing_fn(self.rig, viscosity_factor=vf, clearance_factor=cf, loads=self._loads)
-            c = fn(speed)
+            c = {}
+            for i, b in enumerate(self.rig.bearings):
+                f = tuple(form) if form is not None else (b.model, None)
+                mu, cl, W = b.viscosity * vf[i], b.clearance * cf[i], self._loads[b.node]
+                if f == ('short', None) or _FAST_CORE:
+                    kw = {} if f[1] is None else {'cavitation': f[1]}
+                    K, C = bearings_mod.coefficients(b, speed, W, viscosity=mu, clearance=cl, model=f[0], **kw)
+                else:
+                    K, C = form_table(b, f).coefficients(mu, cl, speed, W)
+                c[b.node] = (np.array(K, float), np.array(C, float))
             if len(self._coeff_cache) > 20000:
                 self._coeff_cache.clear()
             self._coeff_cache[key] = c
@@ -140,24 +292,26 @@ class Problem:
         w = ratio * W
         Z = self.Z0(k, ratio).copy()
         n = self.model.n_nodes
-        factors = None
+        factors, form = None, None
         for e, nl in zip(effects, nls):
             f = e.bearing_factors(nl)
             if f is not None:
                 factors = f if factors is None else (tuple(a * b for a, b in zip(factors[0], f[0])),
                                                      tuple(a * b for a, b in zip(factors[1], f[1])))
-        for node, (Kb, Cb) in self.coeffs(theta, W, factors).items():
+            form = getattr(e, 'bearing_form', None) or form
+        for node, (Kb, Cb) in self.coeffs(theta, W, factors, form).items():
             Zb = np.asarray(Kb) + 1j * w * np.asarray(Cb)
             for e, nl in zip(effects, nls):
                 Zb = e.bearing_impedance(self, node, Zb, W, w, nl)
-            i = dof_index(node, "x", n)
+            i = dof_index(node, 'x', n)
             Z[i:i + 2, i:i + 2] += Zb
         for e, nl in zip(effects, nls):
             e.add_dZ(self, Z, W, w, nl)
         return Z
 
     def predict(self, theta, effects, nls, windows=None):
-        """Model prediction over the entries of ``windows`` (default all).
+        """
+        Model prediction over the entries of ``windows`` (default all).
 
         Returns (y0, A, q_by_window) with y0 complex (n_sel,) the readings from the known excitation, A complex
         (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and the
@@ -228,10 +382,10 @@ class Problem:
 def forward_force(ndof: int, node: int, n_nodes: int, value: complex = 1.0) -> np.ndarray:
     """Force phasor vector (ndof,) of a forward rotating force ``value`` [N] at ``node`` (F_y = -j F_x)."""
     F = np.zeros(ndof, dtype=complex)
-    i = dof_index(node, "x", n_nodes)
+    i = dof_index(node, 'x', n_nodes)
     F[i] = value
     F[i + 1] = -1j * value
     return F
 
 
-__all__ = ["Problem", "forward_force"]
+__all__ = ['Problem', 'forward_force', 'FormTable', 'form_table', 'model_forms', 'form_label']

@@ -1,4 +1,5 @@
-"""Identification re-run on the augmented model: the step after a diagnosis (``bearing-id diagnose --identify``).
+"""
+Identification re-run on the augmented model: the step after a diagnosis (``bearing-id diagnose --identify``).
 
 The same identification method is run twice on the same recordings: on the nominal model (what ``bearing-id
 identify`` does) and on the augmented model of the diagnosis (:class:`augmented.AugmentedModel`: measurement effects
@@ -12,20 +13,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .augmented import AugmentedModel
 from ..identify import get_method
 from ..identify.harmonics import from_recordings
 from ..identify.result import eq38_error
 from ..rotor.assembly import RotorModel
-from .augmented import AugmentedModel
 
-HOOK_METHODS = ("physical", "direct")     # methods that accept the augmented-model hook
+HOOK_METHODS = ('physical', 'direct')     # methods that accept the augmented-model hook
 
 
 @dataclass
 class Reidentification:
-    """Before/after identification.  before, after : list[IdentResult] (one per speed).   truth : list of
+    """
+    Before/after identification.
+
+    Before/after identification.  before, after : list[IdentResult] (one per speed).   truth : list of
     {node: (K, C)} per speed or None.   error_before / error_after : eq. 38 error dicts [%] or None.
-    effects : names of the augmentations used."""
+    effects : names of the augmentations used.
+    """
+
     method: str
     before: list
     after: list
@@ -35,18 +41,22 @@ class Reidentification:
     effects: list = field(default_factory=list)
 
     def as_json(self) -> dict:
-        keys = ("K_direct", "K_cross", "C_direct", "C_cross", "K", "C", "all")
-        return {"method": self.method, "effects": self.effects,
-                "before": [r.to_dict() for r in self.before], "after": [r.to_dict() for r in self.after],
-                "error_before_pct": None if self.error_before is None else {k: self.error_before[k] for k in keys},
-                "error_after_pct": None if self.error_after is None else {k: self.error_after[k] for k in keys}}
+        keys = ('K_direct', 'K_cross', 'C_direct', 'C_cross', 'K', 'C', 'all')
+        return {'method': self.method, 'effects': self.effects,
+                'before': [r.to_dict() for r in self.before], 'after': [r.to_dict() for r in self.after],
+                'error_before_pct': None if self.error_before is None else {k: self.error_before[k] for k in keys},
+                'error_after_pct': None if self.error_after is None else {k: self.error_after[k] for k in keys}}
 
 
 def refitted_bearings(rig):
-    """``rig`` with each bearing's viscosity and clearance scaled by the factors the diagnosis refitted
-    (``extra['diagnose_bearing_factors']``; unchanged without them): the start / theory of the re-run."""
-    f = (rig.extra or {}).get("diagnose_bearing_factors") or {}
-    vf, cf = f.get("viscosity_factor"), f.get("clearance_factor")
+    """
+    Return ``rig`` with the bearing factors the diagnosis refitted.
+
+    ``rig`` with each bearing's viscosity and clearance scaled by the factors the diagnosis refitted
+    (``extra['diagnose_bearing_factors']``; unchanged without them): the start / theory of the re-run.
+    """
+    f = (rig.extra or {}).get('diagnose_bearing_factors') or {}
+    vf, cf = f.get('viscosity_factor'), f.get('clearance_factor')
     if not vf or not cf:
         return rig
     return rig.replace(bearings=tuple(dataclasses.replace(b, viscosity=b.viscosity * float(v),
@@ -54,8 +64,11 @@ def refitted_bearings(rig):
                                       for b, v, c in zip(rig.bearings, vf, cf)))
 
 
-def reidentify(recordings, rig, augmented_rig, method: str = "physical", options=None) -> Reidentification:
-    """Run ``method`` on the nominal model ``rig`` and on ``augmented_rig`` (a params set with ``extra.effects``,
+def reidentify(recordings, rig, augmented_rig, method: str = 'physical', options=None) -> Reidentification:
+    """
+    Run ``method`` on the nominal and on the augmented model.
+
+    Run ``method`` on the nominal model ``rig`` and on ``augmented_rig`` (a params set with ``extra.effects``,
     e.g. :func:`report.augmented_rig` of a diagnosis or a loaded augmented params file).  The augmented run starts
     from the bearing theory with the diagnosis' refitted factors (:func:`refitted_bearings`), the nominal run from
     the nominal theory.
@@ -63,14 +76,22 @@ def reidentify(recordings, rig, augmented_rig, method: str = "physical", options
     recordings : rig.Recording list (one per excitation run, same probes).   options : method options (both runs).
     """
     if method not in HOOK_METHODS:
-        raise ValueError(f"identification on the augmented model supports {HOOK_METHODS}, not {method!r}")
+        raise ValueError(f'identification on the augmented model supports {HOOK_METHODS}, not {method!r}')
     data = from_recordings(recordings)
     model = RotorModel.from_params(rig)
     fn = get_method(method)
     aug = AugmentedModel(model, augmented_rig)
     before = fn(model, rig, data, data.probes, data.runs, dict(options or {}))
-    after = fn(model, refitted_bearings(augmented_rig), aug.correct_data(data), data.probes, data.runs,
-               {**(options or {}), "augment": aug})
+    opts_after = {**(options or {}), 'augment': aug}
+    names = list(aug.names)
+    forms = {b.model for b in augmented_rig.bearings}
+    if forms != {b.model for b in rig.bearings} and len(forms) == 1:
+        # the diagnosis found the bearing model form: the physical method fits that form on the augmented model
+        form = next(iter(forms))
+        if method == 'physical' and 'bearing_model' not in (options or {}):
+            opts_after['bearing_model'] = form
+        names.append(f'bearing_model_form ({form})')
+    after = fn(model, refitted_bearings(augmented_rig), aug.correct_data(data), data.probes, data.runs, opts_after)
     truth = None
     eb = ea = None
     if data.truth:
@@ -80,32 +101,31 @@ def reidentify(recordings, rig, augmented_rig, method: str = "physical", options
         else:
             truth = None
     return Reidentification(method=method, before=before, after=after, truth=truth, error_before=eb,
-                            error_after=ea, effects=aug.names)
+                            error_after=ea, effects=names)
 
 
 def format_table(r: Reidentification) -> list[str]:
     """Printable lines: per speed and bearing K [MN/m] and C [N s/m] before / after (/ truth), then eq. 38 errors."""
-    lines = [f"identification ({r.method}) on the nominal model vs the augmented model "
+    lines = [f'identification ({r.method}) on the nominal model vs the augmented model '
              f"[{', '.join(r.effects) or 'no model-side effects'}]:",
              f"  {'rpm':>6s} {'bearing':8s} {'model':9s} {'Kxx':>8s} {'Kxy':>8s} {'Kyx':>8s} {'Kyy':>8s}   [MN/m]"
              f" {'Cxx':>8s} {'Cxy':>8s} {'Cyx':>8s} {'Cyy':>8s}   [N s/m]"]
     for s, (b, a) in enumerate(zip(r.before, r.after)):
         for i, name in enumerate(b.bearings):
-            rows = [("nominal", b.K[i], b.C[i]), ("augmented", a.K[i], a.C[i])]
+            rows = [('nominal', b.K[i], b.C[i]), ('augmented', a.K[i], a.C[i])]
             if r.truth is not None:
                 n = b.nodes[i]
-                rows.append(("truth", np.asarray(r.truth[s][n][0]), np.asarray(r.truth[s][n][1])))
+                rows.append(('truth', np.asarray(r.truth[s][n][0]), np.asarray(r.truth[s][n][1])))
             for label, K, C in rows:
-                lines.append(f"  {b.speed_rpm:6.0f} {name:8s} {label:9s} "
-                             + " ".join(f"{v / 1e6:8.4f}" for v in np.asarray(K, float).reshape(4)) + "         "
-                             + " ".join(f"{v:8.2f}" for v in np.asarray(C, float).reshape(4)))
+                lines.append(f'  {b.speed_rpm:6.0f} {name:8s} {label:9s} '
+                             + ' '.join(f'{v / 1e6:8.4f}' for v in np.asarray(K, float).reshape(4)) + '         '
+                             + ' '.join(f'{v:8.2f}' for v in np.asarray(C, float).reshape(4)))
     if r.error_before is not None:
-        lines.append("  eq. 38 error vs truth [%]    " + "  ".join(f"{k:>8s}" for k in ("K_direct", "K_cross",
-                                                                                       "C_direct", "C_cross", "all")))
-        for label, e in (("nominal model", r.error_before), ("augmented model", r.error_after)):
-            lines.append(f"  {label:28s} " + "  ".join(f"{e[k]:8.2f}" for k in ("K_direct", "K_cross", "C_direct",
-                                                                              "C_cross", "all")))
+        keys = ('K_direct', 'K_cross', 'C_direct', 'C_cross', 'all')
+        lines.append('  eq. 38 error vs truth [%]    ' + '  '.join(f'{k:>8s}' for k in keys))
+        for label, e in (('nominal model', r.error_before), ('augmented model', r.error_after)):
+            lines.append(f'  {label:28s} ' + '  '.join(f'{e[k]:8.2f}' for k in keys))
     return lines
 
 
-__all__ = ["reidentify", "Reidentification", "format_table", "HOOK_METHODS"]
+__all__ = ['reidentify', 'Reidentification', 'format_table', 'HOOK_METHODS']

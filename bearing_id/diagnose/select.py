@@ -1,4 +1,6 @@
-"""Fit hypotheses (nominal + candidate effects), compare them, validate on held-out speeds, select greedily.
+# noqa: A005  (imported only as bearing_id.diagnose.select; renaming the module would change the public API)
+"""
+Fit hypotheses (nominal + candidate effects), compare them, validate on held-out speeds, select greedily.
 
 Fit (:func:`fit`)
     Residual vector = measured minus predicted harmonic vectors divided by their effective sigma (noise floor and
@@ -13,13 +15,19 @@ Compare
     when it lowers the BIC by more than ``dbic_min``.
 
 Held-out validation (:func:`validate`)
-    The recorded speeds are split into two interleaved halves; the hypothesis and its base are fitted on one half
-    and predict the other, both ways.  The effect is *validated* when it lowers the held-out chi2 and the held-out
-    reduction fraction is at least half of the in-sample one: a model that only fits what it was tuned on fails.
+    The recorded speeds are split into two interleaved halves (or the runs, ``run_folds``); the hypothesis and its
+    base are fitted on one half and predict the other, both ways.  Nothing is re-fitted on the held-out half: the
+    bearing nuisance, every effect parameter and, for an oil whirl, the force, onset and ratio come from the
+    training half (the held-out windows' sub-synchronous vectors are taken at the training ratio; their unknown
+    whirl phase is not fitted either: the comparison there is phase-free, on amplitudes).  The effect is
+    *validated* when it lowers the held-out chi2 and the held-out reduction fraction is at least half of the
+    in-sample one: a model that only fits what it was tuned on fails.
 
 Selection (:func:`select`)
     Greedy forward selection: start from "none" (nuisance only); at each step fit every remaining candidate added to
-    the current set (everything re-fitted jointly), take the best BIC that is also validated, stop when the BIC gain
+    the current set (everything re-fitted jointly; any effect may repeat at another location -- another bearing,
+    plane, probe, disc or coupling end -- unless the two cannot be held together, :func:`conflicts`), take the best
+    BIC that is also validated, stop when the BIC gain
     falls below ``dbic_min``, validation fails, or the current residual is no longer significant: chi2 per residual
     below ``chi2_floor`` (with the model tolerance in sigma a clean recording sits near 1 or below) *and* no single
     entry off by ``peak_sigma`` or more (the :func:`locate` threshold).  The second condition keeps a mismatch that is
@@ -28,22 +36,27 @@ Selection (:func:`select`)
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
+import itertools
+import math
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from .effects import OilWhirl
 from .predict import Problem
+from ..conventions import rpm_to_rad_s
 
 AMBIGUOUS_DBIC = 6.0  # screening BIC difference below which two variants of one effect are not told apart
-NUIS_BOUND = 2.0     # |ln factor| <= 2 (x0.14 .. x7.4) for viscosity and clearance factors
+# |ln factor| <= ln 3 (x0.33 .. x3) for viscosity and clearance factors: a nuisance, not a free parameter that can
+# absorb a missing effect (the prior sigma is 0.3)
+NUIS_BOUND = math.log(3.0)
 
 
 @dataclass
 class Fit:
     """Result of fitting one hypothesis (list of effects) on a set of windows."""
+
     effects: list
     theta: np.ndarray
     nls: list
@@ -57,7 +70,7 @@ class Fit:
     sub_info: dict = field(default_factory=dict)
     phys: list = field(default_factory=list)     # per effect: dict of physical parameters
     std: list = field(default_factory=list)      # per effect: dict of their 1-sigma
-    resid_m: float = float("nan")                # RMS |measured - predicted| over 1X/2X/3X entries [m]
+    resid_m: float = float('nan')                # RMS |measured - predicted| over 1X/2X/3X entries [m]
 
     @property
     def bic(self) -> float:
@@ -123,11 +136,12 @@ def _residual(prob, effects, z, windows, lin=None):
 
 
 def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: int = 60,
-        free_nuisance: bool = True, uncertainty: bool = True) -> Fit:
-    """Fit nuisance + effect parameters of the hypothesis ``effects`` on ``windows`` (default all).
+        free_nuisance: bool = True, uncertainty: bool = True, nl0=None) -> Fit:
+    """
+    Fit nuisance + effect parameters of the hypothesis ``effects`` on ``windows`` (default all).
 
     ``free_nuisance=False`` keeps the bearing nuisance at ``theta0`` (fast screening: linear effects then need no
-    iteration at all).
+    iteration at all).  ``nl0`` : per effect, nonlinear parameters to start from as well (e.g. another fit's).
     """
     windows = list(range(len(prob.windows))) if windows is None else list(windows)
     th0 = np.zeros(prob.n_nuis) if theta0 is None else np.asarray(theta0, float)[:prob.n_nuis]
@@ -138,6 +152,8 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
     fixed = th0 if not free_nuisance else np.zeros(0)
     starts = [np.concatenate([head, *combo]) for combo in itertools.product(*[e.starts for e in effects])] \
         if effects else [head]
+    if nl0 is not None and effects:
+        starts.insert(0, np.concatenate([head, *[np.asarray(v, float) for v in nl0]]))
 
     def full(z):
         return np.concatenate([fixed, z])
@@ -148,27 +164,73 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
         if nz:
             z0 = np.clip(z0, lo, hi)
             res = least_squares(lambda z: _residual(prob, effects, full(z), windows)[0], z0, bounds=(lo, hi),
-                                x_scale="jac", max_nfev=max_nfev, method="trf")
+                                x_scale='jac', max_nfev=max_nfev, method='trf')
             z, cost = res.x, 2 * res.cost
         else:
             z = z0
             cost = float(np.sum(_residual(prob, effects, full(z), windows)[0] ** 2))
         if best is None or cost < best[1]:
             best = (z, cost)
-    z = full(best[0])
-    r, lin, (pred, info, kk, ndata, y0, A, idx) = _residual(prob, effects, z, windows)
+    f = evaluate(prob, effects, full(best[0]), windows)
+    if uncertainty:
+        _uncertainty(prob, f, full(best[0]))
+    return f
+
+
+def evaluate(prob: Problem, effects: list, z, windows=None, lin=None) -> Fit:
+    """
+    Return the Fit of ``effects`` at given parameters, without optimising.
+
+    The Fit of ``effects`` at parameters ``z`` = [nuisance, nonlinear per effect] (and linear ``lin``, or
+    profiled when None) on ``windows`` (default all), without optimising (no 1-sigma).
+    """
+    windows = list(range(len(prob.windows))) if windows is None else list(windows)
+    z = np.asarray(z, float)
+    r, lin, (pred, info, kk, ndata, y0, A, idx) = _residual(prob, effects, z, windows,
+                                                            lin=None if lin is None or not len(lin) else lin)
     th, nls = _split(prob, effects, z)
     chi2 = float(np.sum(r[:ndata] ** 2))
-    k = prob.n_nuis + sum(len(e.nl_names) for e in effects) + lin.size + kk
+    k = prob.n_nuis + sum(len(e.nl_names) + getattr(e, 'k_extra', 0) for e in effects) + lin.size + kk
     d = prob.y[idx] - y0 - (A @ lin if lin.size else 0)
     d = np.concatenate([np.atleast_1d(d)] + [prob.windows[k].X_sub - pred.get(k, 0.0)
                                              for k in _sub_windows(prob, windows)])
     f = Fit(effects=list(effects), theta=th, nls=nls, lin=lin, chi2=chi2, chi2_total=float(np.sum(r ** 2)),
             n=int(ndata), k=int(k), windows=windows, sub_pred=pred, sub_info=info,
             resid_m=float(np.sqrt(np.mean(np.abs(d) ** 2))) if d.size else 0.0)
-    if uncertainty:
-        _uncertainty(prob, f, z)
     return f
+
+
+NULL_RCOND = 1e-9     # singular values of the column-scaled Jacobian below this x the largest: not determined
+
+
+def covariance(J: np.ndarray) -> np.ndarray:
+    """
+    Return (J^T J)^-1 of a residual Jacobian, robust to parameter scales and null directions.
+
+    (J^T J)^-1 of a residual Jacobian, computed on the column-scaled J (parameters of very different scales --
+    a runout in metres next to a log stiffness -- must not lose their variance to a pseudo-inverse cut-off).
+    A parameter with a component along a null direction of J gets an infinite variance (NaN covariances): the data
+    do not determine it, and every quantity derived from it inherits that.
+    """
+    n = J.shape[1]
+    if n == 0:
+        return np.zeros((0, 0))
+    d = np.linalg.norm(J, axis=0)
+    d = np.where(d > 0, d, 1.0)
+    try:
+        _, sv, Vt = np.linalg.svd(J / d, full_matrices=False)
+    except np.linalg.LinAlgError:
+        return np.full((n, n), np.nan)
+    keep = sv > NULL_RCOND * (sv[0] if sv.size else 1.0)
+    V = Vt[keep].T
+    cov = (V / sv[keep] ** 2) @ V.T / np.outer(d, d)
+    if not keep.all() or sv.size < n:
+        null = Vt[~keep] if sv.size == n else np.vstack([Vt[~keep], np.linalg.svd(J / d)[2][sv.size:]])
+        bad = np.linalg.norm(null, axis=0) > 1e-6
+        cov[bad, :] = np.nan
+        cov[:, bad] = np.nan
+        cov[bad, bad] = np.inf
+    return cov
 
 
 def _uncertainty(prob: Problem, f: Fit, z):
@@ -189,10 +251,7 @@ def _uncertainty(prob: Problem, f: Fit, z):
         J[:Mr.shape[0], nz:] = -Mr
     dof = max(f.n - f.k, 1)
     scale = max(1.0, f.chi2 / dof)
-    try:
-        cov = np.linalg.pinv(J.T @ J) * scale
-    except np.linalg.LinAlgError:
-        cov = np.full((nz + nl_, nz + nl_), np.nan)
+    cov = covariance(J) * scale
     i_nl, i_lin = prob.n_nuis, nz
     for e, nl in zip(f.effects, f.nls):
         m, q = len(e.nl_names), e.n_lin
@@ -204,6 +263,9 @@ def _uncertainty(prob: Problem, f: Fit, z):
             i_lin += q
             continue
         phys = e.physical(nl, lin)
+        extra_val, extra_std = {}, {}
+        if hasattr(e, 'nuisance_physical'):
+            extra_val, extra_std = e.nuisance_physical(prob, f.theta, cov[:prob.n_nuis, :prob.n_nuis])
         keys = list(phys)
         idx = list(range(i_nl, i_nl + m)) + list(range(i_lin, i_lin + q))
         G = np.zeros((len(keys), len(idx)))
@@ -217,9 +279,13 @@ def _uncertainty(prob: Problem, f: Fit, z):
             p2 = e.physical(nl2, lin2)
             G[:, j] = [(p2[kk] - phys[kk]) / h for kk in keys]
         C = cov[np.ix_(idx, idx)] if idx else np.zeros((0, 0))
-        sd = np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)) if idx else np.zeros(len(keys))
-        f.phys.append(phys)
-        f.std.append({kk: float(v) for kk, v in zip(keys, sd)})
+        sd = np.zeros(len(keys))
+        for j in range(len(keys) if idx else 0):
+            on = G[j] != 0
+            Cj = C[np.ix_(on, on)]
+            sd[j] = math.inf if not np.all(np.isfinite(Cj)) else math.sqrt(max(float(G[j, on] @ Cj @ G[j, on]), 0.0))
+        f.phys.append({**phys, **extra_val})
+        f.std.append({**{kk: float(v) for kk, v in zip(keys, sd)}, **extra_std})
         i_nl += m
         i_lin += q
 
@@ -241,35 +307,70 @@ def speed_folds(prob: Problem) -> tuple[list, list]:
 
 
 def heldout_chi2(prob: Problem, f: Fit, windows) -> float:
-    """Data chi2 of fit ``f`` (parameters frozen; oil-whirl force and phases re-profiled) on ``windows``."""
-    z = np.concatenate([f.theta, *f.nls]) if f.nls else np.asarray(f.theta)
-    r, _, extra = _residual(prob, f.effects, z, windows, lin=f.lin if f.lin.size else None)
-    return float(np.sum(r[:extra[3]] ** 2))
+    """
+    Return the data chi2 of fit ``f`` on held-out windows, nothing re-fitted there.
+
+    Data chi2 on the held-out ``windows`` of fit ``f`` (fitted on the training windows of the fold problem
+    ``prob``, :meth:`Problem.for_fold`), with *every* quantity frozen at its training value: bearing nuisance,
+    nonlinear and linear effect parameters, and for an oil whirl its force, onset and ratio (the held-out windows'
+    sub-synchronous vectors are taken at the training ratio).  Nothing is re-fitted on held-out data.
+
+    nX entries: complex residuals over their effective sigma.  Sub-synchronous entries: a whirl is not locked to the
+    key mark, so its phase in a window the fit has not seen is unknown; the held-out comparison uses the phase-free
+    amplitude residual sum_c ((|X_c| - |p_c|) / sigma_c)^2 (p = 0 without a whirl, or below the training onset) --
+    no per-window phase is fitted on held-out data either.
+    """
+    windows = list(windows)
+    if not windows:
+        return 0.0
+    y0, A, idx = prob.predict(f.theta, f.effects, f.nls, windows)
+    y = y0 + (A @ f.lin if A.shape[1] and f.lin.size else 0)
+    r = (prob.y[idx] - y) / prob.sig[idx]
+    chi = float(np.sum(r.real ** 2 + r.imag ** 2))
+    if not prob.has_sub:
+        return chi
+    whirl = [e for e in f.effects if isinstance(e, OilWhirl)]
+    F = float(f.sub_info.get('force', 0.0)) if whirl else 0.0
+    onset = rpm_to_rad_s(f.sub_info.get('onset_rpm', float('nan'))) if whirl else float('nan')
+    for k in windows:
+        w = prob.windows[k]
+        if w.X_sub is None:
+            continue
+        p = np.zeros(w.X_sub.size)
+        if F > 0 and np.isfinite(onset) and w.speed > onset:
+            p = F * np.abs(whirl[0].unit_response(prob, k, f.theta, f.effects, f.nls))
+        chi += float(np.sum(((np.abs(w.X_sub) - p) / np.maximum(w.std_sub, 1e-15)) ** 2))
+    return chi
 
 
 def validate(prob: Problem, effects: list, base: list, *, cache: dict | None = None, frac_in: float = 0.0,
              folds=None) -> dict:
-    """Held-out check of ``effects`` against ``base`` (both ways between the two speed halves).
+    """
+    Held-out check of ``effects`` against ``base`` (both ways between the two folds, default the speed halves).
 
+    For each direction the problem is first restricted to what the training windows know (:meth:`Problem.for_fold`:
+    the whirl ratio assigned to every window comes from the training whirl windows), both hypotheses are fitted on
+    the training windows, and :func:`heldout_chi2` scores them on the held-out windows with every parameter frozen.
     Validated when the held-out chi2 drops by at least max(20 %, half the in-sample reduction ``frac_in``).
     """
     A, B = folds if folds is not None else speed_folds(prob)
     if len(A) == 0 or len(B) == 0:
-        return {"validated": False, "reason": "one recorded speed: nothing to hold out"}
+        return {'validated': False, 'reason': 'one recorded speed: nothing to hold out'}
     cache = {} if cache is None else cache
     out_h, out_b = 0.0, 0.0
     for tr, te in ((A, B), (B, A)):
-        key = (tuple(e.label for e in base), tuple(tr))
+        pf = prob.for_fold(tr)
+        key = (tuple(e.label for e in base), tuple(tr), id(prob))
         if key not in cache:
-            cache[key] = fit(prob, base, windows=tr, uncertainty=False)
+            cache[key] = fit(pf, base, windows=tr, uncertainty=False)
         fb = cache[key]
-        fh = fit(prob, effects, windows=tr, theta0=fb.theta, uncertainty=False)
-        out_b += heldout_chi2(prob, fb, te)
-        out_h += heldout_chi2(prob, fh, te)
+        fh = fit(pf, effects, windows=tr, theta0=fb.theta, uncertainty=False)
+        out_b += heldout_chi2(pf, fb, te)
+        out_h += heldout_chi2(pf, fh, te)
     frac_out = 1.0 - out_h / max(out_b, 1e-300)
     need = max(0.2, 0.5 * frac_in)
-    return {"validated": bool(frac_out >= need), "heldout_chi2_base": out_b, "heldout_chi2": out_h,
-            "heldout_reduction": frac_out, "required_reduction": need}
+    return {'validated': bool(frac_out >= need), 'heldout_chi2_base': out_b, 'heldout_chi2': out_h,
+            'heldout_reduction': frac_out, 'required_reduction': need}
 
 
 # ------------------------------------------------------------------------------------------------ selection
@@ -286,6 +387,17 @@ class Selection:
 
 def _key(e):
     return e.label
+
+
+def conflicts(a, b) -> bool:
+    """
+    Return True when candidate ``a`` cannot be added to a hypothesis holding ``b``.
+
+    True when candidate ``a`` cannot be added to a hypothesis holding ``b``: the same variant, or two variants
+    the data cannot hold together (:meth:`effects.Effect.conflicts`, e.g. two orientations of one probe).  Any
+    other effect may repeat at another location (another bearing, plane, probe, disc or coupling end).
+    """
+    return _key(a) == _key(b) or bool(a.conflicts(b)) or bool(b.conflicts(a))
 
 
 def peak_significance(prob: Problem, f: Fit) -> float:
@@ -307,22 +419,30 @@ def peak_significance(prob: Problem, f: Fit) -> float:
 
 
 def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float = 10.0, chi2_floor: float = 1.5,
-           peak_sigma: float = 5.0, n_validate: int = 4, n_refine: int = 4, folds=None) -> Selection:
-    """Greedy forward selection (see module docstring)."""
-    base = fit(prob, [])
-    current, selected, rounds = base, [], []
+           peak_sigma: float = 5.0, n_validate: int = 4, n_refine: int = 4, folds=None, start=(), base=None
+           ) -> Selection:
+    """
+    Greedy forward selection (see module docstring).
+
+    ``start`` : effects every hypothesis holds (e.g. another bearing model form: the selection then runs under that
+    form); ``base`` : the "none" fit, when already made (reported as the residual before).
+    """
+    base = fit(prob, []) if base is None else base
+    selected = list(start)
+    current = fit(prob, selected) if selected else base
+    rounds = []
+    max_effects += len(selected)
     vcache: dict = {}
     ambiguous: dict = {}
     while len(selected) < max_effects:
         if current.chi2 / max(current.n, 1) < chi2_floor and peak_significance(prob, current) < peak_sigma:
             break
-        used = {_key(e) for e in selected}
         screen = []
         for c in cands:
-            if _key(c) in used or (c.name in {e.name for e in selected} and c.name not in
-                                   ("support_flexibility", "probe_runout", "residual_unbalance")):
+            if any(conflicts(c, e) for e in selected):
                 continue
-            screen.append(fit(prob, selected + [c], theta0=current.theta, free_nuisance=False, uncertainty=False))
+            screen.append(fit(prob, selected + [c], theta0=current.theta,
+                              free_nuisance=bool(getattr(c, 'screen_free_nuisance', False)), uncertainty=False))
         if not screen:
             break
         screen.sort(key=lambda f: f.bic)
@@ -356,7 +476,7 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
             if i < n_validate and current.bic - f.bic > dbic_min:
                 v = validate(prob, f.effects, selected, cache=vcache, frac_in=1.0 - f.chi2 / max(current.chi2, 1e-300),
                              folds=folds)
-                if accepted is None and v["validated"]:
+                if accepted is None and v['validated']:
                     accepted = f
             round_rows.append((f, v))
         rounds.append((current, round_rows))
@@ -375,4 +495,5 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
     return Selection(base=base, final=current, rounds=rounds, selected=selected, ambiguous=ambiguous)
 
 
-__all__ = ["Fit", "fit", "peak_significance", "validate", "speed_folds", "run_folds", "heldout_chi2", "Selection", "select"]
+__all__ = ['Fit', 'fit', 'evaluate', 'peak_significance', 'validate', 'speed_folds', 'run_folds', 'heldout_chi2',
+           'Selection', 'select', 'conflicts', 'NUIS_BOUND']
