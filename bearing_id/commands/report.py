@@ -249,30 +249,14 @@ class _Renderer:
         Return :func:`bearing_id.identify.harmonics.from_recordings` of ``recordings``.
 
         With ``futures`` from :meth:`start_vectors`, assembled from the workers' per-run vectors exactly as
-        ``from_recordings`` does (:func:`harmonics.recording_vectors` per run, :func:`harmonics.common_speeds`;
+        ``from_recordings`` does (:func:`harmonics.recording_vectors` per run, :func:`harmonics.stack_vectors`;
         test/test_report.py checks that the two are equal).
         """
         from ..identify import harmonics
         recs = list(recordings)
         if futures is None:
             return harmonics.from_recordings(recs)          # the one route, with its own error messages
-        per_run = [f.result() for f in futures]
-        speeds, picks = harmonics.common_speeds(per_run, harmonics.DEFAULT_TOL_REL)
-        if not speeds:
-            raise ValueError('no steady speed is common to all runs')
-        nr, ns, nch = len(recs), len(speeds), len(recs[0].probes)
-        X = np.zeros((nr, ns, nch), dtype=complex)
-        Xs = np.zeros((nr, ns, nch))
-        windows = [[None] * ns for _ in range(nr)]
-        for si, row in enumerate(picks):
-            for r, k in enumerate(row):
-                v = per_run[r][k]
-                X[r, si], Xs[r, si], windows[r][si] = v.X, v.X_std, (v.i0, v.i1)
-        truth = {}
-        for rec in recs:
-            truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
-        return harmonics.HarmonicData(np.array(speeds), tuple(recs[0].probes), tuple(r.run for r in recs), X, Xs,
-                                      recs, windows, truth)
+        return harmonics.stack_vectors(recs, [f.result() for f in futures])
 
     def close(self) -> None:
         if self.pool is not None:

@@ -362,10 +362,20 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
                              f'{recordings[0].channels}: all runs must use the same probes')
     per_run = [recording_vectors(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration,
                                  transients=transients) for r in recordings]
+    return stack_vectors(recordings, per_run, tol_rel)
+
+
+def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
+    """
+    Stack the runs' window vectors at the speeds common to all runs into a :class:`HarmonicData`.
+
+    ``per_run[r]`` holds :func:`recording_vectors` of ``recordings[r]``; speeds are matched by :func:`common_speeds`.
+    """
+    recordings = list(recordings)
     speeds, picks = common_speeds(per_run, tol_rel)
     if not speeds:
         raise ValueError('no steady speed is common to all runs')
-    nr, ns, nch = len(recordings), len(speeds), len(probes)
+    nr, ns, nch = len(recordings), len(speeds), len(recordings[0].probes)
     X = np.zeros((nr, ns, nch), dtype=complex)
     Xs = np.zeros((nr, ns, nch))
     windows = [[None] * ns for _ in range(nr)]
@@ -376,8 +386,8 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
     truth = {}
     for rec in recordings:
         truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
-    return HarmonicData(np.array(speeds), probes, tuple(r.run for r in recordings), X, Xs, recordings, windows,
-                        truth)
+    return HarmonicData(np.array(speeds), tuple(recordings[0].probes), tuple(r.run for r in recordings), X, Xs,
+                        recordings, windows, truth)
 
 
 def from_npz(paths, **kw) -> HarmonicData:
@@ -474,6 +484,6 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
 
 
 __all__ = ['HarmonicData', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector', 'stationarity_excess',
-           'combine_vectors', 'recording_vectors', 'common_speeds', 'from_recordings', 'from_npz', 'from_bag',
-           'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE', 'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS',
-           'DEFAULT_MAX_WINDOW']
+           'combine_vectors', 'recording_vectors', 'common_speeds', 'stack_vectors', 'from_recordings', 'from_npz',
+           'from_bag', 'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE', 'DEFAULT_TOL_REL',
+           'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']
