@@ -86,12 +86,23 @@ print(json.dumps(out))
         assert rosutil.normalise(rosutil.msg_to_dict(read[s['topic']])) == rosutil.normalise(s['fields']), s['type']
 
 
+def _installed_share():
+    """
+    Return the installed ``share/bearing_id_msgs/msg`` (with rosidl's type descriptions).
+
+    The venv of ``make test`` or a colcon install (``AMENT_PREFIX_PATH``), as :func:`bags._msg_dir_candidates` finds
+    them after the source tree.
+    """
+    for d in bags._msg_dir_candidates()[1:]:
+        if sorted(d.glob('*.json')):
+            return d
+    raise AssertionError(f'no installed bearing_id_msgs with type descriptions in {bags._msg_dir_candidates()[1:]}')
+
+
 def test_type_hashes_match_rosidl():
     """RIHS01 hashes rosbags computes from the .msg text equal the ones rosidl generated at build time."""
-    py = rosutil.require_ros()
-    from pathlib import Path
-
-    share = Path(py).parents[1] / 'share' / 'bearing_id_msgs' / 'msg'
+    rosutil.require_ros()
+    share = _installed_share()
     jsons = sorted(share.glob('*.json'))
     assert len(jsons) == 4, f'rosidl type descriptions not found in {share}'
     ts = bags.typestore()
@@ -137,10 +148,8 @@ def test_corrupt_and_missing_bags_raise_bag_error(tmp_path):
 
 def test_msg_files_found_in_installed_share_without_source_tree(tmp_path, monkeypatch):
     """With no msg_defs/ next to the package (a colcon install), the .msg files come from share/bearing_id_msgs."""
-    py = rosutil.require_ros()
-    from pathlib import Path
-
-    share = Path(py).parents[1] / 'share' / 'bearing_id_msgs' / 'msg'
+    rosutil.require_ros()
+    share = _installed_share()
     monkeypatch.setattr(bags, '_msg_dir_candidates', lambda: [tmp_path / 'nothing', share])
     files = bags.msg_files()
     assert sorted(files) == sorted(f'bearing_id_msgs/msg/{n}' for n in
