@@ -137,7 +137,7 @@ def floor_problem(recordings, rig, *, model=None, nuisance: bool = True):
     """(Problem on identify's 1X vectors with their 1-sigma only, note): the noise-floor problem, or (None, why)."""
     try:
         obs = identify_vectors(recordings)
-    except (ValueError, RuntimeError) as exc:
+    except (ValueError, RuntimeError, KeyError, IndexError, np.linalg.LinAlgError) as exc:
         return None, f'noise-floor check skipped: {exc}'
     if len(obs.windows) < 2:
         return None, 'noise-floor check skipped: fewer than two 1X vectors'

@@ -327,7 +327,8 @@ def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel
             continue
         best = max(rows, key=lambda r: r[2])
         label = best[4] if len(best) > 4 else order
-        out.append(Mismatch(where=where, order=label, speeds_rpm=sorted(r[0] for r in sig), size=float(best[1]),
+        speeds = sorted({round(r[0], 0) for r in sig})          # one entry per speed, however many runs hold it
+        out.append(Mismatch(where=where, order=label, speeds_rpm=speeds, size=float(best[1]),
                             relative=float(best[1] / max(best[3], 1e-300)), significance=float(best[2])))
     out.sort(key=lambda m: -m.significance)
     return out
