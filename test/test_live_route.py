@@ -11,11 +11,10 @@ Issue 9: the live node route gives the offline answer, with an honest 1-sigma.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import rosutil
+from test_bags_replay import wait_for_results
 
 TRUTH_VISCOSITY = [1.30, 0.85]      # x nominal, bearing 1 and 2: unequal true bearings
 TRUTH_CLEARANCE = [0.80, 1.10]
@@ -71,13 +70,8 @@ def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coef
                                  hard_timeout=150)
         procs.append(drv)
         assert drv.wait(120) == 0, drv.output()
-        t_end = time.monotonic() + 30
-        res = []
-        while time.monotonic() < t_end:
-            res = [e['result'] for e in Record(rec_dir, fsync=False).entries('result')]
-            if len({round(r['speed_rad_s'], 3) for r in res}) == len(speeds):
-                break
-            time.sleep(0.25)
+        wait_for_results(rec_dir, len(speeds), timeout=30)
+        res = [e['result'] for e in Record(rec_dir, fsync=False).entries('result')]
         for p in procs[:2]:
             assert p.alive(), p.output()
             rc, _ = p.interrupt()
