@@ -19,6 +19,7 @@ from pathlib import Path
 import sys
 import traceback
 
+from . import blas_threads  # noqa: F401  (before numpy: one BLAS thread unless the user set one)
 from .params import ParamError
 
 COMMANDS = ('model', 'simulate', 'design', 'identify', 'diagnose', 'report', 'record', 'play', 'import_ross')

@@ -5,3 +5,4 @@ Every algorithm lives in the plain modules (rig, signals, kalman, identify); the
 their inputs, keep records and report ``/diagnostics``.  Shared parameter handling, input checks and the process
 main loop are in :mod:`bearing_id.nodes.common`.
 """
+from .. import blas_threads  # noqa: F401  (each node is a process: one BLAS thread unless the user set one)
