@@ -8,9 +8,8 @@ import os
 import subprocess
 import sys
 
-import pytest
-
 from bearing_id import blas_threads
+import pytest
 
 
 def _clean_env(**extra):
