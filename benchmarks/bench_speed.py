@@ -15,7 +15,9 @@ Speed benchmark, like for like (issue 13): every comparison in one run, min/medi
     probes at nodes 3, 6, 9 so that every method applies): as a process, in-process (``cli.main``, file -> printed
     coefficients) and ``identify.identify`` alone on the loaded 1X data (in-process figures: a fresh interpreter,
     modules imported before the clock starts, caches cold -- a repeated call in one process reuses the bearing
-    coefficients and would flatter it).
+    coefficients and would flatter it).  The console script runs numpy with one BLAS thread unless the user set a
+    count (:mod:`bearing_id.blas_threads`); one more process row runs it with OPENBLAS_NUM_THREADS = the core count,
+    what OpenBLAS does by default.
 (d) ``bearing-id diagnose`` on the same files, as a process and in-process.
 (e) Peak memory: benchmarks/bench_memory.py (peak RSS against the number of speeds and the recording length).
 
@@ -228,6 +230,12 @@ def main(argv=None):
             rows.append(bl.timing_row(f'{m}: in-process, file -> coefficients', inproc, TARGET_INPROC.get(m),
                                       extra=('',)))
             rows.append(bl.timing_row(f'{m}: identify() on the loaded 1X data', alone, None, extra=('',)))
+        # what the console script did before it chose one BLAS thread (bearing_id.blas_threads): OpenBLAS's pool
+        pool_n = str(os.cpu_count() or 2)
+        pool = bl.time_process(bl.cli(*identify_argv(files9, methods[-1])), args.process_repeats,
+                               env={'OPENBLAS_NUM_THREADS': pool_n})
+        rows.append(bl.timing_row(f'{methods[-1]}: process, OPENBLAS_NUM_THREADS={pool_n} (OpenBLAS default pool)',
+                                  pool, None, extra=(f'{pool.rss_max:.0f}',)))
         print(f'\n## (c) {len(speeds)}-speed identification per method: 2 runs, probes {PROBES_ALL} '
               f'({bl.load_note()})\n')
         print(bl.table(bl.TIMING_HEADER + ['peak RSS MiB', 'target', 'met'], rows))
