@@ -1,7 +1,7 @@
 """
 The diagnosis' least squares without scipy.optimize against scipy's.
 
-``bearing_id.diagnose.trf.least_squares`` transcribes scipy's ``least_squares(method='trf', x_scale='jac')`` with
+``bearing_id.trf.least_squares`` transcribes scipy's ``least_squares(method='trf', x_scale='jac')`` with
 bounds and the 2-point Jacobian; it must take the same steps (same nfev, njev, status) and end at the same point,
 to 1e-9 relative (it is bit for bit where the floating-point operations are the same).  Checked on bounded
 problems of the kind the diagnosis solves (a few parameters, some ending on a bound, so that the reflective and
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 
-from bearing_id.diagnose import trf
+from bearing_id import trf
 import numpy as np
 import pytest
 from scipy.optimize import least_squares as scipy_least_squares

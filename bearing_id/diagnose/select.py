@@ -43,9 +43,9 @@ import math
 
 import numpy as np
 
-from . import trf
 from .effects import OilWhirl
 from .predict import Problem
+from .. import trf
 from ..conventions import rpm_to_rad_s
 
 AMBIGUOUS_DBIC = 6.0  # screening BIC difference below which two variants of one effect are not told apart
@@ -177,7 +177,7 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
     return f
 
 
-LSQ_METHOD = 'fast'     # 'fast': diagnose.trf (scipy's trf step for step, no scipy.optimize); 'scipy': the reference
+LSQ_METHOD = 'fast'     # 'fast': bearing_id.trf (scipy's trf step for step, no scipy.optimize); 'scipy': the reference
 
 
 def _least_squares(fun, z0, lo, hi, max_nfev):
