@@ -37,9 +37,9 @@ from functools import lru_cache
 import math
 
 import numpy as np
-import scipy.linalg as sla
 
 from .conventions import dof_index
+from .linalg import expm
 from .stats import chi2_quantile, solve_chi2_quantile
 
 CHUNK = 64          # samples per chunk of the vectorised LTI evaluation
@@ -59,7 +59,7 @@ def discretise(A, B, dt: float):
     blk = np.zeros((n + nu, n + nu))
     blk[:n, :n] = A * dt
     blk[:n, n:] = B * dt
-    E = sla.expm(blk)
+    E = expm(blk)
     return E[:n, :n], E[:n, n:]
 
 
@@ -119,9 +119,8 @@ def _dare_sda(Phi, H, Q, R, max_iter=80):
 
     Stops when the relative change of the iterate is <= 1e-15, or <= 1e-9 once the changes fall quadratically
     (d_k <= d_(k-1)^1.5: the next change, and so the remaining error, is then ~d_k^2); the caller checks the Riccati
-    residual.  One LAPACK gesv per doubling for both right-hand sides.
+    residual.  One LU solve (numpy, LAPACK gesv) per doubling for both right-hand sides.
     """
-    from scipy.linalg import lapack
     n = Phi.shape[0]
     Ak = np.array(Phi.T, order='F')
     Gk = H.T @ np.linalg.solve(R, H)
@@ -134,8 +133,9 @@ def _dare_sda(Phi, H, Q, R, max_iter=80):
         Mx[diag] += 1.0
         rhs[:, :n] = Ak
         rhs[:, n:] = Gk
-        _, _, W, info = lapack.dgesv(Mx, rhs, overwrite_a=1, overwrite_b=0)
-        if info != 0:
+        try:
+            W = np.linalg.solve(Mx, rhs)
+        except np.linalg.LinAlgError:
             return None
         IA, IG = W[:, :n], W[:, n:]
         Hn = Hk + Ak.T @ (Hk @ IA)
@@ -155,6 +155,7 @@ def _dare_sda(Phi, H, Q, R, max_iter=80):
 
 def _dare_scipy(Phi, H, Q, R, newton_steps=3):
     """scipy.linalg.solve_discrete_are on the dual (Phi^T, H^T), then Newton (Hewer) refinement steps."""
+    import scipy.linalg as sla          # the reference route only: the doubling route needs no scipy
     P = sla.solve_discrete_are(Phi.T, H.T, Q, R)
     P = 0.5 * (P + P.T)
     n = Phi.shape[0]
@@ -289,7 +290,7 @@ def kalman_model(A, B, H, dt: float, *, Q=1e-16, R, forces=None, speed: float = 
     if not dt > 0:
         raise ValueError(f'dt must be > 0 s, got {dt}')
     E = H.copy() if E is None else np.atleast_2d(np.asarray(E, dtype=float))
-    Phi = sla.expm(A * dt)
+    Phi = expm(A * dt)
     return KalmanModel(A, B, H, E, Phi, _as_cov(Q, n, 'Q'), _as_cov(R, H.shape[0], 'R'), float(dt), float(speed),
                        input_phasors(A, B, forces or {}, speed), tuple(out_names), tuple(meas_names))
 

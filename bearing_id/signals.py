@@ -51,7 +51,7 @@ Transient-aware fit (``transients=N`` > 0)
       Levenberg-Marquardt by :func:`bearing_id.lm.lmder` (MINPACK's lmder in numpy: scipy's steps without importing
       scipy.optimize; test/test_lm.py).  Equal to the reference to rounding (1e-9 relative tested, ~1e-13 seen;
       test/test_transient_fast.py); ``harmonic_vectors(..., transient_method='reference')`` runs the reference.
-      scipy.linalg is imported on the first transient-aware fit, not with this module.
+      The fits use no scipy.linalg (:mod:`bearing_id.linalg`: numpy's QR and triangular solves).
     Cost (2 channels, 1.5 s at 10240 Hz, one core): ~5 ms when nothing is found, ~15-50 ms with 2-3 components
     (reference ~50-150 ms; benchmarks/bench_transient_fit.py).
 
@@ -66,19 +66,9 @@ import math
 import numpy as np
 
 from .conventions import whirl_direction
+from .linalg import solve_triangular
 
 TWO_PI = 2.0 * math.pi
-
-
-def solve_triangular(R, B):
-    """
-    Solve R X = B for X with R (k, k) upper triangular: scipy.linalg.solve_triangular, imported on first use.
-
-    scipy.linalg (and scipy.optimize in :meth:`_VarPro.solve`) are imported only by the transient-aware fit, so
-    importing this module, the plain harmonic fit and the steady-window rule load no scipy (process start, issue 13).
-    """
-    from scipy.linalg import solve_triangular as _solve
-    return _solve(R, B)
 
 
 # ------------------------------------------------------------------------------------------------ input checks
@@ -639,12 +629,9 @@ def _exp_outer(tt, lam, dt=None):
 
 
 def _qr_r(A, overwrite: bool = False):
-    """Return R (k, k) of the thin QR of A (N, k), N >= k (LAPACK dgeqrf, Q not formed; A overwritten if allowed)."""
-    from scipy.linalg.lapack import dgeqrf
-    h, _, _, info = dgeqrf(A, overwrite_a=int(overwrite))
-    if info != 0:
-        raise np.linalg.LinAlgError(f'dgeqrf failed (info {info})')
-    return np.triu(h[:A.shape[1]])
+    """Return R (k, k) of the thin QR of A (N, k), N >= k (LAPACK dgeqrf through numpy, Q not formed)."""
+    from .linalg import qr_r
+    return qr_r(A)
 
 
 class _VarProFast(_VarPro):

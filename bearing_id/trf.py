@@ -366,7 +366,7 @@ def least_squares(fun, x0, lb, ub, *, jac=None, x_scale='jac', ftol: float = FTO
     of (n,) points -> list of residuals (default: ``fun`` at each).  Returns :class:`Result` (x, cost = 0.5 ||f||^2,
     fun, nfev, njev, status, success, message as scipy's).
     """
-    from scipy.linalg import svd       # the transient-aware 1X fit has loaded scipy.linalg already
+    from scipy.linalg import svd       # scipy's own gesdd: the same bits as scipy's trf (numpy's differ)
 
     x0 = np.atleast_1d(x0).astype(float)
     lb = np.asarray(lb, dtype=float)

@@ -323,11 +323,12 @@ def _eig_balanced(A):
     Eigendecomposition A = U diag(lam) U^-1 through the diagonally balanced matrix (lam, U, U^-1, cond).
 
     The rotor's state matrix mixes m, rad, m/s and rad/s (entries from 1 to 1e11): balancing T^-1 A T
-    (scipy.linalg.matrix_balance, no permutation) first makes the eigenvector basis well conditioned (~1e2-1e3
-    instead of ~1e7 here); U = T U_b and U^-1 = U_b^-1 T^-1 are then formed exactly, ``cond`` is that of U_b (1-norm).
+    (:func:`bearing_id.linalg.balance`, powers of 2, no permutation) first makes the eigenvector basis well
+    conditioned (~1e3 instead of ~1e7 here); U = T U_b and U^-1 = U_b^-1 T^-1 are then formed exactly, ``cond`` is
+    that of U_b (1-norm).
     """
-    import scipy.linalg as sla
-    Ab, (t, _) = sla.matrix_balance(A, permute=False, separate=True)
+    from ..linalg import balance
+    Ab, t = balance(A)
     lam, Ub = np.linalg.eig(Ab)
     Ubi = np.linalg.inv(Ub)
     cond = float(np.linalg.norm(Ub, 1) * np.linalg.norm(Ubi, 1))
@@ -363,8 +364,6 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     ``kf_rotor``: the ReducedRotor they filter on (None: the full model); ``transfers`` (a dict, optional) receives
     {id(KalmanModel): T} the :func:`kf_transfer` of each distinct model, T = E M^-1 K (filter).
     """
-    import scipy.linalg as sla
-
     nodes = tuple(model.bearing_nodes)
     nb = len(nodes)
     X = np.asarray(X, dtype=complex)
@@ -388,8 +387,8 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     Dl = _exp_divided_differences(lam * dt)
     ut = Uai @ Udir                                   # U^-1 u_k  (n, 8 nb)
     vt = Ua[vidx, :].T                                # U^T v_k   (n, 8 nb)
-    lu = sla.lu_factor(1j * speed * Id - A)
-    Xp = sla.lu_solve(lu, km0.B @ forces.T)           # (n, nr)
+    Zs = 1j * speed * Id - A
+    Xp = np.linalg.solve(Zs, km0.B @ forces.T)        # (n, nr)
     zB = np.zeros((nr, 2 * nb), dtype=complex)
     dz = np.zeros((nr, 2 * nb, 8 * nb), dtype=complex)
     lin = {}
@@ -405,18 +404,17 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
                 return None
             lnl = np.log(lc)
             den = -np.expm1(lnl[:, None] + lnl[None, :])          # 1 - lc_a lc_b without cancellation
-            Mlu = sla.lu_factor(Mm)
-            OmE = sla.lu_solve(Mlu, E.T.astype(complex), trans=1).T           # E M^-1 (p, n)
+            OmE = np.linalg.solve(Mm.T, E.T.astype(complex)).T               # E M^-1 (p, n)
             Psi = OmE @ IKH
-            Gam = sla.lu_solve(lu, (E - OmE @ K @ H).T, trans=1).T           # (E - E M^-1 K H) (j w I - A)^-1
+            Gam = np.linalg.solve(Zs.T, (E - OmE @ K @ H).T).T               # (E - E M^-1 K H) (j w I - A)^-1
             Lr = (Vi @ Ua).T                                                  # U^T V^-T
             Rr = Vi @ (Phi @ Ppost) @ Uai.T                                   # V^-1 Phi P+ U^-T
-            lin[key] = (K, S, Mlu, Psi, Gam, V, den, Lr, Rr)
+            lin[key] = (K, S, Mm, Psi, Gam, V, den, Lr, Rr)
             if transfers is not None:
                 transfers[key] = OmE @ K
-        K, S, Mlu, Psi, Gam, V, den, Lr, Rr = lin[key]
+        K, S, Mm, Psi, Gam, V, den, Lr, Rr = lin[key]
         y = X[r] - H @ Xp[:, r]
-        w = sla.lu_solve(Mlu, K @ y)
+        w = np.linalg.solve(Mm, K @ y)
         zB[r] = E @ (Xp[:, r] + w)
         h = H.T @ np.linalg.solve(S, y - H @ (Phi @ w) / zeta)
         d1 = (Gam @ Udir) * Xp[vidx, r][None, :]                  # via dXp (per entry)
