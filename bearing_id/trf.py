@@ -355,7 +355,7 @@ def select_step(x, J_h, diag_h, g_h, p, p_h, d, Delta, lb, ub, theta):
 
 
 def least_squares(fun, x0, lb, ub, *, jac=None, x_scale='jac', ftol: float = FTOL, xtol: float = XTOL,
-                  gtol: float = GTOL, max_nfev=None, fun_many=None) -> Result:
+                  gtol: float = GTOL, max_nfev=None, fun_many=None, svd=None) -> Result:
     """
     Minimise 0.5 ||fun(x)||^2 subject to lb <= x <= ub: scipy's trf, step for step.
 
@@ -363,10 +363,13 @@ def least_squares(fun, x0, lb, ub, *, jac=None, x_scale='jac', ftol: float = FTO
     entry; ``jac`` (n,) -> (m, n) the Jacobian (None: scipy's 2-point finite differences); ``x_scale`` 'jac' or
     positive scales (a number or (n,)); ``ftol``, ``xtol``, ``gtol`` scipy's tolerances (>= machine epsilon);
     ``max_nfev`` as scipy's (None: 100 n; the Jacobian's evaluations are not counted, as in scipy); ``fun_many`` list
-    of (n,) points -> list of residuals (default: ``fun`` at each).  Returns :class:`Result` (x, cost = 0.5 ||f||^2,
-    fun, nfev, njev, status, success, message as scipy's).
+    of (n,) points -> list of residuals (default: ``fun`` at each).  ``svd``: the thin SVD of the augmented Jacobian
+    (default scipy.linalg.svd, scipy's own gesdd: the same bits as scipy's trf; ``numpy.linalg.svd``, the same LAPACK
+    routine in numpy's build, takes the same steps to rounding without importing scipy.linalg).  Returns
+    :class:`Result` (x, cost = 0.5 ||f||^2, fun, nfev, njev, status, success, message as scipy's).
     """
-    from scipy.linalg import svd       # scipy's own gesdd: the same bits as scipy's trf (numpy's differ)
+    if svd is None:
+        from scipy.linalg import svd
 
     x0 = np.atleast_1d(x0).astype(float)
     lb = np.asarray(lb, dtype=float)

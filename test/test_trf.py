@@ -5,7 +5,8 @@ The physical fit of ``bearing-id identify`` runs its bounded least squares throu
 scipy.optimize import (issue 13).  The transcription performs scipy's floating-point operations in scipy's order, so
 the iterates are the same bit for bit: compared here with an analytic Jacobian and fixed scales (the physical fit's
 options) and with scipy's defaults (finite differences, x_scale='jac'), on random bounded problems with active
-bounds, and on whole physical identifications (fitted parameters and coefficients to 1e-12 relative).
+bounds; with numpy's SVD (the physical fit's choice: no scipy.linalg import) to rounding; and on whole physical
+identifications (fitted parameters and coefficients to 1e-12 relative).
 """
 from bearing_id import trf
 from bearing_id.identify import physical
@@ -52,6 +53,18 @@ def test_trf_takes_scipys_steps(seed, options, analytic):
     assert (got.nfev, got.njev, got.status, got.success, got.message) == \
         (want.nfev, want.njev, want.status, want.success, want.message)
     assert got.cost == want.cost
+
+
+@pytest.mark.parametrize('seed', range(12))
+def test_trf_with_numpys_svd_takes_scipys_steps_to_rounding(seed):
+    """With numpy's gesdd (the physical fit's, no scipy.linalg import): scipy's result to 1e-10, same status."""
+    fun, jac, x0, lb, ub = _problem(seed)
+    opts = {'x_scale': 1.0, 'ftol': 1e-12, 'xtol': 1e-12, 'gtol': 1e-12}
+    want = scipy_least_squares(fun, x0, jac=jac, bounds=(lb, ub), method='trf', **opts)
+    got = trf.least_squares(fun, x0, lb, ub, jac=jac, svd=np.linalg.svd, **opts)
+    np.testing.assert_allclose(got.x, want.x, rtol=1e-10, atol=1e-12)
+    assert got.success == want.success
+    assert got.cost == pytest.approx(want.cost, rel=1e-10, abs=1e-20)
 
 
 def test_trf_refuses_what_it_does_not_transcribe():

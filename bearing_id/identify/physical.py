@@ -66,15 +66,15 @@ def least_squares(fun, x0, *, jac, bounds, method: str, x_scale, **tols):
     """
     Minimise the residual's squared norm within the bounds, as scipy.optimize's least_squares does.
 
-    ``method='trf'`` runs :func:`bearing_id.trf.least_squares`, scipy's trf transcribed step for step, so a physical
-    fit does not import scipy.optimize (~0.25 s of a process's CPU, issue 13); ``LSQ_METHOD = 'scipy'`` (or another
-    method) calls scipy.  ``tols``: ftol, xtol, gtol, max_nfev.
+    ``method='trf'`` runs :func:`bearing_id.trf.least_squares`, scipy's trf transcribed step for step, with numpy's
+    SVD, so a physical fit imports neither scipy.optimize nor scipy.linalg (~0.25 + 0.3 s of a process's CPU, issue
+    13); ``LSQ_METHOD = 'scipy'`` (or another method) calls scipy.  ``tols``: ftol, xtol, gtol, max_nfev.
     """
     if LSQ_METHOD == 'scipy' or method != 'trf':
         from scipy.optimize import least_squares as _least_squares
         return _least_squares(fun, x0, jac=jac, bounds=bounds, method=method, x_scale=x_scale, **tols)
     from ..trf import least_squares as trf_least_squares
-    return trf_least_squares(fun, x0, bounds[0], bounds[1], jac=jac, x_scale=x_scale, **tols)
+    return trf_least_squares(fun, x0, bounds[0], bounds[1], jac=jac, x_scale=x_scale, svd=np.linalg.svd, **tols)
 
 
 PARAM_NAMES = ('viscosity', 'clearance', 'load')
