@@ -1,8 +1,9 @@
 """
 The console scripts start numpy with one BLAS thread unless the user chose a thread count (bearing_id.blas_threads).
 
-Why it matters (README, "Speed"): with OpenBLAS's default thread pool, ``bearing-id identify`` of the 9-speed
-benchmark files took 8.6-9.8 s CPU on this project's 2-core machine, 2.0-2.5 s with one thread.
+Why it matters (README, "Speed"; bearing_id/blas_threads.py): with OpenBLAS's default pool ``bearing-id identify
+--method direct`` of the 9-speed benchmark files took 4.4-4.8 s CPU on this project's 2-core machine, 2.3-2.4 s with
+one thread.
 """
 import os
 import subprocess
