@@ -10,7 +10,7 @@ What
     * :func:`expm`: the matrix exponential by Al-Mohy and Higham's scaling and squaring (SIAM J. Matrix Anal. Appl.
       31(3) 2009, Algorithm 6.1) with exact 1-norms of the matrix powers (Pade orders 3 to 13, the order and
       scaling rules of scipy.sparse.linalg's ``_expm`` with exact norms), on the balanced matrix.  Equal to
-      ``scipy.linalg.expm`` to ~1e-14 relative (norm-wise) on the rotor's state matrices and Van Loan blocks
+      ``scipy.linalg.expm`` to ~1e-13 relative (norm-wise) on the rotor's state matrices and the discretisation block
       (test/test_linalg.py).
     * :func:`balance`: a diagonal similarity by powers of 2, T^-1 A T, with LAPACK dgebal's scaling rule (no
       permutation): exact, and it makes the rows and columns of the rotor's mixed-unit state matrix comparable so that

@@ -629,7 +629,7 @@ def _exp_outer(tt, lam, dt=None):
 
 
 def _qr_r(A, overwrite: bool = False):
-    """Return R (k, k) of the thin QR of A (N, k), N >= k (LAPACK dgeqrf through numpy, Q not formed)."""
+    """Return R (k, k) of the thin QR of A (N, k), N >= k (LAPACK dgeqrf through numpy, Q not formed; A kept)."""
     from .linalg import qr_r
     return qr_r(A)
 
