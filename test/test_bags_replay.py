@@ -65,7 +65,8 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0, set
     return False
 
 
-def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Path, rate: float = 4.0):
+def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Path, rate: float = 4.0,
+                         identifier_params: dict | None = None):
     """Play ``bag`` into kf_estimator + identifier, record their outputs; returns (coefficients, recorder output)."""
     env = rosutil.ros_env()
     out_bag = tmp_path / 'outputs'
@@ -73,7 +74,8 @@ def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Pat
     procs = []
     try:
         procs.append(_node('kf_estimator', {'prebuild_speeds_rpm': [float(s) for s in speeds_rpm]}, env))
-        procs.append(_node('identifier', {'method': method, 'record_dir': str(record_dir), 'runs': runs}, env))
+        procs.append(_node('identifier', {'method': method, 'record_dir': str(record_dir), 'runs': runs,
+                                          **(identifier_params or {})}, env))
         rec = rosutil.RosProcess([rosutil.script('bearing-id'), 'record', str(out_bag), '--topics',
                                   '/bearing_id/coefficients', '/bearing_id/bearing_displacement'],
                                  env=env, hard_timeout=150)
@@ -144,12 +146,15 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
     """
     The directional-force plan (4 runs) with the direct fit: node == CLI to 1e-6, truth within the stated 1-sigma.
 
+    With ``segment_timeout`` at its floor (10 ms): the identifier sees a pause between most blocks, and its windows
+    must still be the offline ones (a pause on a loaded CI machine once moved a live result 0.3 %).
     A statistical check of the std the product prints: normalised error RMS below 2, no error beyond 4.5 sigma over the
     64 determined coefficients.
     """
     bag = BAGS / 'force_plan'
     speeds = [1200.0, 2400.0]
-    live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path)
+    live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
+                                         identifier_params={'segment_timeout': 0.01})
     ref = offline(bag, 'direct', tmp_path)
     assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
     from bearing_id.params import load_rig

@@ -205,3 +205,37 @@ def test_warm_started_solves_give_the_cold_answers(rig, tmp_path):
     assert nfev['warm'] < nfev['cold'], nfev
     warm.close()
     cold.close()
+
+
+def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig, tmp_path):
+    """
+    A pause hands out the open window provisionally; its final cut replaces that vector.
+
+    Replaced, not stored as a duplicate; and when the final cut gives no vector, the provisional one is withdrawn --
+    also after a restart from the record.
+    """
+    from dataclasses import replace
+    core = IdentifierCore(rig, 'physical', tmp_path)
+    core.add_excitation(rec.run)
+    stream = harmonics.RunStream(rec.run, rec.probes, rec.sample_rate)
+    half = rec.samples.shape[0] // 2
+    assert not stream.feed(rec.samples[:half], rec.angle[:half])
+    provisional, = stream.peek()
+    assert provisional.provisional and not stream.feed(rec.samples[half:], rec.angle[half:])
+    final, = stream.close()
+    assert final.key == provisional.key and final.i1 > provisional.i1
+    assert core.add_window(provisional)
+    (_, X_prov, S_prov, _), = core.vectors['measured'][rec.run.id]
+    assert core.add_window(final)
+    (speed, X, S, _), = core.vectors['measured'][rec.run.id]          # replaced, not a second (duplicate) entry
+    ref, = harmonics.recording_vectors(rec)
+    np.testing.assert_array_equal(X, ref.X)
+    assert np.all(S < S_prov) and not np.array_equal(X, X_prov)
+    short = replace(final, i1=final.i0 + 10, samples=final.samples[:10], angle=final.angle[:10],
+                    speed=final.speed[:10])
+    assert core.add_window(short) == []
+    assert core.vectors['measured'][rec.run.id] == [None] and core.assemble() is None
+    core.close()
+    again = IdentifierCore(rig, 'physical', tmp_path)
+    assert again.vector_counts() == {rec.run.id: 0} and again.assemble() is None
+    again.close()

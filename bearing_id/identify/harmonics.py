@@ -17,8 +17,10 @@ real and of the imaginary part (each) [m]; ``speeds`` (n_speeds,) rad/s.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import copy
+from dataclasses import dataclass, field, replace
 import math
+import uuid
 
 import numpy as np
 
@@ -80,7 +82,9 @@ class ClosedWindow:
     continued : the window continues the previous one, closed only because it reached the length limit (no
     settling part is dropped from it);
     stamp : time of its first sample [s] when the stream was stamped, else None; seqs : (first, last) block
-    sequence numbers when fed block by block, else None.
+    sequence numbers when fed block by block, else None; stream_id : the :class:`RunStream` it was cut from;
+    provisional : cut by :meth:`RunStream.peek` from a stream still open (its data so far, as ``close()`` would cut
+    it now), not by the stream itself.
     """
 
     run: Run
@@ -95,10 +99,17 @@ class ClosedWindow:
     continued: bool = False
     stamp: float | None = None
     seqs: tuple | None = None
+    stream_id: str | None = None
+    provisional: bool = False
 
     @property
     def duration(self) -> float:
         return (self.i1 - self.i0) / self.sample_rate
+
+    @property
+    def key(self) -> str:
+        """Return what names the window: its stream and first sample (a provisional cut and the final one share it)."""
+        return f'{self.stream_id}:{self.i0}'
 
 
 @dataclass
@@ -128,8 +139,9 @@ class RunStream:
     sample waits for the next chunk's first); windows follow :class:`bearing_id.signals.SteadyWindowTracker`, so any
     chunking gives the windows of the whole record.  ``contiguous=False`` (data were lost before this chunk) ends the
     open window at the gap.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory; the next
-    window is then marked ``continued``).  Only
-    the open window's samples are buffered.
+    window is then marked ``continued``).  Only the open window's samples are buffered.  ``peek()`` returns the
+    windows ``close()`` would return now without closing anything (a live consumer's provisional look at the open
+    window while its data pause; the stream goes on as if not asked).
     """
 
     def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
@@ -145,6 +157,7 @@ class RunStream:
         self._after_gap = False        # the next window starts after a gap
         self._continued = False        # the next window continues one closed for its length
         self.n_fed = 0
+        self.id = uuid.uuid4().hex[:16]  # names its windows (ClosedWindow.key), unique across processes and restarts
 
     def feed(self, samples, angle, *, contiguous: bool = True, stamp: float | None = None,
              seq: int | None = None) -> list[ClosedWindow]:
@@ -179,6 +192,13 @@ class RunStream:
         out += self._cut(self.tracker.close())
         self._chunks = []
         return out
+
+    def peek(self) -> list[ClosedWindow]:
+        """Return the windows :meth:`close` would return now, marked provisional; the stream itself is unchanged."""
+        twin = copy.copy(self)
+        twin.tracker = copy.copy(self.tracker)
+        twin._chunks = list(self._chunks)       # close() appends the held sample to its own list (arrays are shared,
+        return [replace(w, provisional=True) for w in twin.close()]     # never written)
 
     def _gap(self) -> list[ClosedWindow]:
         out = self.close()
@@ -228,7 +248,7 @@ class RunStream:
             st = None if c0[4] is None else c0[4] + s0.start / self.fs
             seqs = None if c0[5] is None else (c0[5], sl[-1][0][5])
             out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap,
-                                    self._continued, st, seqs))
+                                    self._continued, st, seqs, self.id))
             self._after_gap = self._continued = False
         return out
 

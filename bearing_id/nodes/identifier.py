@@ -11,8 +11,11 @@ Data path (the offline route, call for call)
     yet waits for it) -- a :class:`bearing_id.identify.harmonics.RunStream`, which is what ``bearing-id identify``
     feeds a whole recording or bag through: the speed of every sample from the angle, steady windows by the same
     rule, the same cut whatever the block boundaries.  A lost or rejected block ends the open window (the rest of
-    the dwell becomes a second window, and the two vectors are combined); a pause (``segment_timeout``) or a change
-    of run or probe set closes the stream.  Each closed window is fitted in a worker thread
+    the dwell becomes a second window, and the two vectors are combined); a change of run or probe set closes the
+    stream.  A pause (no block for ``segment_timeout``: the end of a run's data, or a loaded machine, a paused
+    replay) does not: the open window is handed out provisionally, fitted and used at once, and when the stream goes
+    on, its final cut replaces that vector -- the wall clock never cuts the data, so the live vectors are the
+    offline ones whatever the arrival timing.  Each closed window is fitted in a worker thread
     (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions, transient-aware
     fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
     runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured
@@ -59,7 +62,8 @@ SPECS = [
     ParamSpec('settle_fraction', 0.25, 'fraction of each steady window discarded at its start (transient after a '
               'speed step)', '-', lo=0.0, hi=0.9),
     ParamSpec('min_window', 0.2, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
-    ParamSpec('segment_timeout', 0.3, 'a steady window closes when no block arrived for this long', 's',
+    ParamSpec('segment_timeout', 0.3, 'the open steady window is used provisionally when no block arrived for this '
+              'long (the next contiguous block continues it)', 's',
               lo=0.01, hi=3600.0),
     ParamSpec('max_waiting_blocks', 400, "blocks held while their run's excitation has not arrived yet (the oldest "
               'is dropped and counted beyond this)', 'blocks', lo=1, hi=100000),
@@ -88,6 +92,7 @@ class _Stream:
     probes: tuple
     stream: object                 # identify.harmonics.RunStream
     last_arrival: float = 0.0
+    peeked: bool = False           # its open windows were handed out provisionally and nothing was fed since
 
 
 def _probe_key(probes) -> tuple:
@@ -100,8 +105,11 @@ class IdentifierCore:
 
     ``feed(block, run, source, contiguous, now)`` appends a checked block to the source's run stream
     (:class:`bearing_id.identify.harmonics.RunStream`, the offline route's windowing) and returns the steady windows
-    it closed (cheap: the data path); ``add_window(window, source)`` fits one closed window
-    (:func:`bearing_id.identify.harmonics.window_vector`) and stores its vector (the worker thread);
+    it closed (cheap: the data path); ``flush`` hands out the open windows of a stream that paused, provisionally
+    (the stream stays open: when in doubt, a window is not ended by wall-clock time, only by the data -- lost blocks,
+    a change of run -- as offline); ``add_window(window, source)`` fits one window
+    (:func:`bearing_id.identify.harmonics.window_vector`) and stores its vector (the worker thread); a later cut of
+    the same window (:attr:`ClosedWindow.key`: the final one after a provisional one) replaces its vector;
     ``solve()`` identifies at every speed at which all required runs have a measured vector; with ``warm_start``
     (default) the physical method starts from the parameters of the previous solve (the same answer to the solver's
     tolerance, fewer iterations: :func:`bearing_id.identify.physical.fit_physical` ``p0``).
@@ -128,6 +136,8 @@ class IdentifierCore:
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
         self.vectors: dict = {'measured': {}, 'estimated': {}}   # source -> run id -> [(speed, X, X_std, probes)]
         self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
+        self._parts: dict = {}                 # (source, run id) -> per vector: [[window key, (speed, X, X_std)], ..]
+        self._window_at: dict = {}             # (source, run id, window key) -> (vector index, part index)
         self.streams: dict = {'measured': None, 'estimated': None}
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
@@ -157,8 +167,10 @@ class IdentifierCore:
                     if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0:
                         raise ValueError(f'{X.size} values for {len(probes)} probes')
                     self._store(str(e['source']), str(e['run_id']), float(e['speed']), X, Xs, probes,
-                                bool(e.get('after_gap', False)))
+                                bool(e.get('after_gap', False)), e.get('window'))
                     n_vec += 1
+                elif e['type'] == 'withdrawn':
+                    self._withdraw(str(e['source']), str(e['run_id']), str(e['window']))
                 elif e['type'] == 'result':
                     n_res += 1
             except (KeyError, ValueError, TypeError, AttributeError) as exc:
@@ -184,35 +196,65 @@ class IdentifierCore:
                                     for e in run.excitation])
         return True
 
-    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False) -> str:
+    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None) -> str:
         """
-        Store a vector; returns 'new', 'combined' or 'duplicate'.
+        Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
 
         'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
-        the gap.  'duplicate': a later window at a speed the run already has with this probe set: recorded, not used --
-        the offline route keeps the first too.
+        the gap.  'replaced': a later cut of a window already stored (``key``, :attr:`ClosedWindow.key`; the final cut
+        after a provisional one): its part is replaced and the vector recombined.  'duplicate': a later window at a
+        speed the run already has with this probe set: recorded, not used -- the offline route keeps the first too.
         """
-        from ..identify.harmonics import combine_vectors, WindowVector
-        key = _probe_key(probes)
+        pkey = _probe_key(probes)
         lst = self.vectors[source].setdefault(run_id, [])
+        parts = self._parts.setdefault((source, run_id), [])
+        at = self._window_at.get((source, run_id, key)) if key is not None else None
+        if at is not None:
+            parts[at[0]][at[1]][1] = (speed, X, X_std)
+            lst[at[0]] = self._combined(parts[at[0]], probes)
+            return 'replaced'
         last = self._last_stored.get((source, run_id))
-        if after_gap and last is not None and _probe_key(lst[last][3]) == key and \
+        if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
                 abs(lst[last][0] - speed) <= self.tol_rel * speed:
-            s0, X0, S0, _ = lst[last]
-            m = combine_vectors(WindowVector(s0, X0, S0, 0, 0, None), WindowVector(speed, X, X_std, 0, 0, None))
-            lst[last] = (m.speed, m.X, m.X_std, probes)
+            parts[last].append([key, (speed, X, X_std)])
+            self._window_at[(source, run_id, key)] = (last, len(parts[last]) - 1)
+            lst[last] = self._combined(parts[last], probes)
             return 'combined'
-        if any(abs(s - speed) <= self.tol_rel * speed and _probe_key(p) == key for s, _, _, p in lst):
+        if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
             self._last_stored.pop((source, run_id), None)
             return 'duplicate'
         lst.append((speed, X, X_std, probes))
+        parts.append([[key, (speed, X, X_std)]])
+        self._window_at[(source, run_id, key)] = (len(lst) - 1, 0)
         self._last_stored[(source, run_id)] = len(lst) - 1
         if source == 'measured':
-            if self.probe_set is not None and self.probe_set != key:
-                self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in key]}: '
+            if self.probe_set is not None and self.probe_set != pkey:
+                self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in pkey]}: '
                                   f'vectors of different probe sets are kept apart; the new set is identified')
-            self.probe_set = key
+            self.probe_set = pkey
         return 'new'
+
+    @staticmethod
+    def _combined(parts, probes):
+        """Return the vector (speed, X, X_std, probes) of a dwell's parts, combined in window order, as offline."""
+        from ..identify.harmonics import combine_vectors, WindowVector
+        v = None
+        for _, part in parts:
+            if part is None:
+                continue
+            w = WindowVector(part[0], part[1], part[2], 0, 0, None)
+            v = w if v is None else combine_vectors(v, w)
+        return None if v is None else (v.speed, v.X, v.X_std, probes)
+
+    def _withdraw(self, source, run_id, key) -> bool:
+        """Drop the stored part of window ``key`` (its final cut gives no vector); returns whether one was stored."""
+        at = self._window_at.pop((source, run_id, key), None)
+        if at is None:
+            return False
+        lst, parts = self.vectors[source][run_id], self._parts[(source, run_id)][at[0]]
+        parts[at[1]][1] = None
+        lst[at[0]] = None if lst[at[0]] is None else self._combined(parts, lst[at[0]][3])
+        return True
 
     # ---- data path (callback thread)
     def feed(self, block, run: Run, source: str, contiguous: bool, now: float) -> list:
@@ -228,7 +270,9 @@ class IdentifierCore:
         probes = tuple(block.probes)
         if cur is not None and (cur.run.id != run.id or _probe_key(cur.probes) != _probe_key(probes)
                                 or cur.stream.fs != float(block.sample_rate)):
-            out += cur.stream.close()          # the stream moved on to another run / probe set / rate
+            closed = cur.stream.close()        # the stream moved on to another run / probe set / rate
+            if not cur.peeked:                 # (else these are the windows flush() handed out: no new data since)
+                out += closed
             cur = None
         if cur is None:
             cur = self.streams[source] = _Stream(run, probes, RunStream(run, probes, float(block.sample_rate),
@@ -237,16 +281,31 @@ class IdentifierCore:
             contiguous = True
         out += cur.stream.feed(block.samples, block.angles(), contiguous=contiguous, stamp=block.stamp,
                                seq=block.seq)
-        cur.last_arrival = now
+        cur.last_arrival, cur.peeked = now, False
         return out
 
     def flush(self, source: str, now: float, timeout: float) -> list:
-        """Close the source's stream when no block arrived for ``timeout`` [s] (end of a run, a pause)."""
+        """
+        Return the source's open windows, provisionally, when no block arrived for ``timeout`` [s].
+
+        The end of a run's data, or only a pause in their arrival (a loaded machine, a paused replay): either way the
+        windows are cut as if the stream ended now (:meth:`RunStream.peek`) so that their vectors are used at once,
+        but the stream stays open -- a contiguous next block continues the window, whose final cut then replaces the
+        provisional vector.  Wall-clock time never cuts the data: the vectors are those of the offline route whatever
+        the arrival timing.  Once per pause.
+        """
         cur = self.streams[source]
-        if cur is None or now - cur.last_arrival < timeout:
+        if cur is None or cur.peeked or now - cur.last_arrival < timeout:
             return []
-        self.streams[source] = None
-        return cur.stream.close()
+        cur.peeked = True
+        return cur.stream.peek()
+
+    def wants(self, win, min_duration: float) -> bool:
+        """Whether a window is worth fitting: ``min_duration`` [s] long, or a later cut of one stored already."""
+        if win.duration >= min_duration:
+            return True
+        with self.lock:
+            return any(k[2] == win.key for k in self._window_at)
 
     # ---- accumulation (worker thread)
     def add_window(self, win, source: str = 'measured') -> list[tuple]:
@@ -254,18 +313,30 @@ class IdentifierCore:
         from ..identify import harmonics
         what = (f'{source} window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
                 f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'{source} window of run {win.run.id}')
-        v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
+        try:
+            v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
+        except ValueError:
+            if not win.provisional:
+                raise
+            v = None                # the data so far do not make a vector yet (e.g. under one revolution)
         if v is None:
-            if win.duration >= 0.5 * self.min_window:
+            with self.lock:
+                withdrawn = self._withdraw(source, win.run.id, win.key)
+            if withdrawn:           # its provisional cut was stored; the final one is too short
+                self.record.append('withdrawn', source=source, run_id=win.run.id, window=win.key)
+            elif win.duration >= 0.5 * self.min_window and not win.provisional:
                 self.notes.append(f'{what} ({win.duration:.2f} s): too short for a 1X vector; not used')
             return []
         with self.lock:
-            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued)
+            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued,
+                              win.key)
             self.sample_rate = win.sample_rate
         self.record.append('vector', source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
-                           used=how != 'duplicate')
+                           used=how != 'duplicate', window=win.key, provisional=win.provisional)
+        if win.provisional or how == 'replaced':
+            return [(v.speed, v.X)] if how != 'duplicate' else []
         if how == 'duplicate':
             self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; '
                               f'recorded, not used (the first window at a speed is used, as offline)')
@@ -276,7 +347,7 @@ class IdentifierCore:
 
     def vector_counts(self, source: str = 'measured') -> dict:
         with self.lock:
-            return {rid: len(v) for rid, v in self.vectors[source].items()}
+            return {rid: sum(x is not None for x in v) for rid, v in self.vectors[source].items()}
 
     def required_runs(self) -> list[str]:
         return list(self.required) if self.required else list(self.runs)
@@ -294,7 +365,8 @@ class IdentifierCore:
                 return None
 
             def of_set(source, rid):
-                return [v for v in self.vectors[source].get(rid, []) if _probe_key(v[3]) == self.probe_set]
+                return [v for v in self.vectors[source].get(rid, [])
+                        if v is not None and _probe_key(v[3]) == self.probe_set]
 
             meas = [of_set('measured', rid) for rid in req]
             speeds, picks = common_speeds(meas, self.tol_rel)
@@ -516,8 +588,8 @@ def _make_node():
         def _close(self, windows, source, now):
             # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
-            for w in windows:
-                if w.duration >= 0.5 * self.core.min_window:   # (shorter ones, e.g. ramp steps, give nothing)
+            for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
+                if self.core.wants(w, 0.5 * self.core.min_window):
                     self._jobs.put(('window', w, source, now))
 
         def tick(self):
