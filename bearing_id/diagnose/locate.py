@@ -210,8 +210,9 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
                              f'skipped (less than one revolution after settling)')
                 continue
             x = np.asarray(rec.samples[a2:b], dtype=float)
-            fit = signals.harmonic_vectors(x, ang, orders, nonfinite='drop')
-            w = Window(rec=r, i0=a2, i1=b, speed=float(np.mean(rec.speed[a2:b])), X=fit.X, std=fit.std)
+            # the nX vectors are fitted below, once the lines fitted with them are known (a window with a whirl or a
+            # free-vibration line needs only the fit that holds them)
+            w = Window(rec=r, i0=a2, i1=b, speed=float(np.mean(rec.speed[a2:b])), X=None, std=None)
             try:                # (ratio, snr, whirl direction) per band; the synchronous fit done once for both
                 found = signals.subsynchronous_bands(x, ang, fs, ((0.05, 0.95), tuple(whirl_band)), xy=pair)
             except ValueError:
@@ -233,12 +234,11 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
             subs = ([w.sub_ratio] if whirl is not None else []) + ([transient[len(windows)]] if others else [])
             if others:
                 w.transient_ratio = float(transient[len(windows)])
-            if subs:
-                fit = signals.harmonic_vectors(x, ang, orders, subsync=subs, nonfinite='drop')
-                w.X, w.std = fit.X, fit.std
-                if whirl is not None:
-                    w.own_ratio = float(w.sub_ratio)
-                    w.own_sub = (fit.X_sub[0], np.sqrt(fit.std_sub[0] ** 2 + (FLOOR_TOL * np.abs(fit.X[0])) ** 2))
+            fit = signals.harmonic_vectors(x, ang, orders, subsync=subs or None, nonfinite='drop')
+            w.X, w.std = fit.X, fit.std
+            if whirl is not None:
+                w.own_ratio = float(w.sub_ratio)
+                w.own_sub = (fit.X_sub[0], np.sqrt(fit.std_sub[0] ** 2 + (FLOOR_TOL * np.abs(fit.X[0])) ** 2))
             windows.append(w)
     # the nX vectors of a window come from its own regression only (its own whirl / free-vibration lines); the
     # sub-synchronous data of the windows without a whirl of their own are assigned per fit (assign_sub)

@@ -29,7 +29,7 @@ from .locate import FLOOR_TOL, Observations, sigma
 from .. import bearings as bearings_mod
 from ..conventions import dof_index, parse_probe_direction, probe_direction
 from ..excitation import harmonic_forces
-from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_row, RotorModel
+from ..rotor.assembly import add_film_impedance, dynamic_stiffness, film_dofs, measurement_row, RotorModel
 
 
 # ------------------------------------------------------------------------------------------------ bearing model forms
@@ -210,6 +210,7 @@ class Problem:
         self.known = [harmonic_forces(obs.recordings[w.rec].run.excitation, w.speed, n, self.model.ndof)
                       for w in obs.windows]
         self._Z0 = {}
+        self._Z0_stacks = {}
         self._coeff_cache = {}
         self._bearing_cache = {}
         self._factor_memo = {}
@@ -325,6 +326,69 @@ class Problem:
             e.add_dZ(self, Z, W, w, nl)
         return Z
 
+    def _bearing_setup(self, effects, nls):
+        """(factors, form) the effects apply to the bearing theory, composed as :meth:`system` composes them."""
+        factors, form = None, None
+        for e, nl in zip(effects, nls):
+            f = e.bearing_factors(nl)
+            if f is not None:
+                factors = f if factors is None else (tuple(a * b for a, b in zip(factors[0], f[0])),
+                                                     tuple(a * b for a, b in zip(factors[1], f[1])))
+            form = getattr(e, 'bearing_form', None) or form
+        return factors, form
+
+    def _Z0_stack(self, keys) -> np.ndarray:
+        """Rotor-only dynamic stiffnesses (n, N, N) of the (window, ratio) ``keys`` stacked (cached per key list)."""
+        key = tuple(keys)
+        Z = self._Z0_stacks.get(key)
+        if Z is None:
+            if len(self._Z0_stacks) > 16:
+                self._Z0_stacks.clear()
+            Z = self._Z0_stacks[key] = np.stack([self.Z0(k, r) for k, r in keys])
+        return Z
+
+    def systems(self, keys, theta, effects, nls) -> np.ndarray:
+        """
+        Return :meth:`system` for every (window, ratio) of ``keys``, stacked (n, N, N).
+
+        The same operations on every entry as :meth:`system` (the rotor part, each bearing's K + j w C through the
+        effects' bearing hooks added at its film DOFs in the same order, then the effects' dZ), vectorised over the
+        entries: the same bits (test/test_diagnose_speed.py).
+        """
+        from .effects import Effect
+        n = len(keys)
+        Z = self._Z0_stack(keys).copy()
+        if not n:
+            return Z
+        factors, form = self._bearing_setup(effects, nls)
+        Ws = [self.obs.windows[k].speed for k, _ in keys]
+        ws = [ratio * W for (_, ratio), W in zip(keys, Ws)]
+        w = np.array(ws)
+        speeds = list(dict.fromkeys(Ws))
+        per_speed = [self.coeffs(theta, W, factors, form) for W in speeds]
+        pos = {W: i for i, W in enumerate(speeds)}
+        at = np.array([pos[W] for W in Ws])
+        b_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).bearing_impedance is not Effect.bearing_impedance]
+        z_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).add_dZ is not Effect.add_dZ]
+        jw = 1j * w[:, None, None]
+        for node in (per_speed[0] if per_speed else {}):
+            Kb = np.stack([c[node][0] for c in per_speed])[at]
+            Cb = np.stack([c[node][1] for c in per_speed])[at]
+            Zb = np.asarray(Kb, float) + jw * np.asarray(Cb, float)
+            for e, nl in b_hooks:
+                for j in range(n):
+                    Zb[j] = e.bearing_impedance(self, node, Zb[j], Ws[j], ws[j], nl)
+            i, jp = film_dofs(self.model, node)
+            Z[:, i:i + 2, i:i + 2] += Zb
+            if jp is not None:
+                Z[:, jp:jp + 2, jp:jp + 2] += Zb
+                Z[:, i:i + 2, jp:jp + 2] -= Zb
+                Z[:, jp:jp + 2, i:i + 2] -= Zb
+        for e, nl in z_hooks:
+            for j in range(n):
+                e.add_dZ(self, Z[j], Ws[j], ws[j], nl)
+        return Z
+
     def predict(self, theta, effects, nls, windows=None):
         """
         Model prediction over the entries of ``windows`` (default all).
@@ -333,14 +397,15 @@ class Problem:
         (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and the
         selected entry indices.  ``nls`` holds each effect's nonlinear parameter vector.  The same numbers as
         :meth:`predict_reference` (test/test_diagnose_fast.py): the dynamic stiffness of every (window, order) is
-        assembled as there, and the systems of equal shape are solved in one stacked ``numpy.linalg.solve``.
+        assembled as there, all at once (:meth:`systems`, bit for bit :meth:`system`), and the systems with
+        right-hand sides of equal shape are solved in one stacked ``numpy.linalg.solve``.
         """
         windows = range(len(self.obs.windows)) if windows is None else windows
         nlin = [e.n_lin for e in effects]
         off = np.concatenate([[0], np.cumsum(nlin)]).astype(int)
         ndof = self.model.ndof
         zero_rhs = np.zeros((ndof, 1), complex)
-        jobs = []               # (window, order, ratio, cols, Z, R) in the reference's order
+        jobs = []               # (window, order, ratio, cols, solved?, R) in the reference's order
         for k in windows:
             for o, ratio in enumerate(self.orders):
                 F0 = self.known[k].get(ratio)
@@ -354,16 +419,18 @@ class Problem:
                 if F0 is None and not cols:
                     jobs.append((k, o, ratio, cols, None, None))
                 else:
-                    jobs.append((k, o, ratio, cols, self.system(k, ratio, theta, effects, nls), np.hstack(rhs)))
+                    jobs.append((k, o, ratio, cols, True, rhs[0] if len(rhs) == 1 else np.hstack(rhs)))
+        solved = [i for i, job in enumerate(jobs) if job[4] is not None]
+        Zs = self.systems([(jobs[i][0], jobs[i][2]) for i in solved], theta, effects, nls)
         groups = {}
-        for i, job in enumerate(jobs):
-            if job[4] is not None:
-                groups.setdefault((job[4].shape, job[5].shape), []).append(i)
+        for p, i in enumerate(solved):
+            groups.setdefault(jobs[i][5].shape, []).append(p)
         Qs = [None] * len(jobs)
         for members in groups.values():
-            Q = np.linalg.solve(np.stack([jobs[i][4] for i in members]), np.stack([jobs[i][5] for i in members]))
-            for i, q in zip(members, Q):
-                Qs[i] = q[:ndof]
+            Zg = Zs if len(members) == len(solved) else Zs[members]
+            Q = np.linalg.solve(Zg, np.stack([jobs[solved[p]][5] for p in members]))
+            for p, q in zip(members, Q):
+                Qs[solved[p]] = q[:ndof]
         idx, y0s, As = [], [], []
         n_ord = len(self.orders)
         for start in range(0, len(jobs), n_ord):
@@ -378,15 +445,18 @@ class Problem:
                 _, o, ratio, cols, _, _ = jobs[i]
                 Q = Qs[i]
                 q0 = Q[:, 0] if Q is not None else np.zeros(ndof, complex)
-                y0[o] = P @ q0
+                y_nom = P @ q0
+                y0[o] = y_nom
                 c0 = 1
                 for j, m in cols:
                     A[o, :, off[j]:off[j] + m] += P @ Q[:, c0:c0 + m]
                     c0 += m
-                for j, (e, nl) in enumerate(zip(effects, nls)):
-                    mc = e.measure_columns(self, k, o, ratio, P @ q0, Pp @ q0)
-                    if mc is not None:
-                        A[o, :, off[j]:off[j + 1]] += mc
+                if effects:
+                    y_perp = Pp @ q0
+                    for j, (e, nl) in enumerate(zip(effects, nls)):
+                        mc = e.measure_columns(self, k, o, ratio, y_nom, y_perp)
+                        if mc is not None:
+                            A[o, :, off[j]:off[j + 1]] += mc
             sl = self.slices[k]
             idx.append(np.arange(sl.start, sl.stop))
             y0s.append(y0.reshape(-1))
