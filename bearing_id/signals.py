@@ -323,8 +323,14 @@ TRANSIENT_MAX_TRIES = 2         # candidates tried per allowed component (non-de
 
 
 def _decay_columns(tt, p):
-    """E (N, 2m) = [Re z_1, Im z_1, ...] with z_m = exp((-s_m + j w_m) t); and z (N, m) complex."""
-    z = np.exp(np.outer(tt, -p[0::2] + 1j * p[1::2]))
+    """
+    E (N, 2m) = [Re z_1, Im z_1, ...] with z_m = exp((-s_m + j w_m) t); and z (N, m) complex.
+
+    A trial step with a fast-growing component (s << 0) overflows to inf / nan without a warning: the residual is then
+    not finite, and Levenberg-Marquardt rejects the step (MINPACK's rule: no actual reduction).
+    """
+    with np.errstate(over='ignore', invalid='ignore'):
+        z = np.exp(np.outer(tt, -p[0::2] + 1j * p[1::2]))
     E = np.empty((tt.size, 2 * z.shape[1]))
     E[:, 0::2] = z.real
     E[:, 1::2] = z.imag
@@ -616,16 +622,18 @@ def _exp_outer(tt, lam, dt=None):
     Return z = exp(outer(tt, lam)) (N, m) complex; cheap on a uniform grid (``dt`` the step from _uniform_step).
 
     On a uniform grid z[i B + j] = exp(lam (tt[0] + j dt)) exp(lam i B dt): 2 sqrt(N) m exponentials and N m products
-    instead of N m exponentials; the two differ by rounding (~|lam t| eps).
+    instead of N m exponentials; the two differ by rounding (~|lam t| eps).  Overflow (a trial step with a
+    fast-growing component) gives inf / nan quietly, as in :func:`_decay_columns`.
     """
-    if dt is None:
-        return np.exp(np.outer(tt, lam))
-    n = tt.size
-    b = int(math.ceil(math.sqrt(n)))
-    nb = -(-n // b)
-    fine = np.exp(np.outer(tt[0] + dt * np.arange(b), lam))             # (b, m)
-    coarse = np.exp(np.outer(dt * b * np.arange(nb), lam))              # (nb, m)
-    return (coarse[:, None, :] * fine[None, :, :]).reshape(nb * b, lam.size)[:n]
+    with np.errstate(over='ignore', invalid='ignore'):
+        if dt is None:
+            return np.exp(np.outer(tt, lam))
+        n = tt.size
+        b = int(math.ceil(math.sqrt(n)))
+        nb = -(-n // b)
+        fine = np.exp(np.outer(tt[0] + dt * np.arange(b), lam))             # (b, m)
+        coarse = np.exp(np.outer(dt * b * np.arange(nb), lam))              # (nb, m)
+        return (coarse[:, None, :] * fine[None, :, :]).reshape(nb * b, lam.size)[:n]
 
 
 def _qr_r(A, overwrite: bool = False):
