@@ -25,6 +25,7 @@ import types
 from bearing_id.conventions import rpm_to_rad_s
 import numpy as np
 import pytest
+from test_diagnose_trf import check_same_fit
 
 SPEEDS_RPM = (300.0, 900.0, 1500.0, 2100.0, 2700.0)
 
@@ -130,17 +131,6 @@ def test_svd_factors_match_scipys_in_value_and_layout():
         assert _rel((U * s) @ Vh, a) <= 1e-12
 
 
-def _check_same_fit(a, b):
-    assert _rel(a.theta, b.theta) <= 1e-9
-    for x, y in zip(a.nls, b.nls):
-        assert _rel(x, y) <= 1e-9
-    assert _rel(a.lin, b.lin) <= 1e-9
-    assert abs(a.chi2 - b.chi2) <= 1e-9 * b.chi2
-    for pa, pb in zip(a.std, b.std):
-        for key in pb:
-            assert abs(pa[key] - pb[key]) <= 1e-9 * abs(pb[key]) or pa[key] == pb[key]
-
-
 def test_fits_with_numpys_svd_equal_the_scipy_svd_reference(problems):
     from bearing_id.diagnose.effects import candidates
     select = _select()
@@ -156,7 +146,7 @@ def test_fits_with_numpys_svd_equal_the_scipy_svd_reference(problems):
                 for m in ('scipy', 'numpy'):
                     select.LSQ_SVD = m
                     out[m] = select.fit(prob, effects, windows=windows)
-                _check_same_fit(out['numpy'], out['scipy'])
+                check_same_fit(out['numpy'], out['scipy'])
                 assert abs(out['numpy'].theta).max() > 0.05      # the nuisance moved: steps were taken
     finally:
         select.LSQ_SVD = old
@@ -172,7 +162,7 @@ def test_a_fit_imports_neither_scipy_linalg_nor_scipy_optimize(problems, monkeyp
         monkeypatch.setitem(sys.modules, name, types.ModuleType(name))
     monkeypatch.setattr(select, 'LSQ_SVD', 'numpy')
     got = select.fit(prob, [support], windows=list(range(0, len(prob.windows), 2)))
-    _check_same_fit(got, want)
+    check_same_fit(got, want)
 
 
 def test_observe_fits_each_window_once_with_its_lines(monkeypatch):

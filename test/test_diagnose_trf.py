@@ -47,6 +47,18 @@ def _problems():
     yield fun2, np.zeros(4), np.full(4, -np.log(3.0)), np.full(4, np.log(3.0))
 
 
+def check_same_fit(a, b):
+    """Assert two diagnose fits agree to 1e-9 relative: nuisance, nonlinear and linear parameters, chi2, 1-sigma."""
+    assert _rel(a.theta, b.theta) <= 1e-9
+    for x, y in zip(a.nls, b.nls):
+        assert _rel(x, y) <= 1e-9
+    assert _rel(a.lin, b.lin) <= 1e-9
+    assert abs(a.chi2 - b.chi2) <= 1e-9 * b.chi2
+    for pa, pb in zip(a.std, b.std):
+        for key in pb:
+            assert abs(pa[key] - pb[key]) <= 1e-9 * abs(pb[key]) or pa[key] == pb[key]
+
+
 @pytest.mark.parametrize('case', list(range(13)))
 def test_trf_takes_scipys_steps(case):
     fun, x0, lo, hi = list(_problems())[case]
@@ -96,14 +108,6 @@ def test_diagnose_fits_equal_the_scipy_reference(prob):
                 for m in ('scipy', 'fast'):
                     select.LSQ_METHOD = m
                     out[m] = select.fit(prob, effects, windows=windows)
-                a, b = out['fast'], out['scipy']
-                assert _rel(a.theta, b.theta) <= 1e-9
-                for x, y in zip(a.nls, b.nls):
-                    assert _rel(x, y) <= 1e-9
-                assert _rel(a.lin, b.lin) <= 1e-9
-                assert abs(a.chi2 - b.chi2) <= 1e-9 * b.chi2
-                for pa, pb in zip(a.std, b.std):
-                    for key in pb:
-                        assert abs(pa[key] - pb[key]) <= 1e-9 * abs(pb[key]) or pa[key] == pb[key]
+                check_same_fit(out['fast'], out['scipy'])
     finally:
         select.LSQ_METHOD = old

@@ -310,13 +310,7 @@ class Problem:
         W = self.obs.windows[k].speed
         w = ratio * W
         Z = self.Z0(k, ratio).copy()
-        factors, form = None, None
-        for e, nl in zip(effects, nls):
-            f = e.bearing_factors(nl)
-            if f is not None:
-                factors = f if factors is None else (tuple(a * b for a, b in zip(factors[0], f[0])),
-                                                     tuple(a * b for a, b in zip(factors[1], f[1])))
-            form = getattr(e, 'bearing_form', None) or form
+        factors, form = self._bearing_setup(effects, nls)
         for node, (Kb, Cb) in self.coeffs(theta, W, factors, form).items():
             Zb = np.asarray(Kb) + 1j * w * np.asarray(Cb)
             for e, nl in zip(effects, nls):
@@ -327,7 +321,7 @@ class Problem:
         return Z
 
     def _bearing_setup(self, effects, nls):
-        """(factors, form) the effects apply to the bearing theory, composed as :meth:`system` composes them."""
+        """Return (factors, form): what the effects apply to the bearing theory, composed in effect order."""
         factors, form = None, None
         for e, nl in zip(effects, nls):
             f = e.bearing_factors(nl)
