@@ -3,9 +3,11 @@ Levenberg-Marquardt as MINPACK's lmder in numpy: scipy.optimize.least_squares(me
 
 Why
     The transient-aware 1X fit (:mod:`bearing_id.signals`) runs its small variable-projection problems (n <= 8
-    parameters) through ``least_squares(..., method='lm', x_scale='jac')``, i.e. MINPACK's lmder.  Importing
-    scipy.optimize costs ~0.3-0.6 s of every process start (scipy 1.17 parses hundreds of docstrings at import); a
-    command that needs no other scipy.optimize routine should not pay it (issue 13).
+    parameters) through ``least_squares(..., method='lm', x_scale='jac')``, i.e. MINPACK's lmder, and the direct
+    method (:mod:`bearing_id.identify.direct`) its 16-unknown output-error fits and their profile checks
+    (:func:`least_squares`, scipy's result fields).  Importing scipy.optimize costs ~0.3-0.6 s of every process start
+    (scipy 1.17 parses hundreds of docstrings at import); a command that needs no other scipy.optimize routine should
+    not pay it (issue 13).
 
 What
     :func:`lmder` is MINPACK-1's lmder (More, Garbow, Hillstrom 1980) step for step: the Jacobian's QR with
@@ -359,3 +361,32 @@ def lmder(fun, jac, x0, *, ftol: float = 1e-8, xtol: float = 1e-8, gtol: float =
                 return x, 8
             if ratio >= 1e-4:
                 break
+
+
+# scipy's status of a MINPACK info (scipy.optimize._lsq.least_squares.FROM_MINPACK_TO_COMMON); 6-8 (a tolerance met
+# to machine precision) scipy guards against up front, here they count as the ftol / xtol / gtol they refine
+_STATUS = {1: 2, 2: 3, 3: 4, 4: 1, 5: 0, 6: 2, 7: 3, 8: 1}
+
+
+def least_squares(fun, x0, jac, *, x_scale='jac', ftol: float = 1e-8, xtol: float = 1e-8, gtol: float = 1e-8,
+                  max_nfev=None):
+    """
+    Return scipy's ``least_squares`` result for ``method='lm'``, computed by :func:`lmder` (no scipy import).
+
+    ``fun`` (n,) -> (m,), ``jac`` (n,) -> (m, n) (callables), m >= n; ``x_scale`` 'jac' (scipy 1.17's default for
+    'lm') or positive numbers.  Returns :class:`bearing_id.trf.Result` (x, cost = 0.5 |f|^2, fun, nfev, njev, status,
+    success, message with scipy's meanings; nfev and njev count the calls as MINPACK does).
+    """
+    from .trf import Result
+    count = {'f': 0, 'j': 0}
+
+    def f(x):
+        count['f'] += 1
+        return fun(x)
+
+    def j(x):
+        count['j'] += 1
+        return jac(x)
+    x, info = lmder(f, j, x0, ftol=ftol, xtol=xtol, gtol=gtol, max_nfev=max_nfev, x_scale=x_scale)
+    fv = np.asarray(fun(x), dtype=float).reshape(-1)
+    return Result(x, 0.5 * float(fv @ fv), fv, count['f'], count['j'], _STATUS[info])

@@ -10,8 +10,9 @@ entry (1 for a K entry, j Omega for a C entry) at the bearing's (x, y) DOFs; ``F
 (:func:`bearing_id.excitation.harmonic_forces`); ``P_r`` its probe selection.  Z is linear in beta, so the Jacobian is
 exact and cheap:  dq/dbeta_k = -Z^-1 dZ_k q.
 
-Fit: weighted least squares on Re and Im of (P q - X) / sigma (sigma = 1-sigma of the measured Re/Im), solved with
-scipy.optimize.least_squares from the theory, in scaled unknowns theta = beta / s (s = the largest |entry| of the
+Fit: weighted least squares on Re and Im of (P q - X) / sigma (sigma = 1-sigma of the measured Re/Im), solved by
+Levenberg-Marquardt (MINPACK's lmder, :mod:`bearing_id.lm`; scipy's trf when there are fewer equations than unknowns)
+from the theory, in scaled unknowns theta = beta / s (s = the largest |entry| of the
 theory block: the problem is then well conditioned in the parameters).  Optional Gaussian prior toward the theory:
 ``prior_weight`` w adds rows sqrt(w) (theta - theta_theory), i.e. a prior 1-sigma of s / sqrt(w) per coefficient
 (w = 4: 50 % of the block scale; w = 0: no prior).
@@ -64,10 +65,23 @@ K_SCALE_DEFAULT = 1e5     # N/m, scale of the K unknowns when no theory is given
 C_SCALE_DEFAULT = 1e2     # N s/m
 
 
-def least_squares(*args, **kwargs):
-    """Call :func:`scipy.optimize.least_squares` (imported on first use: scipy.optimize costs ~0.1 s of start-up)."""
+LSQ_METHOD = 'fast'        # 'fast': method 'lm' by bearing_id.lm (MINPACK's lmder in numpy); 'scipy': the reference
+
+
+def least_squares(fun, x0, *, jac, method: str, **kwargs):
+    """
+    Minimise the squared norm of the residual as scipy.optimize's ``least_squares`` does with ``method``.
+
+    ``method='lm'`` runs :func:`bearing_id.lm.least_squares` (MINPACK's lmder step for step, without importing
+    scipy.optimize: ~0.55 s of CPU per process here); ``LSQ_METHOD = 'scipy'``, or ``method='trf'`` (fewer equations
+    than unknowns, unbounded), calls scipy (test/test_identify_direct.py ties the two to 1e-9).  ``kwargs``: x_scale,
+    xtol, ftol, gtol, max_nfev.
+    """
+    if LSQ_METHOD == 'fast' and method == 'lm':
+        from ..lm import least_squares as lm_least_squares
+        return lm_least_squares(fun, x0, jac, **kwargs)
     from scipy.optimize import least_squares as _least_squares
-    return _least_squares(*args, **kwargs)
+    return _least_squares(fun, x0, jac=jac, method=method, **kwargs)
 
 
 @dataclass
