@@ -7,8 +7,9 @@ Reports (printed as a table):
 * real-time factor of each node = seconds of data streamed / CPU seconds the node used while streaming (from
   /proc/<pid>/stat; > 1 keeps up, and the machine has 2 cores shared by all three);
 * latency from the arrival of the last block of a steady window at the identifier to the coefficients published
-  (the identifier measures it; the window closes when the next block shows the speed change or after
-  ``segment_timeout``), and how long after the driver's last block every speed is published;
+  (the identifier measures it; the window closes when the next block shows the speed change, or is used
+  provisionally after ``segment_timeout`` without blocks), and how long after the driver's last block every speed
+  is published;
 * resident memory (VmRSS and peak VmHWM) of each node, target <= 300 MB.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_streaming.py [--rates 1,20] [--speeds ...] [--dwell 3]
