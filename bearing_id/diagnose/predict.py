@@ -365,7 +365,7 @@ class Problem:
         b_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).bearing_impedance is not Effect.bearing_impedance]
         z_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).add_dZ is not Effect.add_dZ]
         jw = 1j * w[:, None, None]
-        for node in (per_speed[0] if per_speed else {}):
+        for node in per_speed[0]:
             Kb = np.stack([c[node][0] for c in per_speed])[at]
             Cb = np.stack([c[node][1] for c in per_speed])[at]
             Zb = np.asarray(Kb, float) + jw * np.asarray(Cb, float)

@@ -197,8 +197,8 @@ class RunStream:
         """Return the windows :meth:`close` would return now, marked provisional; the stream itself is unchanged."""
         twin = copy.copy(self)
         twin.tracker = copy.copy(self.tracker)
-        twin._chunks = list(self._chunks)       # close() appends the held sample to its own list (arrays are shared,
-        return [replace(w, provisional=True) for w in twin.close()]     # never written)
+        twin._chunks = list(self._chunks)       # its close() appends the held sample to this list; arrays are shared
+        return [replace(w, provisional=True) for w in twin.close()]
 
     def _gap(self) -> list[ClosedWindow]:
         out = self.close()

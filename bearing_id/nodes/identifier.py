@@ -300,12 +300,12 @@ class IdentifierCore:
         cur.peeked = True
         return cur.stream.peek()
 
-    def wants(self, win, min_duration: float) -> bool:
+    def wants(self, win, source: str, min_duration: float) -> bool:
         """Whether a window is worth fitting: ``min_duration`` [s] long, or a later cut of one stored already."""
         if win.duration >= min_duration:
             return True
         with self.lock:
-            return any(k[2] == win.key for k in self._window_at)
+            return (source, win.run.id, win.key) in self._window_at
 
     # ---- accumulation (worker thread)
     def add_window(self, win, source: str = 'measured') -> list[tuple]:
@@ -335,13 +335,12 @@ class IdentifierCore:
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
                            used=how != 'duplicate', window=win.key, provisional=win.provisional)
-        if win.provisional or how == 'replaced':
-            return [(v.speed, v.X)] if how != 'duplicate' else []
         if how == 'duplicate':
-            self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} rpm; '
-                              f'recorded, not used (the first window at a speed is used, as offline)')
+            if not win.provisional:     # (a provisional cut's notes wait for its final cut)
+                self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} '
+                                  f'rpm; recorded, not used (the first window at a speed is used, as offline)')
             return []
-        if how == 'combined':
+        if how == 'combined' and not win.provisional:
             self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
         return [(v.speed, v.X)]
 
@@ -589,7 +588,7 @@ def _make_node():
             # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
-                if self.core.wants(w, 0.5 * self.core.min_window):
+                if self.core.wants(w, source, 0.5 * self.core.min_window):
                     self._jobs.put(('window', w, source, now))
 
         def tick(self):
