@@ -23,6 +23,7 @@ import sys
 import types
 
 from bearing_id.conventions import rpm_to_rad_s
+from bearing_id.params import PACKAGE_PARAMS
 import numpy as np
 import pytest
 from test_diagnose_trf import check_same_fit
@@ -67,7 +68,8 @@ def _problem(params=None, runs=2):
 
 @pytest.fixture(scope='module')
 def problems():
-    return {'default rig': _problem(), 'bearing on a pedestal': _problem('params/examples/plant_like.yaml', runs=2)}
+    plant = PACKAGE_PARAMS / 'examples' / 'plant_like.yaml'
+    return {'default rig': _problem(), 'bearing on a pedestal': _problem(str(plant), runs=2)}
 
 
 def _nl_of(e, rng):
