@@ -115,7 +115,7 @@ class Recording:
         path = Path(path)
         ex = self.run.excitation
         truth_speeds, truth_nodes, truth_K, truth_C = _truth_arrays(self.truth.get('coefficients', {}))
-        np.savez_compressed(
+        _savez(
             path, format='bearing_id.recording.v1', sample_rate=self.sample_rate, t=self.t, speed=self.speed,
             angle=self.angle, samples=self.samples,
             channels=np.array([p.name for p in self.probes]), nodes=np.array([p.node for p in self.probes]),
@@ -130,6 +130,32 @@ class Recording:
             truth_speeds=truth_speeds, truth_nodes=truth_nodes, truth_K=truth_K, truth_C=truth_C,
             rig_name=self.rig_name)
         return path
+
+
+NPZ_DEFLATE_MIN_SAVING = 0.1    # a member is stored deflated only when that saves at least this fraction
+
+
+def _savez(path: Path, **arrays) -> None:
+    """
+    Write ``arrays`` as an .npz (what ``np.savez_compressed`` writes, read back by ``np.load`` alike).
+
+    Each member is deflated only when that saves at least :data:`NPZ_DEFLATE_MIN_SAVING` of its size (judged on its
+    first MiB); a member that does not shrink -- the noisy samples (~4 % smaller deflated) -- is stored as it is, so
+    that every later read skips inflating it (0.1 s of a 9-speed load) for a file 1-3 % larger.
+    """
+    import io
+    import zipfile
+    import zlib
+    with zipfile.ZipFile(path, 'w', allowZip64=True) as zf:
+        for key, value in arrays.items():
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+            raw = buf.getbuffer()
+            head = raw[:1 << 20]
+            deflate = len(zlib.compress(head, 1)) <= (1.0 - NPZ_DEFLATE_MIN_SAVING) * len(head)
+            info = zipfile.ZipInfo(f'{key}.npy', (1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, raw, compress_type=zipfile.ZIP_DEFLATED if deflate else zipfile.ZIP_STORED)
 
 
 def _truth_arrays(coeffs: dict):

@@ -95,3 +95,32 @@ def test_result_equals_a_plain_np_load_reading(written):
             K0, C0 = rec.truth['coefficients'][float(s)][int(node)]
             assert np.array_equal(K, K0) and np.array_equal(C, C0)
     assert len(tc) == N_TRUTH_SPEEDS
+
+
+def test_only_members_that_shrink_are_deflated(written):
+    """
+    The noisy samples are stored as they are (they shrink by a few % at most), the rest is deflated.
+
+    Reference: zlib on each member's bytes as ``np.load`` reads them (deflated size vs raw size), and the zip
+    directory's compression method of that member; a plain ``np.savez_compressed`` file of the same arrays reads equal.
+    """
+    import zlib
+    _, path = written
+    with zipfile.ZipFile(path) as zf, np.load(path, allow_pickle=False) as z:
+        infos = {i.filename[:-4]: i for i in zf.infolist()}
+        assert set(infos) == set(z.files)
+        for key, info in infos.items():
+            raw = zf.read(info)
+            saving = 1.0 - len(zlib.compress(raw[:1 << 20], 1)) / len(raw[:1 << 20])
+            if saving < 0.05 or saving > 0.2:          # clear cases only (the rule's threshold is 10 %)
+                want = zipfile.ZIP_DEFLATED if saving > 0.2 else zipfile.ZIP_STORED
+                assert info.compress_type == want, (key, saving, info.compress_type)
+        assert infos['samples'].compress_type == zipfile.ZIP_STORED
+        assert infos['speed'].compress_type == zipfile.ZIP_DEFLATED         # constant: shrinks to almost nothing
+        arrays = {k: z[k] for k in z.files}
+    plain = path.with_name('plain.npz')
+    np.savez_compressed(plain, **arrays)
+    a, b = rigmod.load_npz(path), rigmod.load_npz(plain)
+    for name in ('t', 'speed', 'angle', 'samples'):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.run == b.run and a.segments == b.segments and a.truth.keys() == b.truth.keys()
