@@ -93,7 +93,8 @@ def subset(data: HarmonicData, nodes) -> HarmonicData:
     probes = tuple(data.probes[i] for i in idx)
     recs = [dataclasses.replace(r, samples=r.samples[:, idx], probes=probes) for r in data.recordings]
     return HarmonicData(data.speeds, probes, data.runs, data.X[:, :, idx], data.X_std[:, :, idx], recs,
-                        data.windows, data.truth)
+                        data.windows, data.truth, None if data.noise_var is None else data.noise_var[:, :, idx],
+                        data.sample_rate)
 
 
 def simulate(rig, runs, probes, speeds_rpm, seed0, steady_start=False):

@@ -86,7 +86,7 @@ def test_a_dwell_split_by_a_lost_block_uses_both_halves(rec, rig, tmp_path):
     bl = list(blocks(rec))
     used = _feed_all(core, bl, rec.run, skip={len(bl) // 2})
     assert len(used) == 2                                   # both halves were fitted and stored ...
-    (speed, X, X_std, _), = core.vectors['measured'][rec.run.id]        # ... as one combined vector
+    (speed, X, X_std, _, _), = core.vectors['measured'][rec.run.id]     # ... as one combined vector
     assert abs(speed - ref[0].speed) <= 1e-9 * speed
     assert np.all(np.abs(X - ref[0].X) <= 3 * np.hypot(X_std, ref[0].X_std))
     core.close()
@@ -225,9 +225,9 @@ def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig
     final, = stream.close()
     assert final.key == provisional.key and final.i1 > provisional.i1
     assert core.add_window(provisional)
-    (_, X_prov, S_prov, _), = core.vectors['measured'][rec.run.id]
+    (_, X_prov, S_prov, _, _), = core.vectors['measured'][rec.run.id]
     assert core.add_window(final)
-    (speed, X, S, _), = core.vectors['measured'][rec.run.id]          # replaced, not a second (duplicate) entry
+    (speed, X, S, _, _), = core.vectors['measured'][rec.run.id]       # replaced, not a second (duplicate) entry
     ref, = harmonics.recording_vectors(rec)
     np.testing.assert_array_equal(X, ref.X)
     assert np.all(S < S_prov) and not np.array_equal(X, X_prov)

@@ -13,7 +13,8 @@ Rule for each run
     kept (identification stacks the runs at one speed).
 
 Shapes: ``X`` complex (n_runs, n_speeds, n_channels) [m] with x(t) = Re{X exp(j phi)}; ``X_std`` the 1-sigma of the
-real and of the imaginary part (each) [m]; ``speeds`` (n_speeds,) rad/s.
+real and of the imaginary part (each) [m]; ``noise_var`` (same shape, real) [m^2] each probe's residual variance
+around its window's fit (the probe noise: the paper method's filter takes it as R); ``speeds`` (n_speeds,) rad/s.
 """
 from __future__ import annotations
 
@@ -40,6 +41,8 @@ class HarmonicData:
 
     windows[r][s] = (i0, i1) sample range of run r used at speed s (into ``recordings[r]``), or None.
     truth = {speed [rad/s]: {node: (K, C)}} when the recordings carry it (simulated rig), else {}.
+    noise_var (n_runs, n_speeds, n_channels) [m^2] or None; sample_rate [Hz] of the recordings (None: unknown).
+    The live identifier has no recordings: its data carry the vectors, ``noise_var`` and ``sample_rate``.
     """
 
     speeds: np.ndarray
@@ -50,6 +53,8 @@ class HarmonicData:
     recordings: list = field(default_factory=list, repr=False)
     windows: list = field(default_factory=list, repr=False)
     truth: dict = field(default_factory=dict, repr=False)
+    noise_var: np.ndarray | None = field(default=None, repr=False)
+    sample_rate: float | None = None
 
     @property
     def n_runs(self) -> int:
@@ -67,7 +72,7 @@ class HarmonicData:
         idx = list(speeds_idx)
         return HarmonicData(self.speeds[idx], self.probes, self.runs, self.X[:, idx], self.X_std[:, idx],
                             self.recordings, [[w[i] for i in idx] for w in self.windows] if self.windows else [],
-                            self.truth)
+                            self.truth, None if self.noise_var is None else self.noise_var[:, idx], self.sample_rate)
 
 
 # ------------------------------------------------------------------------------------------ the one route to 1X
@@ -118,7 +123,8 @@ class WindowVector:
     The 1X vector of one steady window.
 
     Fields: speed [rad/s] (median over the fitted part), X complex (nch,) [m], X_std (nch,) [m] (1-sigma of the real and
-    of the imaginary part), the fitted sample range [i0, i1) and the window.
+    of the imaginary part), the fitted sample range [i0, i1), the window, and noise_var (nch,) [m^2] each probe's
+    residual variance around the fit (None when not known).
     """
 
     speed: float
@@ -127,6 +133,7 @@ class WindowVector:
     i0: int
     i1: int
     window: ClosedWindow = field(repr=False)
+    noise_var: np.ndarray | None = None
 
 
 class RunStream:
@@ -279,7 +286,7 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
     x, a = win.samples[j0:], win.angle[j0:]
     fit = harmonic_vectors(x, a, orders=(1,), transients=transients, sample_rate=win.sample_rate)
     std = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(x, a, win.sample_rate, fit))
-    return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win)
+    return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win, fit.residual_rms ** 2)
 
 
 def stationarity_excess(x, angle, sample_rate: float, fit=None) -> np.ndarray:
@@ -308,10 +315,15 @@ def stationarity_excess(x, angle, sample_rate: float, fit=None) -> np.ndarray:
 
 
 def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
-    """Inverse-variance mean of two vectors of one dwell (a window split by lost data): X and its 1-sigma."""
+    """
+    Inverse-variance mean of two vectors of one dwell (a window split by lost data): X and its 1-sigma.
+
+    The probe noise variance is averaged with the same weights (None when either part lacks it).
+    """
     wa, wb = 1.0 / np.maximum(a.X_std, 1e-300) ** 2, 1.0 / np.maximum(b.X_std, 1e-300) ** 2
     X = (wa * a.X + wb * b.X) / (wa + wb)
-    return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window)
+    nv = None if a.noise_var is None or b.noise_var is None else (wa * a.noise_var + wb * b.noise_var) / (wa + wb)
+    return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, nv)
 
 
 def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
@@ -401,16 +413,19 @@ def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
     nr, ns, nch = len(recordings), len(speeds), len(recordings[0].probes)
     X = np.zeros((nr, ns, nch), dtype=complex)
     Xs = np.zeros((nr, ns, nch))
+    nv = np.zeros((nr, ns, nch))
     windows = [[None] * ns for _ in range(nr)]
     for s, row in enumerate(picks):
         for r, k in enumerate(row):
             v = per_run[r][k]
             X[r, s], Xs[r, s], windows[r][s] = v.X, v.X_std, (v.i0, v.i1)
+            nv[r, s] = np.nan if v.noise_var is None else v.noise_var
     truth = {}
     for rec in recordings:
         truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
     return HarmonicData(np.array(speeds), tuple(recordings[0].probes), tuple(r.run for r in recordings), X, Xs,
-                        recordings, windows, truth)
+                        recordings, windows, truth, None if np.isnan(nv).any() else nv,
+                        float(recordings[0].sample_rate))
 
 
 def from_npz(paths, **kw) -> HarmonicData:

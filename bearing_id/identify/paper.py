@@ -74,15 +74,16 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
     KF (theory coefficients) bearing-node 1X vectors at speed index ``s``.
 
     Returns (z_B (nr, nb, 2), z_B_std (nr, nb, 2), NIS means (nr,), the KalmanModel of the first run).
-    R default: each probe's residual variance around its 1X fit, per run [m^2] (the rig's and a real probe's noise
-    differ between runs; one R for all runs put the NIS of the louder run outside its band).
+    R default: each probe's residual variance around its window's fit, per run [m^2] (``data.noise_var``; the rig's
+    and a real probe's noise differ between runs; one R for all runs put the NIS of the louder run outside its band).
 
     route : 'time' (default here, the reference): the time-domain steady-state filter (:func:`bearing_id.kalman.
     fast_filter`, or the RTS smoother) over the window, then the 1X fit of its estimates; 'transfer': the filter's
-    closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the 1X fit X of the same window, its
-    std propagated from the fit's (var Re/Im z = sum |T|^2 var X), and the NIS from the time-domain innovations alone
-    (:func:`bearing_id.kalman.innovations`).  The two are equal on a steady window once the filter's start transient
-    has died out (test/test_kf_transfer.py); the transfer route has no start transient (the filter's steady state).
+    closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the data's 1X vector X of the window
+    (``data.X``), its std propagated from X_std (var Re/Im z = sum |T|^2 var X), and the NIS from the time-domain
+    innovations alone (:func:`bearing_id.kalman.innovations`).  The two are equal on a steady window once the filter's
+    start transient has died out (test/test_kf_transfer.py); the transfer route has no start transient (the filter's
+    steady state) and needs no time series: the live identifier runs it on its window vectors.
 
     Static offset: a displacement probe reads gap + vibration; the gap (DC) is no state of the rotor model, so a
     filter fed it sees a constant innovation the size of the gap (NIS 1e5 instead of ~m).  With ``remove_dc`` (default)
@@ -117,10 +118,12 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
             dcs.append(dc)
         forces = harmonic_forces(run.excitation, w, model.n_nodes)
         if R is None:      # each run's own probe noise (the noise is a fraction of each run's signal)
-            if fit0 is None:
-                fit0 = harmonic_vectors(y, a)
+            if data.noise_var is not None:          # the window fit's residual variance (as the transfer route)
+                noise = data.noise_var[r, s]
+            else:
+                noise = (fit0 if fit0 is not None else harmonic_vectors(y, a)).residual_rms ** 2
             km = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q,
-                                    R=np.maximum(fit0.residual_rms ** 2, 1e-30))
+                                    R=np.maximum(noise, 1e-30))
             km0 = km0 or km
         elif km is None:
             km = km0 = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q, R=R)
@@ -159,35 +162,40 @@ def _kf_models(model, speed: float, theory, probes, sample_rate: float, Q, Rs, k
     return out
 
 
+def _sample_rate(data) -> float:
+    """Return the sample rate [Hz] of the data's recordings (or of the live identifier's windows)."""
+    fs = data.sample_rate if getattr(data, 'sample_rate', None) else (
+        data.recordings[0].sample_rate if data.recordings else None)
+    if not fs:
+        raise ValueError("the paper method's Kalman filter needs the sample rate of the recordings")
+    return float(fs)
+
+
 def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remove_dc, details, jacobian=False,
                          kf_rotor=None):
-    """Transfer route of :func:`kf_bearing_vectors`; with ``jacobian`` details['dz'] = d z_B / d theta_th too."""
+    """
+    Transfer route of :func:`kf_bearing_vectors`; with ``jacobian`` details['dz'] = d z_B / d theta_th too.
+
+    The filter's input is the data's own 1X vector X[:, s] (each window's transient-aware fit, what every method
+    uses) with its 1-sigma, and its R each window's probe noise ``data.noise_var`` (the fit's residual variance)
+    unless ``R`` is given: the live identifier holds exactly these, so both routes give the same z_B.  The NIS needs
+    the time series: computed when the data carry their recordings (offline; each window's static offset removed
+    with ``remove_dc``), else None.
+    """
     from ..kalman import innovations
     from ..signals import harmonic_vectors
-    if not data.recordings:
-        raise ValueError("the paper method's Kalman filter needs the time series (recordings), not only 1X vectors")
+    if R is None and data.noise_var is None:
+        raise ValueError("the paper method's Kalman filter needs each window's probe noise (HarmonicData.noise_var) "
+                         'or a given R')
     w = float(data.speeds[s])
     nb = len(model.bearing_nodes)
     nr = len(data.runs)
-    ys, angs, fits, dcs, Rs = [], [], [], [], []
-    for r in range(nr):
-        rec = data.recordings[r]
-        i0, i1 = data.windows[r][s]
-        y, a = np.asarray(rec.samples[i0:i1], dtype=float), np.asarray(rec.angle[i0:i1], dtype=float)
-        fit = harmonic_vectors(y, a)          # 1X + offset over whole revolutions: the DC, the 1X and the noise
-        if remove_dc:
-            y = y - np.asarray(fit.offset, dtype=float)[None, :]
-            dcs.append(np.asarray(fit.offset, dtype=float))
-        ys.append(y)
-        angs.append(a)
-        fits.append(fit)
-        Rs.append(np.maximum(fit.residual_rms ** 2, 1e-30) if R is None else R)
-    fs = data.recordings[0].sample_rate
+    fs = _sample_rate(data)
+    X = np.asarray(data.X[:, s], dtype=complex)
+    Xvar = np.asarray(data.X_std[:, s], dtype=float) ** 2              # each of the real and imaginary parts
+    Rs = [np.maximum(data.noise_var[r, s], 1e-30) if R is None else R for r in range(nr)]
     kms = _kf_models(model, w, theory, probes, fs, Q, Rs, kf_rotor)
     F = forces_at(model, data.runs, w)
-    X = np.array([f.X[0] for f in fits])
-    Xvar_re = np.array([f.std_re[0] ** 2 for f in fits])
-    Xvar_im = np.array([f.std_im[0] ** 2 for f in fits])
     dz = None
     transfers = {}
     if jacobian and not smoother:
@@ -200,30 +208,36 @@ def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remo
         if id(km) not in Ts:
             Ts[id(km)] = kf_transfer(km, w, smoother=smoother)
     Xp = _forced_states(kms[0], w, F)
-    zs, zsd, nis, bands = [], [], [], []
+    timed = bool(data.recordings) and bool(data.windows)
+    zs, zsd, nis, bands, dcs = [], [], [], [], []
     for r in range(nr):
         km, T = kms[r], Ts[id(kms[r])]
         if dz is None:
             zs.append((km.E @ Xp[:, r] + T @ (X[r] - km.H @ Xp[:, r])).reshape(nb, 2))
-        Tr, Ti = T.real ** 2, T.imag ** 2
-        vre = Tr @ Xvar_re[r] + Ti @ Xvar_im[r]
-        vim = Ti @ Xvar_re[r] + Tr @ Xvar_im[r]
-        zsd.append(np.sqrt(np.maximum(vre, vim)).reshape(nb, 2))
-        kmf = replace(km, speed=w, Xp={1.0: Xp[:, r]})          # same matrices and gain, this run's forcing
-        _, _, nm, band = innovations(kmf, ys[r], angs[r])
-        nis.append(nm)
-        bands.append(tuple(band))
+        zsd.append(np.sqrt(np.abs(T) ** 2 @ Xvar[r]).reshape(nb, 2))
+        if timed:              # the filter's consistency on the window's samples (innovations alone)
+            i0, i1 = data.windows[r][s]
+            y = np.asarray(data.recordings[r].samples[i0:i1], dtype=float)
+            a = np.asarray(data.recordings[r].angle[i0:i1], dtype=float)
+            if remove_dc:
+                dc = np.asarray(harmonic_vectors(y, a).offset, dtype=float)
+                y = y - dc[None, :]
+                dcs.append(dc)
+            kmf = replace(km, speed=w, Xp={1.0: Xp[:, r]})          # same matrices and gain, this run's forcing
+            _, _, nm, band = innovations(kmf, y, a)
+            nis.append(nm)
+            bands.append(tuple(band))
     if dz is None:
         zB = np.array(zs)
     if details is not None:
         details['dc'] = np.array(dcs) if dcs else None
-        details['nis_band'] = bands
+        details['nis_band'] = bands if timed else None
         details['R'] = [km.R for km in kms]
         details['X'] = X
         details['kms'] = kms
         details['Xp'] = Xp
         details['dz'] = dz
-    return zB, np.array(zsd), nis, kms[0]
+    return zB, np.array(zsd), (nis if timed else None), kms[0]
 
 
 def kf_transfer(km, speed: float, *, smoother: bool = False) -> np.ndarray:
@@ -659,17 +673,22 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
                                                       smoother=smooth, remove_dc=bool(opts.get('remove_dc', True)),
                                                       details=det_kf, route='time', kf_rotor=red)
                 Xs = data.X[:, s]
-            band = det_kf['nis_band'][0]
             dc = det_kf.get('dc')
+            if nis is None:
+                nis_note = ('; NIS not computed (no time series here: the live identifier holds 1X vectors only; '
+                            '`bearing-id identify` on the recording reports it)')
+            else:
+                band = det_kf['nis_band'][0]
+                nis_note = ('; mean NIS per run ' + ', '.join(f'{v:.3g}' for v in nis)
+                            + f' (expected {km.m} for a consistent filter; 95 % band {band[0]:.3g} ... {band[1]:.3g})'
+                            + (f'; static offset removed before filtering (largest |DC| '
+                               f'{1e6 * np.max(np.abs(dc)):.3g} um)' if dc is not None else
+                               '; static offset NOT removed'))
             notes.append(f'Kalman filter (theory coefficients, Q = {Q:g}'
-                         + ('; 1X vectors from its steady-state transfer function' if route == 'transfer' else
-                            '; 1X vectors fitted to its time-domain estimates')
-                         + '); mean NIS per run '
-                         + ', '.join(f'{v:.3g}' for v in nis) + f' (expected {km.m} for a consistent filter; 95 % '
-                         f'band {band[0]:.3g} ... {band[1]:.3g})'
-                         + (f'; static offset removed before filtering (largest |DC| {1e6 * np.max(np.abs(dc)):.3g} '
-                            'um)' if dc is not None else '; static offset NOT removed'))
-            not_det, extra = _theory_check(model, w, theory, probes, Xs, F, data.recordings[0].sample_rate,
+                         + ("; 1X vectors from its steady-state transfer function applied to the probes' 1X vectors"
+                            if route == 'transfer' else '; 1X vectors fitted to its time-domain estimates')
+                         + ')' + nis_note)
+            not_det, extra = _theory_check(model, w, theory, probes, Xs, F, _sample_rate(data),
                                            Q, list(det_kf['R']), smooth, rtol, zB, notes, mode=sens_mode,
                                            dz=det_kf.get('dz'), transfer=route == 'transfer', kf_rotor=red)
             # how much the KF moved the bearing displacements away from the theory model's prediction
@@ -680,14 +699,15 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
                 zth = np.array([harmonic_response(model, w, w, f, theory)[_bdofs(model)].reshape(-1, 2) for f in F])
             dz = np.linalg.norm(zB - zth) / max(np.linalg.norm(zth), 1e-300)
             notes.append(f"KF bearing displacements differ from the theory model's prediction by {100 * dz:.1f} %")
-            extra.update(nis=list(nis), nis_band=det_kf['nis_band'], dc_removed=dc, kf_route=route)
+            extra.update(nis=None if nis is None else list(nis), nis_band=det_kf['nis_band'], dc_removed=dc,
+                         kf_route=route)
         if red_info is not None:
             if red2 is not None and opts.get('z_B') is None:
                 z2 = kf_bearing_phasors(model, theory, probes, w, det_kf['X'] if route == 'transfer' else Xs, F,
-                                        data.recordings[0].sample_rate, Q=Q, R=list(det_kf['R']),
+                                        _sample_rate(data), Q=Q, R=list(det_kf['R']),
                                         smoother=smooth, kf_rotor=red2)
                 za = zB if route == 'transfer' else kf_bearing_phasors(
-                    model, theory, probes, w, Xs, F, data.recordings[0].sample_rate, Q=Q, R=list(det_kf['R']),
+                    model, theory, probes, w, Xs, F, _sample_rate(data), Q=Q, R=list(det_kf['R']),
                     smoother=smooth, kf_rotor=red)
                 dzr = float(np.linalg.norm(za - z2) / max(np.linalg.norm(z2), 1e-300))
                 red_info.update(check_states=2 * red2.nr, kf_truncation=dzr)
@@ -779,7 +799,7 @@ def _reduction(model, data, probes, runs, spec):
     spec = dict(spec)
     check = bool(spec.pop('check', False))
     if 'n_modes' not in spec and 'cutoff_hz' not in spec:
-        fs = data.recordings[0].sample_rate if getattr(data, 'recordings', None) else None
+        fs = data.sample_rate or (data.recordings[0].sample_rate if getattr(data, 'recordings', None) else None)
         if fs is None:
             raise ValueError('identify_paper: reduce needs n_modes or cutoff_hz when there is no sample rate')
         spec = {'cutoff_hz': REDUCE_CUTOFF_FRACTION * float(fs)}

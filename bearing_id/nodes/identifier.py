@@ -1,9 +1,9 @@
 """
 ``identifier``: accumulates 1X harmonic vectors per (run, speed) and publishes identified bearing coefficients.
 
-Consumes ``/rotor/displacement`` (measured), ``/bearing_id/bearing_displacement`` (the kf_estimator's bearing-node
-estimates) and ``/rotor/excitation``; publishes ``/bearing_id/coefficients`` (BearingCoefficients, latched) and
-/diagnostics.
+Consumes ``/rotor/displacement`` (measured) and ``/rotor/excitation``; monitors ``/bearing_id/bearing_displacement``
+(the kf_estimator's bearing-node estimates: their rate and health only); publishes ``/bearing_id/coefficients``
+(BearingCoefficients, latched) and /diagnostics.
 
 Data path (the offline route, call for call)
     Each block's samples and per-sample keyphasor angles (``sample_angles``) are appended to the stream of its run
@@ -72,10 +72,11 @@ SPECS = [
               hi=86400.0),
     ParamSpec('max_displacement', 1e-3, 'samples above this are implausible (wrong units or garbage)', 'm',
               lo=1e-9, hi=1.0),
-    ParamSpec('kf_process_noise', 1e-16, "method paper: the kf_estimator's process_noise (set both alike); used "
-              "to check how much of the result follows the KF's theory", 'm^2', lo=0.0, hi=1.0),
-    ParamSpec('kf_measurement_noise', 1e-7, "method paper: the kf_estimator's measurement_noise (set both alike)",
-              'm', lo=1e-12, hi=1e-3),
+    ParamSpec('kf_process_noise', 1e-16, "method paper: the filter's process noise Q (`bearing-id identify --Q`)",
+              'm^2', lo=0.0, hi=1.0),
+    ParamSpec('kf_measurement_noise', 0.0, "method paper: the filter's probe noise std (R = value^2; `bearing-id "
+              "identify --R`); 0: each window's residual around its 1X fit, as `bearing-id identify` by default",
+              'm', lo=0.0, hi=1e-3),
     ParamSpec('publish_undetermined', False, 'publish results the data do not fully determine (NaN std and '
               'determined=false mark the undetermined coefficients)'),
     ParamSpec('stale_after', 5.0, 'an input silent for this long is reported STALE', 's', lo=0.1, hi=3600.0),
@@ -113,7 +114,8 @@ class IdentifierCore:
     ``solve()`` identifies at every speed at which all required runs have a measured vector; with ``warm_start``
     (default) the physical method starts from the parameters of the previous solve (the same answer to the solver's
     tolerance, fewer iterations: :func:`bearing_id.identify.physical.fit_physical` ``p0``).
-    source is 'measured' (the probes) or 'estimated' (the kf_estimator's bearing-node estimates, method paper).
+    source is 'measured' (the probes); every method, paper included, identifies from the measured vectors as
+    ``bearing-id identify`` does (the paper method's filter acts on them through its closed-form 1X transfer).
     Vectors are kept per probe set: a probe set that changes (between runs, or across a restart that resumes the
     record) is never stacked with another; the latest probe set is the one identified.
     """
@@ -134,9 +136,10 @@ class IdentifierCore:
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
-        self.vectors: dict = {'measured': {}, 'estimated': {}}   # source -> run id -> [(speed, X, X_std, probes)]
+        # source -> run id -> [(speed, X, X_std, probes, noise_var)] (noise_var: the probes' residual variance)
+        self.vectors: dict = {'measured': {}, 'estimated': {}}
         self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
-        self._parts: dict = {}                 # (source, run id) -> per vector: [[window key, (speed, X, X_std)], ..]
+        self._parts: dict = {}                 # (source, run id) -> per vector: [[window key, (speed, X, X_std, nv)]]
         self._window_at: dict = {}             # (source, run id, window key) -> (vector index, part index)
         self.streams: dict = {'measured': None, 'estimated': None}
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
@@ -164,10 +167,12 @@ class IdentifierCore:
                     probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
                     X = np.asarray(e['X']).astype(complex).reshape(-1)
                     Xs = np.asarray(e['X_std'], dtype=float).reshape(-1)
-                    if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0:
+                    nv = None if e.get('noise_var') is None else np.asarray(e['noise_var'], dtype=float).reshape(-1)
+                    if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
+                            (nv is not None and nv.size != len(probes)):
                         raise ValueError(f'{X.size} values for {len(probes)} probes')
                     self._store(str(e['source']), str(e['run_id']), float(e['speed']), X, Xs, probes,
-                                bool(e.get('after_gap', False)), e.get('window'))
+                                bool(e.get('after_gap', False)), e.get('window'), nv)
                     n_vec += 1
                 elif e['type'] == 'withdrawn':
                     self._withdraw(str(e['source']), str(e['run_id']), str(e['window']))
@@ -196,7 +201,7 @@ class IdentifierCore:
                                     for e in run.excitation])
         return True
 
-    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None) -> str:
+    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None, noise_var=None) -> str:
         """
         Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
 
@@ -210,21 +215,21 @@ class IdentifierCore:
         parts = self._parts.setdefault((source, run_id), [])
         at = self._window_at.get((source, run_id, key)) if key is not None else None
         if at is not None:
-            parts[at[0]][at[1]][1] = (speed, X, X_std)
+            parts[at[0]][at[1]][1] = (speed, X, X_std, noise_var)
             lst[at[0]] = self._combined(parts[at[0]], probes)
             return 'replaced'
         last = self._last_stored.get((source, run_id))
         if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
                 abs(lst[last][0] - speed) <= self.tol_rel * speed:
-            parts[last].append([key, (speed, X, X_std)])
+            parts[last].append([key, (speed, X, X_std, noise_var)])
             self._window_at[(source, run_id, key)] = (last, len(parts[last]) - 1)
             lst[last] = self._combined(parts[last], probes)
             return 'combined'
         if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
             self._last_stored.pop((source, run_id), None)
             return 'duplicate'
-        lst.append((speed, X, X_std, probes))
-        parts.append([[key, (speed, X, X_std)]])
+        lst.append((speed, X, X_std, probes, noise_var))
+        parts.append([[key, (speed, X, X_std, noise_var)]])
         self._window_at[(source, run_id, key)] = (len(lst) - 1, 0)
         self._last_stored[(source, run_id)] = len(lst) - 1
         if source == 'measured':
@@ -236,15 +241,15 @@ class IdentifierCore:
 
     @staticmethod
     def _combined(parts, probes):
-        """Return the vector (speed, X, X_std, probes) of a dwell's parts, combined in window order, as offline."""
+        """Return the vector (speed, X, X_std, probes, noise_var) of a dwell's parts, combined in window order."""
         from ..identify.harmonics import combine_vectors, WindowVector
         v = None
         for _, part in parts:
             if part is None:
                 continue
-            w = WindowVector(part[0], part[1], part[2], 0, 0, None)
-            v = w if v is None else combine_vectors(v, w)
-        return None if v is None else (v.speed, v.X, v.X_std, probes)
+            w = WindowVector(part[0], part[1], part[2], 0, 0, None, part[3])
+            v = w if v is None else combine_vectors(v, w)        # as offline (recording_vectors)
+        return None if v is None else (v.speed, v.X, v.X_std, probes, v.noise_var)
 
     def _withdraw(self, source, run_id, key) -> bool:
         """Drop the stored part of window ``key`` (its final cut gives no vector); returns whether one was stored."""
@@ -329,9 +334,10 @@ class IdentifierCore:
             return []
         with self.lock:
             how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued,
-                              win.key)
+                              win.key, v.noise_var)
             self.sample_rate = win.sample_rate
         self.record.append('vector', source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
+                           noise_var=v.noise_var,
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
                            used=how != 'duplicate', window=win.key, provisional=win.provisional)
@@ -369,41 +375,25 @@ class IdentifierCore:
 
             meas = [of_set('measured', rid) for rid in req]
             speeds, picks = common_speeds(meas, self.tol_rel)
-            if self.method == 'paper':          # needs the kf_estimator's bearing-node vectors too
-                est = [of_set('estimated', rid) for rid in req]
-                keep = []
-                for k, w in enumerate(speeds):
-                    zr = []
-                    for lst in est:
-                        m = [v for v in lst if abs(v[0] - w) <= self.tol_rel * w]
-                        if not m:
-                            break
-                        zr.append(m[0])
-                    else:
-                        keep.append((k, zr))
-                speeds = [speeds[k] for k, _ in keep]
-                picks = [picks[k] for k, _ in keep]
-                zrows = [zr for _, zr in keep]
             if not speeds:
                 return None
             rows = [[meas[r][k] for r, k in enumerate(row)] for row in picks]
             probes = rows[0][0][3]
-            X = np.array([[rows[s][r][1] for s in range(len(speeds))] for r in range(len(req))], dtype=complex)
-            Xs = np.array([[rows[s][r][2] for s in range(len(speeds))] for r in range(len(req))], dtype=float)
+            ns, nr = len(speeds), len(req)
+            X = np.array([[rows[s][r][1] for s in range(ns)] for r in range(nr)], dtype=complex)
+            Xs = np.array([[rows[s][r][2] for s in range(ns)] for r in range(nr)], dtype=float)
+            nv = None
+            if all(rows[s][r][4] is not None for s in range(ns) for r in range(nr)):
+                nv = np.array([[rows[s][r][4] for s in range(ns)] for r in range(nr)], dtype=float)
             runs = tuple(self.runs[r] for r in req)
-            data = HarmonicData(np.array(speeds), probes, runs, X, Xs)
-            if self.method == 'paper':
-                nb = len(self.rig.bearings)
-                data.z_B = np.array([[zrows[s][r][1].reshape(nb, 2) for s in range(len(speeds))]
-                                     for r in range(len(req))])
-                data.z_B_std = np.array([[zrows[s][r][2].reshape(nb, 2) for s in range(len(speeds))]
-                                         for r in range(len(req))])
+            fs = self.sample_rate if math.isfinite(self.sample_rate) else None
+            data = HarmonicData(np.array(speeds), probes, runs, X, Xs, noise_var=nv, sample_rate=fs)
         return data
 
     def signature(self, data) -> tuple:
         """Return what a solve depends on (run ids, speeds, vectors): equal signatures give equal results."""
         return None if data is None else (tuple(r.id for r in data.runs), data.speeds.tobytes(), data.X.tobytes(),
-                                          getattr(data, 'z_B', np.zeros(0)).tobytes())
+                                          data.X_std.tobytes())
 
     def solve(self, data=None, record: bool = True):
         """
@@ -417,13 +407,9 @@ class IdentifierCore:
         if data is None:
             return [], None
         opts = dict(self.options or {})
-        if self.method == 'paper':   # the KF ran in kf_estimator: its bearing-node vectors replace the offline KF
-            opts.update(z_B=data.z_B, z_B_std=data.z_B_std)
-            kf = opts.pop('kf', None)
-            if kf:  # so that the theory-dominance check runs on the estimator's vectors as it does offline
-                opts['z_B_kf'] = {'Q': kf['Q'], 'R': kf['R'], 'sample_rate': self.sample_rate}
-        else:
-            opts.pop('kf', None)
+        kf = opts.pop('kf', None) or {}
+        if self.method == 'paper':   # the offline route's filter settings (`bearing-id identify --Q --R`)
+            opts.update({k: kf[k] for k in ('Q', 'R') if kf.get(k) is not None})
         if self.method == 'physical' and self.warm_start and self._warm is not None and 'p0' not in opts:
             opts['p0'] = self._warm[1]
         results = identify(self.method, self.model, self.rig, data, options=opts or None)
@@ -488,7 +474,7 @@ def _make_node():
             self.core = IdentifierCore(rig, v['method'], v['record_dir'], v['runs'], v['speed_tolerance'],
                                        v['settle_fraction'], v['min_window'],
                                        options={'kf': {'Q': v['kf_process_noise'],
-                                                       'R': v['kf_measurement_noise'] ** 2}},
+                                                       'R': v['kf_measurement_noise'] ** 2 or None}},
                                        max_window=v['max_segment'])
             self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
             self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
@@ -566,8 +552,8 @@ def _make_node():
                 return
             if not b.has_sample_angles:
                 self.skipped['no_angles'] += 1
-            if source == 'estimated' and self.values['method'] != 'paper':
-                return                         # monitored only: no other method uses the estimates
+            if source == 'estimated':
+                return                         # monitored only: every method identifies from the measured vectors
             contiguous = chk.contiguous and not self._gap[source]
             self._gap[source] = False
             rs = self.resolver[source]
@@ -657,9 +643,9 @@ def _make_node():
             items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
                          f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])),
                      self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
-            if self.values['method'] != 'paper' and items[1].level == STALE:
+            if items[1].level == STALE:
                 items[1].level = OK
-                items[1].message += ' (not needed by the ' + self.values['method'] + ' method)'
+                items[1].message += ' (monitored only: no method needs it)'
             rs = self.resolver['measured']
             ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
                           {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),
