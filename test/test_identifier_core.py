@@ -89,6 +89,10 @@ def test_a_dwell_split_by_a_lost_block_uses_both_halves(rec, rig, tmp_path):
     (speed, X, X_std, _, _), = core.vectors['measured'][rec.run.id]     # ... as one combined vector
     assert abs(speed - ref[0].speed) <= 1e-9 * speed
     assert np.all(np.abs(X - ref[0].X) <= 3 * np.hypot(X_std, ref[0].X_std))
+    # said once, although the rest of the dwell was handed out provisionally (the end of the data) and cut again
+    again = core.streams['measured'].stream.peek()
+    assert again and all(core.add_window(w) for w in again)
+    assert sum('combined with its first part' in n for n in core.notes) == 1, list(core.notes)
     core.close()
     # each half alone is less certain than the combination
     core2 = IdentifierCore(rig, 'physical', tmp_path / 'halves')

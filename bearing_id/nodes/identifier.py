@@ -141,6 +141,7 @@ class IdentifierCore:
         self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
         self._parts: dict = {}                 # (source, run id) -> per vector: [[window key, (speed, X, X_std, nv)]]
         self._window_at: dict = {}             # (source, run id, window key) -> (vector index, part index)
+        self._noted_combined: set = set()      # window keys whose 'combined' note was given
         self.streams: dict = {'measured': None, 'estimated': None}
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
@@ -206,8 +207,9 @@ class IdentifierCore:
         Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
 
         'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
-        the gap.  'replaced': a later cut of a window already stored (``key``, :attr:`ClosedWindow.key`; the final cut
-        after a provisional one): its part is replaced and the vector recombined.  'duplicate': a later window at a
+        the gap (also when a later cut of that rest replaces it).  'replaced': a later cut of a window already stored
+        (``key``, :attr:`ClosedWindow.key`; the final cut after a provisional one): its part is replaced and the vector
+        recombined.  'duplicate': a later window at a
         speed the run already has with this probe set: recorded, not used -- the offline route keeps the first too.
         """
         pkey = _probe_key(probes)
@@ -217,7 +219,7 @@ class IdentifierCore:
         if at is not None:
             parts[at[0]][at[1]][1] = (speed, X, X_std, noise_var)
             lst[at[0]] = self._combined(parts[at[0]], probes)
-            return 'replaced'
+            return 'combined' if at[1] > 0 else 'replaced'
         last = self._last_stored.get((source, run_id))
         if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
                 abs(lst[last][0] - speed) <= self.tol_rel * speed:
@@ -346,7 +348,8 @@ class IdentifierCore:
                 self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} '
                                   f'rpm; recorded, not used (the first window at a speed is used, as offline)')
             return []
-        if how == 'combined' and not win.provisional:
+        if how == 'combined' and win.key not in self._noted_combined:     # once per window, provisional or final
+            self._noted_combined.add(win.key)
             self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
         return [(v.speed, v.X)]
 
