@@ -97,10 +97,10 @@ def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Pat
     return _coefficients_from_bag(out_bag), rec.stdout
 
 
-def offline(bag: Path, method: str, tmp_path: Path) -> list[dict]:
+def offline(bag: Path, method: str, tmp_path: Path, *extra) -> list[dict]:
     js = tmp_path / 'offline.json'
-    r = rosutil.run([rosutil.script('bearing-id'), 'identify', str(bag), '--method', method, '--json', str(js)],
-                    timeout=120)
+    r = rosutil.run([rosutil.script('bearing-id'), 'identify', str(bag), '--method', method, '--json', str(js),
+                     *extra], timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
     return json.loads(js.read_text())['results']
 
@@ -175,3 +175,29 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
     z = np.array(z)
     assert len(z) == 2 * 2 * 2 * 4
     assert np.sqrt(np.mean(z**2)) < 2.0 and np.max(np.abs(z)) < 4.5, z
+
+
+def test_force_plan_bag_paper_method_equals_offline_cli(tmp_path):
+    """
+    The paper method through the nodes gives `bearing-id identify --method paper` on the same bag (1e-6).
+
+    Until 27 Nov the identifier's paper route took the kf_estimator's estimates, dropped every one, and published
+    nothing -- and no test ran it.  The paper method determines nothing here (its filter runs on the nominal theory),
+    so the node publishes with ``publish_undetermined`` and the CLI prints with ``--allow-undetermined``: the values
+    and the determined flags must agree all the same.
+    """
+    bag = BAGS / 'force_plan'
+    speeds = [1200.0, 2400.0]
+    live, rec_out = replay_through_nodes(bag, 'paper', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
+                                         identifier_params={'publish_undetermined': True})
+    ref = offline(bag, 'paper', tmp_path, '--allow-undetermined')
+    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
+    for r in ref:
+        d = live[round(r['speed_rad_s'], 6)]
+        assert d['method'] == 'paper'
+        for i, b in enumerate(r['bearings']):
+            for sym in ('K', 'C'):
+                assert np.all(np.isfinite(d[sym][i])), (sym, i, d[sym][i])
+                np.testing.assert_allclose(d[sym][i], np.array(b[sym], dtype=float), rtol=1e-6, atol=0)
+                assert np.array_equal(np.asarray(d[f'{sym}_determined'][i], dtype=bool),
+                                      np.array(b['determined'][sym], dtype=bool)), (sym, i)
