@@ -243,3 +243,40 @@ def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig
     again = IdentifierCore(rig, 'physical', tmp_path)
     assert again.vector_counts() == {rec.run.id: 0} and again.assemble() is None
     again.close()
+
+
+@pytest.mark.parametrize('method', ['paper', 'conventional', 'direct', 'physical'])
+def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, method):
+    """
+    IdentifierCore.solve (the node's route: blocks -> windows -> stored vectors -> assemble) == ``identify`` offline.
+
+    Reference: ``identify(method, ...)`` on ``harmonics.from_recordings`` of the same recordings (what `bearing-id
+    identify` runs), default options.  Probes at both bearings and midspan, so that every method runs.  The paper
+    method's live route once produced nothing (no test drove it); this holds every method to the offline numbers:
+    values, 1-sigma (NaN where undetermined, on both routes), determined flags, rank and flags.
+    """
+    from bearing_id.identify import identify
+    from bearing_id.rotor.assembly import RotorModel
+    probes = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 6, 10) for d in 'xy')
+    recs = [R.simulate_run(rig, run, speeds_rpm=[1200.0, 2400.0], dwell=1.5, ramp=0.2, probes=probes)
+            for run in rig.simulation.runs]
+    ref = identify(method, RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
+    core = IdentifierCore(rig, method, tmp_path, options={'kf': {'Q': 1e-16, 'R': None}})
+    for k, r in enumerate(recs):
+        core.add_excitation(r.run, stamp=100.0 * k)
+        wins = []
+        for b in blocks(r, t0=100.0 * k):
+            wins += core.feed(b, r.run, 'measured', True, 0.0)
+        wins += core.flush('measured', 1e9, 0.0)
+        for w in wins:
+            core.add_window(w)
+    live, data = core.solve(record=False)
+    core.close()
+    assert data.noise_var is not None and not data.recordings
+    assert [r.speed for r in live] == [r.speed for r in ref] and len(ref) == 2
+    for a, b in zip(live, ref):
+        for name in ('K', 'C', 'K_std', 'C_std'):
+            np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9, atol=0,
+                                       err_msg=f'{method}: {name} at {a.speed_rpm:.0f} rpm')
+        assert np.array_equal(a.K_determined, b.K_determined) and np.array_equal(a.C_determined, b.C_determined)
+        assert (a.rank, a.flags) == (b.rank, b.flags)
