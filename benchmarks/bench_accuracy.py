@@ -93,7 +93,7 @@ def subset(data: HarmonicData, nodes) -> HarmonicData:
     probes = tuple(data.probes[i] for i in idx)
     recs = [dataclasses.replace(r, samples=r.samples[:, idx], probes=probes) for r in data.recordings]
     return HarmonicData(data.speeds, probes, data.runs, data.X[:, :, idx], data.X_std[:, :, idx], recs,
-                        data.windows, data.truth, None if data.noise_var is None else data.noise_var[:, :, idx],
+                        data.windows, data.truth, None if data.plain is None else data.plain.take((Ellipsis, idx)),
                         data.sample_rate)
 
 
@@ -434,7 +434,7 @@ def issue11(rig, model, n_mc, seed):
                         a['chi'].append(fq.chi2_dof)
                     a['mis'] += int(r.misfit)
                     a['tot'] += 1
-                    a['nis'] += list(r.extra.get('nis', []))
+                    a['nis'] += list(r.extra.get('nis') or [])
         for m in methods:
             a = acc[m]
             det = np.array(a['det'])

@@ -145,6 +145,32 @@ def test_a_malformed_record_line_is_skipped_with_a_note(rec, rig, tmp_path):
     again.close()
 
 
+def test_paper_does_not_use_resumed_vectors_without_their_plain_fit(rec, rig, tmp_path):
+    """
+    A record written before vectors carried their plain 1X fit: method paper leaves those out, with a note (no crash).
+
+    Control: the same record with the fits resumes to data whose plain fit equals the offline route's.
+    """
+    core = IdentifierCore(rig, 'paper', tmp_path, required_runs=['A'])
+    core.add_excitation(rec.run)
+    _feed_all(core, list(blocks(rec)), rec.run)
+    core.close()
+    again = IdentifierCore(rig, 'paper', tmp_path, required_runs=['A'])
+    data = again.assemble()
+    ref = harmonics.from_recordings([rec])
+    assert data is not None and np.array_equal(data.plain.X, ref.plain.X) and data.sample_rate == rec.sample_rate
+    again.close()
+    lines = [json.loads(x) for x in (tmp_path / 'record.jsonl').read_text().splitlines()]
+    for e in lines:
+        e.pop('plain_X', None)
+        e.pop('plain_var', None)
+    (tmp_path / 'record.jsonl').write_text(''.join(json.dumps(e) + '\n' for e in lines))
+    old = IdentifierCore(rig, 'paper', tmp_path, required_runs=['A'])
+    assert old.resumed['vectors'] >= 1 and old.assemble() is None
+    assert sum('before 27 Nov 2026' in n for n in old.notes) == 1
+    old.close()
+
+
 def test_a_long_dwell_is_fitted_in_pieces_and_combined(rec):
     """
     Windows longer than max_window are fitted in pieces (bounded memory) and combined.
@@ -272,7 +298,7 @@ def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, m
             core.add_window(w)
     live, data = core.solve(record=False)
     core.close()
-    assert data.noise_var is not None and not data.recordings
+    assert data.plain is not None and not data.recordings
     assert [r.speed for r in live] == [r.speed for r in ref] and len(ref) == 2
     for a, b in zip(live, ref):
         for name in ('K', 'C', 'K_std', 'C_std'):

@@ -232,13 +232,17 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path, pauses):
     np.testing.assert_array_equal(data.speeds, ref.speeds)
     np.testing.assert_array_equal(data.X, ref.X)
     np.testing.assert_array_equal(data.X_std, ref.X_std)
-    np.testing.assert_array_equal(data.noise_var, ref.noise_var)        # the paper method's R per window
+    for got, want in zip(data.plain.arrays(), ref.plain.arrays()):    # what the paper method's filter takes
+        np.testing.assert_array_equal(got, want)
     assert data.sample_rate == ref.sample_rate
     core.close()
     again = IdentifierCore(load_rig(), 'physical', tmp_path)      # a restart resumes the record: the same vectors
     resumed = again.assemble()
     np.testing.assert_array_equal(resumed.X, ref.X)
     np.testing.assert_array_equal(resumed.X_std, ref.X_std)
+    for got, want in zip(resumed.plain.arrays(), ref.plain.arrays()):
+        np.testing.assert_array_equal(got, want)
+    assert resumed.sample_rate == ref.sample_rate
     again.close()
 
 
@@ -274,7 +278,7 @@ def test_identifier_paper_method_equals_the_offline_route(tmp_path, R_std):
     for w in wins:
         core.add_window(w)
     data = core.assemble()
-    assert data.recordings == [] and data.noise_var is not None
+    assert data.recordings == [] and data.plain is not None
     live, _ = core.solve(data.select([0, 4, 8]), record=False)
     core.close()
     assert [r.speed for r in live] == [r.speed for r in ref]

@@ -38,7 +38,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument('--Q', type=float, default=None, help='paper method: KF process noise (default 1e-16)')
     p.add_argument('--R', type=float, default=None, metavar='STD_M',
                    help="paper method: the KF's probe noise std in metres, R = value^2 for every probe (default: "
-                        "each window's residual around its 1X fit; the identifier node's kf_measurement_noise)")
+                        "each window's residual around its plain 1X fit; the identifier node's "
+                        'kf_measurement_noise)')
     p.add_argument('--kf-route', choices=('transfer', 'time'), default=None,
                    help="paper method: the KF bearing-node 1X vectors from the steady-state filter's transfer "
                         "function (transfer, default) or from the time-domain filter's estimates (time, the "
@@ -152,7 +153,7 @@ def run(args) -> int:
     if args.R is not None:
         if args.method != 'paper':
             raise ParamError('--R applies to --method paper only')
-        if not (math.isfinite(args.R) and args.R > 0):
+        if not (math.isfinite(args.R) and args.R ** 2 > 0):
             raise ParamError(f'--R must be a probe noise std > 0 in metres, got {args.R!r}')
         opts['R'] = args.R ** 2
     if args.kf_route is not None:

@@ -107,7 +107,10 @@ class AugmentedModel:
 
     def correct_data(self, data):
         """Return a copy of harmonic data (``identify.harmonics.HarmonicData``) with the measurement effects removed."""
-        return dataclasses.replace(data, X=self.correct_phasors(data.X, data.probes))
+        plain = getattr(data, 'plain', None)        # the paper method's plain fits: their phasors corrected alike
+        if plain is not None:
+            plain = dataclasses.replace(plain, X=self.correct_phasors(plain.X, data.probes))
+        return dataclasses.replace(data, X=self.correct_phasors(data.X, data.probes), plain=plain)
 
 
 __all__ = ['AugmentedModel']

@@ -13,8 +13,8 @@ Rule for each run
     kept (identification stacks the runs at one speed).
 
 Shapes: ``X`` complex (n_runs, n_speeds, n_channels) [m] with x(t) = Re{X exp(j phi)}; ``X_std`` the 1-sigma of the
-real and of the imaginary part (each) [m]; ``noise_var`` (same shape, real) [m^2] each probe's residual variance
-around its window's fit (the probe noise: the paper method's filter takes it as R); ``speeds`` (n_speeds,) rad/s.
+real and of the imaginary part (each) [m]; ``plain`` the plain 1X fit of the same samples (:class:`PlainFit`, what the
+paper method's filter takes); ``speeds`` (n_speeds,) rad/s.
 """
 from __future__ import annotations
 
@@ -41,8 +41,9 @@ class HarmonicData:
 
     windows[r][s] = (i0, i1) sample range of run r used at speed s (into ``recordings[r]``), or None.
     truth = {speed [rad/s]: {node: (K, C)}} when the recordings carry it (simulated rig), else {}.
-    noise_var (n_runs, n_speeds, n_channels) [m^2] or None; sample_rate [Hz] of the recordings (None: unknown).
-    The live identifier has no recordings: its data carry the vectors, ``noise_var`` and ``sample_rate``.
+    plain: :class:`PlainFit` (n_runs, n_speeds, n_channels) of the same windows, or None; sample_rate [Hz] of the
+    recordings (None: unknown).  The live identifier has no recordings: its data carry the vectors, ``plain`` and
+    ``sample_rate``.
     """
 
     speeds: np.ndarray
@@ -53,8 +54,12 @@ class HarmonicData:
     recordings: list = field(default_factory=list, repr=False)
     windows: list = field(default_factory=list, repr=False)
     truth: dict = field(default_factory=dict, repr=False)
-    noise_var: np.ndarray | None = field(default=None, repr=False)
+    plain: 'PlainFit | None' = field(default=None, repr=False)
     sample_rate: float | None = None
+
+    def __post_init__(self):
+        if self.plain is not None and self.plain.X.shape != np.shape(self.X):
+            raise ValueError(f'plain fit of shape {self.plain.X.shape} for vectors of shape {np.shape(self.X)}')
 
     @property
     def n_runs(self) -> int:
@@ -72,7 +77,52 @@ class HarmonicData:
         idx = list(speeds_idx)
         return HarmonicData(self.speeds[idx], self.probes, self.runs, self.X[:, idx], self.X_std[:, idx],
                             self.recordings, [[w[i] for i in idx] for w in self.windows] if self.windows else [],
-                            self.truth, None if self.noise_var is None else self.noise_var[:, idx], self.sample_rate)
+                            self.truth, None if self.plain is None else self.plain.take((slice(None), idx)),
+                            self.sample_rate)
+
+
+@dataclass
+class PlainFit:
+    """
+    The plain 1X fit (1X + offset over whole revolutions, no decaying components) of windows' fitted parts.
+
+    What the paper method's Kalman filter takes, as the paper does: its time-domain reference filters the same samples,
+    a mode still ringing included, and fits the 1X of the estimates plainly.  X complex [m]; var_re, var_im [m^2] the
+    variances of its real and imaginary parts; noise_var [m^2] the residual variance per probe (the filter's R: probe
+    noise plus whatever the plain fit leaves).  Shapes (nch,) for one window, (n_runs, n_speeds, nch) stacked.
+    """
+
+    X: np.ndarray
+    var_re: np.ndarray
+    var_im: np.ndarray
+    noise_var: np.ndarray
+
+    @classmethod
+    def of(cls, fit) -> 'PlainFit':
+        """From a :class:`bearing_id.signals.HarmonicFit` of order 1."""
+        return cls(np.asarray(fit.X[0], dtype=complex), np.asarray(fit.std_re[0]) ** 2,
+                   np.asarray(fit.std_im[0]) ** 2, np.asarray(fit.residual_rms) ** 2)
+
+    def arrays(self) -> tuple:
+        return self.X, self.var_re, self.var_im, self.noise_var
+
+    def take(self, index) -> 'PlainFit':
+        """Return the fit with ``index`` applied to every array."""
+        return PlainFit(*(np.asarray(a)[index] for a in self.arrays()))
+
+    @staticmethod
+    def stack(rows) -> 'PlainFit':
+        """Stack nested lists (runs x speeds) of per-window fits into one (n_runs, n_speeds, nch) fit."""
+        return PlainFit(*(np.array([[getattr(f, k) for f in row] for row in rows])
+                          for k in ('X', 'var_re', 'var_im', 'noise_var')))
+
+    def combined(self, other: 'PlainFit') -> 'PlainFit':
+        """Inverse-variance mean with the fit of another piece of the same dwell (its variances propagated)."""
+        wa, wb = (2.0 / np.maximum(f.var_re + f.var_im, 1e-300) for f in (self, other))
+        w = wa + wb
+        return PlainFit((wa * self.X + wb * other.X) / w, (wa ** 2 * self.var_re + wb ** 2 * other.var_re) / w ** 2,
+                        (wa ** 2 * self.var_im + wb ** 2 * other.var_im) / w ** 2,
+                        (wa * self.noise_var + wb * other.noise_var) / w)
 
 
 # ------------------------------------------------------------------------------------------ the one route to 1X
@@ -123,8 +173,8 @@ class WindowVector:
     The 1X vector of one steady window.
 
     Fields: speed [rad/s] (median over the fitted part), X complex (nch,) [m], X_std (nch,) [m] (1-sigma of the real and
-    of the imaginary part), the fitted sample range [i0, i1), the window, and noise_var (nch,) [m^2] each probe's
-    residual variance around the fit (None when not known).
+    of the imaginary part), the fitted sample range [i0, i1), the window, and ``plain`` the plain 1X fit of the same
+    samples (:class:`PlainFit`, None when not known).
     """
 
     speed: float
@@ -133,7 +183,7 @@ class WindowVector:
     i0: int
     i1: int
     window: ClosedWindow = field(repr=False)
-    noise_var: np.ndarray | None = None
+    plain: PlainFit | None = None
 
 
 class RunStream:
@@ -286,7 +336,8 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
     x, a = win.samples[j0:], win.angle[j0:]
     fit = harmonic_vectors(x, a, orders=(1,), transients=transients, sample_rate=win.sample_rate)
     std = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(x, a, win.sample_rate, fit))
-    return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win, fit.residual_rms ** 2)
+    plain = PlainFit.of(harmonic_vectors(x, a, orders=(1,))) if transients else PlainFit.of(fit)
+    return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win, plain)
 
 
 def stationarity_excess(x, angle, sample_rate: float, fit=None) -> np.ndarray:
@@ -318,12 +369,12 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
     """
     Inverse-variance mean of two vectors of one dwell (a window split by lost data): X and its 1-sigma.
 
-    The probe noise variance is averaged with the same weights (None when either part lacks it).
+    Their plain fits are combined alike (:meth:`PlainFit.combined`; None when either part lacks one).
     """
     wa, wb = 1.0 / np.maximum(a.X_std, 1e-300) ** 2, 1.0 / np.maximum(b.X_std, 1e-300) ** 2
     X = (wa * a.X + wb * b.X) / (wa + wb)
-    nv = None if a.noise_var is None or b.noise_var is None else (wa * a.noise_var + wb * b.noise_var) / (wa + wb)
-    return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, nv)
+    plain = None if a.plain is None or b.plain is None else a.plain.combined(b.plain)
+    return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, plain)
 
 
 def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
@@ -413,18 +464,19 @@ def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
     nr, ns, nch = len(recordings), len(speeds), len(recordings[0].probes)
     X = np.zeros((nr, ns, nch), dtype=complex)
     Xs = np.zeros((nr, ns, nch))
-    nv = np.zeros((nr, ns, nch))
+    plains = [[None] * ns for _ in range(nr)]
     windows = [[None] * ns for _ in range(nr)]
     for s, row in enumerate(picks):
         for r, k in enumerate(row):
             v = per_run[r][k]
             X[r, s], Xs[r, s], windows[r][s] = v.X, v.X_std, (v.i0, v.i1)
-            nv[r, s] = np.nan if v.noise_var is None else v.noise_var
+            plains[r][s] = v.plain
     truth = {}
     for rec in recordings:
         truth.update(rec.truth.get('coefficients', {}) if rec.truth else {})
     return HarmonicData(np.array(speeds), tuple(recordings[0].probes), tuple(r.run for r in recordings), X, Xs,
-                        recordings, windows, truth, None if np.isnan(nv).any() else nv,
+                        recordings, windows, truth,
+                        None if any(p is None for row in plains for p in row) else PlainFit.stack(plains),
                         float(recordings[0].sample_rate))
 
 
@@ -521,7 +573,7 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
     return HarmonicData(speeds, probes, tuple(runs), X, Xs, [], [], truth)
 
 
-__all__ = ['HarmonicData', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector', 'stationarity_excess',
-           'combine_vectors', 'recording_vectors', 'common_speeds', 'stack_vectors', 'from_recordings', 'from_npz',
-           'from_bag', 'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE', 'DEFAULT_TOL_REL',
-           'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']
+__all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
+           'stationarity_excess', 'combine_vectors', 'recording_vectors', 'common_speeds', 'stack_vectors',
+           'from_recordings', 'from_npz', 'from_bag', 'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE',
+           'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']

@@ -55,6 +55,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .harmonics import PlainFit
 from .lsq import _svd_solve  # noqa: F401  (old private name, kept for callers)
 from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result, coeffs_to_theta, DEFAULT_RTOL,
                   forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients, solve_derivatives, svd_solve,
@@ -74,16 +75,17 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
     KF (theory coefficients) bearing-node 1X vectors at speed index ``s``.
 
     Returns (z_B (nr, nb, 2), z_B_std (nr, nb, 2), NIS means (nr,), the KalmanModel of the first run).
-    R default: each probe's residual variance around its window's fit, per run [m^2] (``data.noise_var``; the rig's
-    and a real probe's noise differ between runs; one R for all runs put the NIS of the louder run outside its band).
+    R default: each probe's residual variance around its plain 1X fit, per run [m^2] (the rig's and a real probe's
+    noise differ between runs; one R for all runs put the NIS of the louder run outside its band).
 
     route : 'time' (default here, the reference): the time-domain steady-state filter (:func:`bearing_id.kalman.
     fast_filter`, or the RTS smoother) over the window, then the 1X fit of its estimates; 'transfer': the filter's
-    closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the data's 1X vector X of the window
-    (``data.X``), its std propagated from X_std (var Re/Im z = sum |T|^2 var X), and the NIS from the time-domain
-    innovations alone (:func:`bearing_id.kalman.innovations`).  The two are equal on a steady window once the filter's
-    start transient has died out (test/test_kf_transfer.py); the transfer route has no start transient (the filter's
-    steady state) and needs no time series: the live identifier runs it on its window vectors.
+    closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the plain 1X fit X of the same window
+    (``data.plain``, :class:`bearing_id.identify.harmonics.PlainFit`), its std propagated from the fit's (var Re/Im z
+    = sum |T|^2 var X), and the NIS from the time-domain innovations alone (:func:`bearing_id.kalman.innovations`).
+    The two are equal on a steady window once the filter's start transient has died out (test/test_kf_transfer.py);
+    the transfer route has no start transient (the filter's steady state) and needs no time series: the live
+    identifier runs it on the plain fits its window vectors carry.
 
     Static offset: a displacement probe reads gap + vibration; the gap (DC) is no state of the rotor model, so a
     filter fed it sees a constant innovation the size of the gap (NIS 1e5 instead of ~m).  With ``remove_dc`` (default)
@@ -118,12 +120,10 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
             dcs.append(dc)
         forces = harmonic_forces(run.excitation, w, model.n_nodes)
         if R is None:      # each run's own probe noise (the noise is a fraction of each run's signal)
-            if data.noise_var is not None:          # the window fit's residual variance (as the transfer route)
-                noise = data.noise_var[r, s]
-            else:
-                noise = (fit0 if fit0 is not None else harmonic_vectors(y, a)).residual_rms ** 2
+            if fit0 is None:
+                fit0 = harmonic_vectors(y, a)
             km = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q,
-                                    R=np.maximum(noise, 1e-30))
+                                    R=np.maximum(fit0.residual_rms ** 2, 1e-30))
             km0 = km0 or km
         elif km is None:
             km = km0 = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q, R=R)
@@ -176,24 +176,40 @@ def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remo
     """
     Transfer route of :func:`kf_bearing_vectors`; with ``jacobian`` details['dz'] = d z_B / d theta_th too.
 
-    The filter's input is the data's own 1X vector X[:, s] (each window's transient-aware fit, what every method
-    uses) with its 1-sigma, and its R each window's probe noise ``data.noise_var`` (the fit's residual variance)
-    unless ``R`` is given: the live identifier holds exactly these, so both routes give the same z_B.  The NIS needs
-    the time series: computed when the data carry their recordings (offline; each window's static offset removed
-    with ``remove_dc``), else None.
+    The filter's input is each window's plain 1X fit (``data.plain``, or fitted here from the recordings), R its
+    residual variance unless ``R`` is given: the live identifier carries these fits with its vectors, so both routes
+    give the same z_B.  The NIS needs the time series: computed when the data carry their recordings (offline; each
+    window's static offset removed with ``remove_dc``), else None.
     """
     from ..kalman import innovations
     from ..signals import harmonic_vectors
-    if R is None and data.noise_var is None:
-        raise ValueError("the paper method's Kalman filter needs each window's probe noise (HarmonicData.noise_var) "
-                         'or a given R')
     w = float(data.speeds[s])
     nb = len(model.bearing_nodes)
     nr = len(data.runs)
     fs = _sample_rate(data)
-    X = np.asarray(data.X[:, s], dtype=complex)
-    Xvar = np.asarray(data.X_std[:, s], dtype=float) ** 2              # each of the real and imaginary parts
-    Rs = [np.maximum(data.noise_var[r, s], 1e-30) if R is None else R for r in range(nr)]
+    timed = bool(data.recordings) and bool(data.windows)
+    ys, angs, plains, dcs = [], [], [], []
+    for r in range(nr):
+        fit = None
+        if timed:
+            i0, i1 = data.windows[r][s]
+            y = np.asarray(data.recordings[r].samples[i0:i1], dtype=float)
+            a = np.asarray(data.recordings[r].angle[i0:i1], dtype=float)
+            fit = harmonic_vectors(y, a)      # 1X + offset over whole revolutions: the DC, the 1X and the noise
+            if remove_dc:
+                y = y - np.asarray(fit.offset, dtype=float)[None, :]
+                dcs.append(np.asarray(fit.offset, dtype=float))
+            ys.append(y)
+            angs.append(a)
+        if data.plain is not None:
+            plains.append(data.plain.take((r, s)))
+        elif fit is not None:
+            plains.append(PlainFit.of(fit))
+        else:
+            raise ValueError("the paper method's Kalman filter needs each window's plain 1X fit (HarmonicData.plain) "
+                             'or the recordings')
+    X = np.array([p.X for p in plains])
+    Rs = [np.maximum(p.noise_var, 1e-30) if R is None else R for p in plains]
     kms = _kf_models(model, w, theory, probes, fs, Q, Rs, kf_rotor)
     F = forces_at(model, data.runs, w)
     dz = None
@@ -208,23 +224,18 @@ def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remo
         if id(km) not in Ts:
             Ts[id(km)] = kf_transfer(km, w, smoother=smoother)
     Xp = _forced_states(kms[0], w, F)
-    timed = bool(data.recordings) and bool(data.windows)
-    zs, zsd, nis, bands, dcs = [], [], [], [], []
+    zs, zsd, nis, bands = [], [], [], []
     for r in range(nr):
         km, T = kms[r], Ts[id(kms[r])]
         if dz is None:
             zs.append((km.E @ Xp[:, r] + T @ (X[r] - km.H @ Xp[:, r])).reshape(nb, 2))
-        zsd.append(np.sqrt(np.abs(T) ** 2 @ Xvar[r]).reshape(nb, 2))
+        Tr, Ti = T.real ** 2, T.imag ** 2
+        vre = Tr @ plains[r].var_re + Ti @ plains[r].var_im
+        vim = Ti @ plains[r].var_re + Tr @ plains[r].var_im
+        zsd.append(np.sqrt(np.maximum(vre, vim)).reshape(nb, 2))
         if timed:              # the filter's consistency on the window's samples (innovations alone)
-            i0, i1 = data.windows[r][s]
-            y = np.asarray(data.recordings[r].samples[i0:i1], dtype=float)
-            a = np.asarray(data.recordings[r].angle[i0:i1], dtype=float)
-            if remove_dc:
-                dc = np.asarray(harmonic_vectors(y, a).offset, dtype=float)
-                y = y - dc[None, :]
-                dcs.append(dc)
             kmf = replace(km, speed=w, Xp={1.0: Xp[:, r]})          # same matrices and gain, this run's forcing
-            _, _, nm, band = innovations(kmf, y, a)
+            _, _, nm, band = innovations(kmf, ys[r], angs[r])
             nis.append(nm)
             bands.append(tuple(band))
     if dz is None:
@@ -593,7 +604,8 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     'max_rel_std' (design threshold, 0.05), 'z_B' (complex (n_runs, n_speeds, nb, 2): bypass the KF with given
     bearing-node phasors, e.g. the exact ones, to test the algebra), 'z_B_std' (same shape, real), 'z_B_kf'
     ({'Q': ..., 'R': ..., 'sample_rate': Hz[, 'smoother': bool]}: the given z_B came from a KF with these settings
-    and the theory of 'bearing_fn' -- e.g. the kf_estimator node's -- so the theory-dominance check is run on them;
+    and the theory of 'bearing_fn' -- e.g. a time-domain filter run elsewhere -- so the theory-dominance check is run
+    on them;
     without it given z_B are taken as measured and no theory check is made), 'remove_dc' (default True: each
     window's static offset is removed before the KF, see :func:`kf_bearing_vectors`), 'kf_route' ('transfer'
     (default): the steady-state filter's closed-form 1X response; 'time': the time-domain filter and a 1X fit of its

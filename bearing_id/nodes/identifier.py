@@ -75,7 +75,7 @@ SPECS = [
     ParamSpec('kf_process_noise', 1e-16, "method paper: the filter's process noise Q (`bearing-id identify --Q`)",
               'm^2', lo=0.0, hi=1.0),
     ParamSpec('kf_measurement_noise', 0.0, "method paper: the filter's probe noise std (R = value^2; `bearing-id "
-              "identify --R`); 0: each window's residual around its 1X fit, as `bearing-id identify` by default",
+              "identify --R`); 0: each window's residual around its plain 1X fit, as `bearing-id identify` by default",
               'm', lo=0.0, hi=1e-3),
     ParamSpec('publish_undetermined', False, 'publish results the data do not fully determine (NaN std and '
               'determined=false mark the undetermined coefficients)'),
@@ -136,12 +136,13 @@ class IdentifierCore:
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
-        # source -> run id -> [(speed, X, X_std, probes, noise_var)] (noise_var: the probes' residual variance)
+        # source -> run id -> [(speed, X, X_std, probes, plain)] (plain: the window's plain 1X fit, harmonics.PlainFit)
         self.vectors: dict = {'measured': {}, 'estimated': {}}
         self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
-        self._parts: dict = {}                 # (source, run id) -> per vector: [[window key, (speed, X, X_std, nv)]]
+        self._parts: dict = {}                 # (source, run id) -> per vector: [[key, (speed, X, X_std, plain)]]
         self._window_at: dict = {}             # (source, run id, window key) -> (vector index, part index)
         self._noted_combined: set = set()      # window keys whose 'combined' note was given
+        self._noted_no_plain = False           # the note on resumed vectors without a plain fit was given
         self.streams: dict = {'measured': None, 'estimated': None}
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
@@ -156,6 +157,7 @@ class IdentifierCore:
 
     # ---- record
     def _resume(self) -> dict:
+        from ..identify.harmonics import PlainFit
         n_vec = n_res = n_bad = 0
         for e in self.record.entries():
             try:
@@ -168,12 +170,17 @@ class IdentifierCore:
                     probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
                     X = np.asarray(e['X']).astype(complex).reshape(-1)
                     Xs = np.asarray(e['X_std'], dtype=float).reshape(-1)
-                    nv = None if e.get('noise_var') is None else np.asarray(e['noise_var'], dtype=float).reshape(-1)
+                    plain = None
+                    if e.get('plain_X') is not None:        # (absent from records written before 27 Nov 2026)
+                        var = np.asarray(e['plain_var'], dtype=float).reshape(3, -1)
+                        plain = PlainFit(np.asarray(e['plain_X']).astype(complex).reshape(-1), *var)
                     if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
-                            (nv is not None and nv.size != len(probes)):
+                            (plain is not None and plain.X.size != len(probes)):
                         raise ValueError(f'{X.size} values for {len(probes)} probes')
                     self._store(str(e['source']), str(e['run_id']), float(e['speed']), X, Xs, probes,
-                                bool(e.get('after_gap', False)), e.get('window'), nv)
+                                bool(e.get('after_gap', False)), e.get('window'), plain)
+                    if e.get('sample_rate') is not None:
+                        self.sample_rate = float(e['sample_rate'])
                     n_vec += 1
                 elif e['type'] == 'withdrawn':
                     self._withdraw(str(e['source']), str(e['run_id']), str(e['window']))
@@ -202,36 +209,36 @@ class IdentifierCore:
                                     for e in run.excitation])
         return True
 
-    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None, noise_var=None) -> str:
+    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None) -> str:
         """
         Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
 
         'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
         the gap (also when a later cut of that rest replaces it).  'replaced': a later cut of a window already stored
         (``key``, :attr:`ClosedWindow.key`; the final cut after a provisional one): its part is replaced and the vector
-        recombined.  'duplicate': a later window at a
-        speed the run already has with this probe set: recorded, not used -- the offline route keeps the first too.
+        recombined.  'duplicate': a later window at a speed the run already has with this probe set: recorded, not
+        used -- the offline route keeps the first too.
         """
         pkey = _probe_key(probes)
         lst = self.vectors[source].setdefault(run_id, [])
         parts = self._parts.setdefault((source, run_id), [])
         at = self._window_at.get((source, run_id, key)) if key is not None else None
         if at is not None:
-            parts[at[0]][at[1]][1] = (speed, X, X_std, noise_var)
+            parts[at[0]][at[1]][1] = (speed, X, X_std, plain)
             lst[at[0]] = self._combined(parts[at[0]], probes)
             return 'combined' if at[1] > 0 else 'replaced'
         last = self._last_stored.get((source, run_id))
         if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
                 abs(lst[last][0] - speed) <= self.tol_rel * speed:
-            parts[last].append([key, (speed, X, X_std, noise_var)])
+            parts[last].append([key, (speed, X, X_std, plain)])
             self._window_at[(source, run_id, key)] = (last, len(parts[last]) - 1)
             lst[last] = self._combined(parts[last], probes)
             return 'combined'
         if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
             self._last_stored.pop((source, run_id), None)
             return 'duplicate'
-        lst.append((speed, X, X_std, probes, noise_var))
-        parts.append([[key, (speed, X, X_std, noise_var)]])
+        lst.append((speed, X, X_std, probes, plain))
+        parts.append([[key, (speed, X, X_std, plain)]])
         self._window_at[(source, run_id, key)] = (len(lst) - 1, 0)
         self._last_stored[(source, run_id)] = len(lst) - 1
         if source == 'measured':
@@ -243,7 +250,7 @@ class IdentifierCore:
 
     @staticmethod
     def _combined(parts, probes):
-        """Return the vector (speed, X, X_std, probes, noise_var) of a dwell's parts, combined in window order."""
+        """Return the vector (speed, X, X_std, probes, plain) of a dwell's parts, combined in window order."""
         from ..identify.harmonics import combine_vectors, WindowVector
         v = None
         for _, part in parts:
@@ -251,11 +258,12 @@ class IdentifierCore:
                 continue
             w = WindowVector(part[0], part[1], part[2], 0, 0, None, part[3])
             v = w if v is None else combine_vectors(v, w)        # as offline (recording_vectors)
-        return None if v is None else (v.speed, v.X, v.X_std, probes, v.noise_var)
+        return None if v is None else (v.speed, v.X, v.X_std, probes, v.plain)
 
     def _withdraw(self, source, run_id, key) -> bool:
         """Drop the stored part of window ``key`` (its final cut gives no vector); returns whether one was stored."""
         at = self._window_at.pop((source, run_id, key), None)
+        self._noted_combined.discard(key)
         if at is None:
             return False
         lst, parts = self.vectors[source][run_id], self._parts[(source, run_id)][at[0]]
@@ -336,10 +344,11 @@ class IdentifierCore:
             return []
         with self.lock:
             how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued,
-                              win.key, v.noise_var)
+                              win.key, v.plain)
             self.sample_rate = win.sample_rate
         self.record.append('vector', source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
-                           noise_var=v.noise_var,
+                           plain_X=None if v.plain is None else v.plain.X, sample_rate=win.sample_rate,
+                           plain_var=None if v.plain is None else np.array(v.plain.arrays()[1:]),
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
                            used=how != 'duplicate', window=win.key, provisional=win.provisional)
@@ -366,15 +375,23 @@ class IdentifierCore:
 
         In the first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline.
         """
-        from ..identify.harmonics import common_speeds, HarmonicData
+        from ..identify.harmonics import common_speeds, HarmonicData, PlainFit
         with self.lock:
             req = self.required_runs()
             if not req or any(r not in self.runs for r in req) or self.probe_set is None:
                 return None
 
             def of_set(source, rid):
-                return [v for v in self.vectors[source].get(rid, [])
-                        if v is not None and _probe_key(v[3]) == self.probe_set]
+                out = [v for v in self.vectors[source].get(rid, [])
+                       if v is not None and _probe_key(v[3]) == self.probe_set]
+                if self.method == 'paper' and any(v[4] is None for v in out):
+                    if not self._noted_no_plain:
+                        self._noted_no_plain = True
+                        self.notes.append('method paper: vectors resumed from a record written before 27 Nov 2026 '
+                                          "lack the plain 1X fit the paper method's filter takes; they are not used "
+                                          '(start with an empty record_dir to identify those speeds again)')
+                    out = [v for v in out if v[4] is not None]
+                return out
 
             meas = [of_set('measured', rid) for rid in req]
             speeds, picks = common_speeds(meas, self.tol_rel)
@@ -385,12 +402,12 @@ class IdentifierCore:
             ns, nr = len(speeds), len(req)
             X = np.array([[rows[s][r][1] for s in range(ns)] for r in range(nr)], dtype=complex)
             Xs = np.array([[rows[s][r][2] for s in range(ns)] for r in range(nr)], dtype=float)
-            nv = None
+            plain = None
             if all(rows[s][r][4] is not None for s in range(ns) for r in range(nr)):
-                nv = np.array([[rows[s][r][4] for s in range(ns)] for r in range(nr)], dtype=float)
+                plain = PlainFit.stack([[rows[s][r][4] for s in range(ns)] for r in range(nr)])
             runs = tuple(self.runs[r] for r in req)
             fs = self.sample_rate if math.isfinite(self.sample_rate) else None
-            data = HarmonicData(np.array(speeds), probes, runs, X, Xs, noise_var=nv, sample_rate=fs)
+            data = HarmonicData(np.array(speeds), probes, runs, X, Xs, plain=plain, sample_rate=fs)
         return data
 
     def signature(self, data) -> tuple:
