@@ -605,8 +605,7 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     bearing-node phasors, e.g. the exact ones, to test the algebra), 'z_B_std' (same shape, real), 'z_B_kf'
     ({'Q': ..., 'R': ..., 'sample_rate': Hz[, 'smoother': bool]}: the given z_B came from a KF with these settings
     and the theory of 'bearing_fn' -- e.g. a time-domain filter run elsewhere -- so the theory-dominance check is run
-    on them;
-    without it given z_B are taken as measured and no theory check is made), 'remove_dc' (default True: each
+    on them; without it given z_B are taken as measured and no theory check is made), 'remove_dc' (default True: each
     window's static offset is removed before the KF, see :func:`kf_bearing_vectors`), 'kf_route' ('transfer'
     (default): the steady-state filter's closed-form 1X response; 'time': the time-domain filter and a 1X fit of its
     estimates, the reference -- see :func:`kf_bearing_vectors`), 'sensitivity' ('analytic' (default):
@@ -697,7 +696,7 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
                                f'{1e6 * np.max(np.abs(dc)):.3g} um)' if dc is not None else
                                '; static offset NOT removed'))
             notes.append(f'Kalman filter (theory coefficients, Q = {Q:g}'
-                         + ("; 1X vectors from its steady-state transfer function applied to the probes' 1X vectors"
+                         + ("; 1X vectors from its steady-state transfer function applied to the probes' plain 1X fits"
                             if route == 'transfer' else '; 1X vectors fitted to its time-domain estimates')
                          + ')' + nis_note)
             not_det, extra = _theory_check(model, w, theory, probes, Xs, F, _sample_rate(data),
