@@ -29,7 +29,7 @@ from .locate import FLOOR_TOL, Observations, sigma
 from .. import bearings as bearings_mod
 from ..conventions import dof_index, parse_probe_direction, probe_direction
 from ..excitation import harmonic_forces
-from ..rotor.assembly import add_film_impedance, dynamic_stiffness, film_dofs, measurement_row, RotorModel
+from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_row, RotorModel
 
 
 # ------------------------------------------------------------------------------------------------ bearing model forms
@@ -372,12 +372,7 @@ class Problem:
             for e, nl in b_hooks:
                 for j in range(n):
                     Zb[j] = e.bearing_impedance(self, node, Zb[j], Ws[j], ws[j], nl)
-            i, jp = film_dofs(self.model, node)
-            Z[:, i:i + 2, i:i + 2] += Zb
-            if jp is not None:
-                Z[:, jp:jp + 2, jp:jp + 2] += Zb
-                Z[:, i:i + 2, jp:jp + 2] -= Zb
-                Z[:, jp:jp + 2, i:i + 2] -= Zb
+            add_film_impedance(self.model, Z, node, Zb)       # every entry at once, as system() adds one
         for e, nl in z_hooks:
             for j in range(n):
                 e.add_dZ(self, Z[j], Ws[j], ws[j], nl)

@@ -238,13 +238,14 @@ def add_film_impedance(model: RotorModel, Z: np.ndarray, node: int, Zb: np.ndarr
     Add a bearing's complex 2x2 impedance ``Zb`` = K + j omega C in place to a dynamic stiffness ``Z``.
 
     At the shaft node's (x, y), or between the shaft node and its pedestal when the bearing has one (``film_dofs``).
+    Stacks work alike: ``Z`` (..., ndof, ndof) with ``Zb`` (..., 2, 2).
     """
     i, j = film_dofs(model, node)
-    Z[i:i + 2, i:i + 2] += Zb
+    Z[..., i:i + 2, i:i + 2] += Zb
     if j is not None:
-        Z[j:j + 2, j:j + 2] += Zb
-        Z[i:i + 2, j:j + 2] -= Zb
-        Z[j:j + 2, i:i + 2] -= Zb
+        Z[..., j:j + 2, j:j + 2] += Zb
+        Z[..., i:i + 2, j:j + 2] -= Zb
+        Z[..., j:j + 2, i:i + 2] -= Zb
 
 
 def add_bearings(model: RotorModel, K: np.ndarray, C: np.ndarray, coeffs: dict) -> None:
