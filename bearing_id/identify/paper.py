@@ -162,13 +162,12 @@ def _kf_models(model, speed: float, theory, probes, sample_rate: float, Q, Rs, k
     return out
 
 
-def _sample_rate(data) -> float:
-    """Return the sample rate [Hz] of the data's recordings (or of the live identifier's windows)."""
-    fs = data.sample_rate if getattr(data, 'sample_rate', None) else (
-        data.recordings[0].sample_rate if data.recordings else None)
-    if not fs:
+def _sample_rate(data, required: bool = True) -> float | None:
+    """Return the sample rate [Hz] of the data's recordings (or of the live identifier's windows); None if unknown."""
+    fs = data.sample_rate or (data.recordings[0].sample_rate if data.recordings else None)
+    if not fs and required:
         raise ValueError("the paper method's Kalman filter needs the sample rate of the recordings")
-    return float(fs)
+    return float(fs) if fs else None
 
 
 def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remove_dc, details, jacobian=False,
@@ -810,7 +809,7 @@ def _reduction(model, data, probes, runs, spec):
     spec = dict(spec)
     check = bool(spec.pop('check', False))
     if 'n_modes' not in spec and 'cutoff_hz' not in spec:
-        fs = data.sample_rate or (data.recordings[0].sample_rate if getattr(data, 'recordings', None) else None)
+        fs = _sample_rate(data, required=False)
         if fs is None:
             raise ValueError('identify_paper: reduce needs n_modes or cutoff_hz when there is no sample rate')
         spec = {'cutoff_hz': REDUCE_CUTOFF_FRACTION * float(fs)}
