@@ -336,7 +336,8 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
     x, a = win.samples[j0:], win.angle[j0:]
     fit = harmonic_vectors(x, a, orders=(1,), transients=transients, sample_rate=win.sample_rate)
     std = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(x, a, win.sample_rate, fit))
-    plain = PlainFit.of(harmonic_vectors(x, a, orders=(1,))) if transients else PlainFit.of(fit)
+    # with no decaying component kept, the fit is the plain one (harmonic_vectors keeps the plain regression then)
+    plain = PlainFit.of(harmonic_vectors(x, a, orders=(1,)) if fit.transient_rates.size else fit)
     return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win, plain)
 
 
