@@ -498,15 +498,13 @@ def _make_node():
                                        max_window=v['max_segment'])
             self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
             self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
-            self.resolver = {'measured': RunResolver(v['max_waiting_blocks']),
-                             'estimated': RunResolver(v['max_waiting_blocks'])}
+            self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
             for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
-                for rs in self.resolver.values():
-                    rs.announce(stamp, run)
+                self.resolver.announce(stamp, run)
             self.problems: deque = deque(maxlen=10)
             self._shared = threading.Lock()         # problems and latency: written by the solver thread
             self.skipped = {'no_speed': 0, 'no_angles': 0}
-            self._gap = {'measured': False, 'estimated': False}    # the next block follows rejected data
+            self._gap = False                       # the next measured block follows rejected data
             self.published = 0
             self.last_results = []
             self.solve_time = None
@@ -542,13 +540,10 @@ def _make_node():
             except MALFORMED as exc:
                 self._problem(f'malformed Excitation rejected: {exc}')
                 return
-            new = False
-            for source, rs in self.resolver.items():
-                fresh, released = rs.announce(stamp, run)
-                new = new or fresh
-                now = time.monotonic()
-                for b, r, contiguous in released:    # blocks of this run that arrived before its announcement
-                    self._feed(b, r, source, contiguous, now)
+            _, released = self.resolver.announce(stamp, run)
+            now = time.monotonic()
+            for b, r, contiguous in released:        # blocks of this run that arrived before its announcement
+                self._feed(b, r, contiguous, now)
             if self.core.add_excitation(run, stamp):
                 self.get_logger().info(f'excitation: run {run.id}')
 
@@ -568,39 +563,37 @@ def _make_node():
             for p in bad:
                 self._problem(f'{source} block seq {b.seq} rejected: {p}')
             if not chk.usable or bad:
-                self._gap[source] = True       # a rejected block is lost data: the window ends there
+                self._gap = self._gap or source == 'measured'    # rejected data ends the open window there
                 return
             if not b.has_sample_angles:
                 self.skipped['no_angles'] += 1
             if source == 'estimated':
                 return                         # monitored only: every method identifies from the measured vectors
-            contiguous = chk.contiguous and not self._gap[source]
-            self._gap[source] = False
-            rs = self.resolver[source]
-            run = rs.resolve(b, contiguous)
+            contiguous = chk.contiguous and not self._gap
+            self._gap = False
+            run = self.resolver.resolve(b, contiguous)
             if run is None:
                 return
-            self._feed(b, run, source, contiguous, now)
+            self._feed(b, run, contiguous, now)
 
-        def _feed(self, b, run, source, contiguous, now):
+        def _feed(self, b, run, contiguous, now):
             try:
-                wins = self.core.feed(b, run, source, contiguous, now)
+                wins = self.core.feed(b, run, 'measured', contiguous, now)
             except ValueError as exc:
-                self._problem(f'{source} block seq {b.seq} not accumulated: {exc}')
+                self._problem(f'measured block seq {b.seq} not accumulated: {exc}')
                 return
-            self._close(wins, source, now)
+            self._close(wins, now)
 
-        def _close(self, windows, source, now):
+        def _close(self, windows, now):
             # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
-                if self.core.wants(w, source, 0.5 * self.core.min_window):
-                    self._jobs.put(('window', w, source, now))
+                if self.core.wants(w, 'measured', 0.5 * self.core.min_window):
+                    self._jobs.put(('window', w, 'measured', now))
 
         def tick(self):
             now = time.monotonic()
-            for source in ('measured', 'estimated'):
-                self._close(self.core.flush(source, now, self.values['segment_timeout']), source, now)
+            self._close(self.core.flush('measured', now, self.values['segment_timeout']), now)
 
         def _work(self):
             t_req = None              # when the oldest window not yet solved closed (latency reference)
@@ -666,7 +659,7 @@ def _make_node():
             if items[1].level == STALE:
                 items[1].level = OK
                 items[1].message += ' (monitored only: no method needs it)'
-            rs = self.resolver['measured']
+            rs = self.resolver
             ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
                           {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),
                            'blocks_waiting_for_excitation': len(rs.waiting),
