@@ -132,6 +132,8 @@ class HarmonicFit:
         s > 0 the decay rate, w the angular frequency [rad/s]; empty when none was kept.
     transient_X : complex (m, nch) their amplitudes at ``transient_t0`` [s]: x_tr = Re{A exp(lambda (t - t0))}.
     transient_rejected : candidate components tried and rejected (not significant or not decaying).
+    plain : when decaying components were kept, the plain regression of the same samples (a HarmonicFit without
+        them, what ``transients=0`` returns); None when none was kept (the fit is then the plain one).
 
     ``X, std = fit`` unpacks as in docs/ARCHITECTURE.md.
 
@@ -155,6 +157,7 @@ class HarmonicFit:
     transient_X: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=complex))
     transient_t0: float = 0.0
     transient_rejected: int = 0
+    plain: 'HarmonicFit | None' = field(default=None, repr=False)
 
     def transient_part(self, t) -> np.ndarray:
         """
@@ -289,29 +292,31 @@ def harmonic_vectors(samples, angle, orders=(1,), *, subsync=None, whole_revs: b
     sigma2 = np.sum(resid**2, axis=0) / dof              # (nch,)
     cov_unit = np.linalg.inv(D.T @ D)                    # (npar, npar), times sigma2 per channel
     var_all = np.diag(cov_unit)[:, None] * sigma2[None, :]        # (npar, nch)
-    lam = np.zeros(0, dtype=complex)
-    A_tr = np.zeros((0, x.shape[1]), dtype=complex)
-    t0 = 0.0
-    n_rej = 0
-    if transients and x.shape[0] > 4 * npar + 16:
-        t0 = float(tt[0])
-        speed_hz = abs(a[-1] - a[0]) / TWO_PI / max(tt[-1] - tt[0], 1e-300)
-        tr = (_transient_fit(x, D, tt - t0, speed_hz, ratios, transients, coef0=coef) if transient_method == 'fast'
-              else _transient_fit_reference(x, D, tt - t0, speed_hz, ratios, transients))
-        n_rej = tr['rejected']
-        if tr['rates'].size:
-            lam, A_tr = tr['rates'], tr['A']
-            coef, resid, var_all = tr['coef'], tr['resid'], tr['var']
-    c, s = coef[1:npar:2], coef[2:npar:2]                # x = c cos + s sin = Re{(c - j s) e^{j phi}}
-    Xall = c - 1j * s
-    var_c, var_s = var_all[1:npar:2], var_all[2:npar:2]
-    std_re, std_im = np.sqrt(var_c), np.sqrt(var_s)
-    std = np.sqrt(var_c + var_s)
-    no = len(orders)
-    return HarmonicFit(X=Xall[:no], std=std[:no], std_re=std_re[:no], std_im=std_im[:no], offset=coef[0],
-                       residual_rms=np.sqrt(np.mean(resid**2, axis=0)), orders=orders, X_sub=Xall[no:],
-                       std_sub=std[no:], subsync=sub, n_revolutions=n_rev, i0=i0, i1=i1, n_dropped=n_dropped,
-                       transient_rates=lam, transient_X=A_tr, transient_t0=t0, transient_rejected=n_rej)
+
+    def result(coef, resid, var_all, **kw) -> HarmonicFit:
+        c, s = coef[1:npar:2], coef[2:npar:2]            # x = c cos + s sin = Re{(c - j s) e^{j phi}}
+        Xall = c - 1j * s
+        var_c, var_s = var_all[1:npar:2], var_all[2:npar:2]
+        std_re, std_im = np.sqrt(var_c), np.sqrt(var_s)
+        std = np.sqrt(var_c + var_s)
+        no = len(orders)
+        return HarmonicFit(X=Xall[:no], std=std[:no], std_re=std_re[:no], std_im=std_im[:no], offset=coef[0],
+                           residual_rms=np.sqrt(np.mean(resid**2, axis=0)), orders=orders, X_sub=Xall[no:],
+                           std_sub=std[no:], subsync=sub, n_revolutions=n_rev, i0=i0, i1=i1, n_dropped=n_dropped,
+                           **kw)
+
+    empty = np.zeros((0, x.shape[1]), dtype=complex)            # no decaying component
+    if not (transients and x.shape[0] > 4 * npar + 16):
+        return result(coef, resid, var_all, transient_X=empty)
+    t0 = float(tt[0])
+    speed_hz = abs(a[-1] - a[0]) / TWO_PI / max(tt[-1] - tt[0], 1e-300)
+    tr = (_transient_fit(x, D, tt - t0, speed_hz, ratios, transients, coef0=coef) if transient_method == 'fast'
+          else _transient_fit_reference(x, D, tt - t0, speed_hz, ratios, transients))
+    if not tr['rates'].size:
+        return result(coef, resid, var_all, transient_X=empty, transient_t0=t0, transient_rejected=tr['rejected'])
+    return result(tr['coef'], tr['resid'], tr['var'], transient_rates=tr['rates'], transient_X=tr['A'],
+                  transient_t0=t0, transient_rejected=tr['rejected'],
+                  plain=result(coef, resid, var_all, transient_X=empty))
 
 
 # ------------------------------------------------------------------------------------------------ transient-aware fit

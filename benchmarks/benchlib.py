@@ -2,11 +2,11 @@
 Shared helpers of the benchmarks: repeated timings (wall and CPU), child processes with their own rusage, cached data.
 
 Every figure is the min and the median over ``repeats`` runs, wall time (``time.perf_counter``) and CPU time
-(``time.process_time`` in-process; user + system from ``os.wait4`` for a child process).  A child's peak RSS is its own
-``VmHWM`` (``/proc/<pid>/status``, read while it runs): ``wait4``'s ``ru_maxrss`` is not the child's own -- Linux
-carries the RSS of the process that spawned it into it at ``exec`` (this benchmark's own ~160 MiB showed up as every
-child's peak).  The machine load (``os.getloadavg``) is printed with every table: compare figures as ratios within
-one run.
+(``time.process_time`` plus reaped children in-process; user + system from ``os.wait4`` for a child process -- both
+include the worker processes a command forked).  A child's peak RSS is its own ``VmHWM`` (``/proc/<pid>/status``, read
+while it runs): ``wait4``'s ``ru_maxrss`` is not the child's own -- Linux carries the RSS of the process that spawned
+it into it at ``exec`` (this benchmark's own ~160 MiB showed up as every child's peak).  The machine load
+(``os.getloadavg``) is printed with every table: compare figures as ratios within one run.
 """
 from __future__ import annotations
 
@@ -100,11 +100,46 @@ def _vm_hwm(pid: int) -> float:
     return 0.0
 
 
-def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, float, int]:
+def _descendants(pid: int) -> list:
+    """Return the pids of ``pid``'s children, grandchildren, ... (from /proc/<pid>/task/*/children)."""
+    out, todo = [], [pid]
+    while todo:
+        q = todo.pop()
+        try:
+            tasks = os.listdir(f'/proc/{q}/task')
+        except OSError:
+            continue
+        for t in tasks:
+            try:
+                with open(f'/proc/{q}/task/{t}/children') as fh:
+                    kids = [int(v) for v in fh.read().split()]
+            except (OSError, ValueError):
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def _pss(pid: int) -> float:
+    """Return the proportional set size [MiB] of process ``pid`` (pages shared with a forked worker count half)."""
+    try:
+        with open(f'/proc/{pid}/smaps_rollup') as fh:
+            for line in fh:
+                if line.startswith('Pss:'):
+                    return float(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0.0
+
+
+def run_process(argv, env=None, timeout: float = 900.0, tree: bool = False) -> tuple[float, float, float, int]:
     """
     Run ``argv`` as a child process -> (wall s, CPU s (user + system), peak RSS MiB, exit code).
 
-    The peak RSS is the child's VmHWM polled every 2 ms while it runs (its last reading before exit); nan if never read.
+    The CPU time includes that of the worker processes it forked and reaped.  The peak RSS is the child's VmHWM polled
+    every 2 ms while it runs (its last reading before exit); nan if never read.  ``tree``: instead, the largest sum of
+    the proportional set sizes (Pss) of the child and its descendants (its forked workers) seen by the polls -- the
+    memory the process tree holds, shared pages counted once; sampled, so a peak shorter than a poll can be missed.
     """
     e = dict(os.environ)
     e.update(env or {})
@@ -113,7 +148,10 @@ def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, f
     deadline = w0 + timeout
     hwm = 0.0
     while True:
-        hwm = max(hwm, _vm_hwm(p.pid))
+        if tree:
+            hwm = max(hwm, _pss(p.pid) + sum(_pss(c) for c in _descendants(p.pid)))
+        else:
+            hwm = max(hwm, _vm_hwm(p.pid))
         pid, status, ru = os.wait4(p.pid, os.WNOHANG)
         if pid:
             break
@@ -127,11 +165,15 @@ def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, f
     return wall, ru.ru_utime + ru.ru_stime, (hwm if hwm > 0 else float('nan')), p.returncode
 
 
-def time_process(argv, repeats: int, env=None, ok_codes=(0, 1)) -> Timing:
-    """Time a command ``repeats`` times as a fresh process; a run exiting outside ``ok_codes`` is an error."""
+def time_process(argv, repeats: int, env=None, ok_codes=(0, 1), tree: bool = False) -> Timing:
+    """
+    Time a command ``repeats`` times as a fresh process; a run exiting outside ``ok_codes`` is an error.
+
+    ``tree``: the memory figure is that of the process tree (:func:`run_process`).
+    """
     wall, cpu, rss = [], [], []
     for _ in range(repeats):
-        w, c, r, code = run_process(argv, env)
+        w, c, r, code = run_process(argv, env, tree=tree)
         if code not in ok_codes:
             raise RuntimeError(f"{' '.join(map(str, argv))} exited {code}")
         wall.append(w)
@@ -141,12 +183,15 @@ def time_process(argv, repeats: int, env=None, ok_codes=(0, 1)) -> Timing:
 
 
 CHILD = r"""
-import json, sys, time
+import json, os, sys, time
 sys.path.insert(0, {root!r})
 {setup}
-w0, c0 = time.perf_counter(), time.process_time()
+def cpu():  # this process and its reaped children (the forked workers of bearing_id.commands.workers)
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+w0, c0 = time.perf_counter(), cpu()
 {timed}
-w1, c1 = time.perf_counter(), time.process_time()
+w1, c1 = time.perf_counter(), cpu()
 print('BENCH ' + json.dumps([w1 - w0, c1 - c0]))
 """
 
@@ -156,7 +201,8 @@ def time_in_child(setup: str, timed: str, repeats: int, env=None) -> Timing:
     Time ``timed`` (Python statements) in a fresh interpreter after ``setup`` (imports, data), ``repeats`` times.
 
     In-process figures with the imports done but every cache cold (the bearing-coefficient caches, the model's
-    stability threshold): what a caller sees on a new input; a repeated call in one process would reuse them.
+    stability threshold): what a caller sees on a new input; a repeated call in one process would reuse them.  The CPU
+    time includes that of the worker processes the command forked (reaped before the clock stops).
     """
     wall, cpu = [], []
     code = CHILD.format(root=str(ROOT), setup=setup, timed=timed)

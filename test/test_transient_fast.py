@@ -60,6 +60,19 @@ def test_fast_fit_equals_reference_beside_ringing_modes(seed):
     assert ref.transient_rates.size >= 2          # the case has components to find
 
 
+def test_the_plain_regression_kept_beside_the_components_is_the_plain_fit():
+    """HarmonicFit.plain (set when components were kept) is what transients=0 returns, bit for bit; None otherwise."""
+    x, angle, _ = _window(1, RINGING)
+    fit = harmonic_vectors(x, angle, transients=3, sample_rate=FS)
+    plain = harmonic_vectors(x, angle)
+    assert fit.transient_rates.size and fit.plain is not None and plain.plain is None
+    for name in ('X', 'std', 'std_re', 'std_im', 'offset', 'residual_rms'):
+        assert np.array_equal(getattr(fit.plain, name), getattr(plain, name)), name
+    assert not np.array_equal(fit.X, plain.X)
+    steady = harmonic_vectors(*_window(7, [])[:2], transients=3, sample_rate=FS)
+    assert steady.transient_rates.size == 0 and steady.plain is None
+
+
 def test_fast_fit_equals_reference_on_a_steady_window():
     ref = _assert_same(*_window(7, [])[:2], sample_rate=FS)
     assert ref.transient_rates.size == 0

@@ -89,9 +89,10 @@ def run(args) -> int:
     check_probe_nodes(recs, rig.shaft.n_nodes)
     from ..diagnose import diagnose
     from ..diagnose.report import write_json, write_params, write_report
+    from .workers import forked_map
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings,
-                     noise_floor=not args.no_noise_floor)
+                     noise_floor=not args.no_noise_floor, window_map=forked_map)
     except ValueError as exc:
         raise ParamError(f'cannot diagnose these recordings: {exc}') from None
     aug = args.augmented or (Path(args.report) / 'augmented_params.yaml' if args.report else

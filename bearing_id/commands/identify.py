@@ -57,7 +57,9 @@ def load_data(inputs, rig=None):
     """
     Load HarmonicData from .npz / .csv recordings (one per run) or one bag; ParamError (exit 2) for any bad input.
 
-    With ``rig``, a recording without excitation (a CSV export) takes that of the params' run of the same id.
+    With ``rig``, a recording without excitation (a CSV export) takes that of the params' run of the same id.  The
+    windows' 1X fits run in forked workers when there is a spare core (:func:`bearing_id.commands.workers.forked_map`;
+    the same vectors).
     """
     from .inputs import attach_excitation, load_recordings
     recs = load_recordings(inputs, one_bag_only=True)
@@ -65,8 +67,9 @@ def load_data(inputs, rig=None):
         recs = attach_excitation(recs, rig, required=True)
     from .inputs import InputError
     from ..identify import harmonics
+    from .workers import forked_map
     try:
-        return harmonics.from_recordings(recs)
+        return harmonics.from_recordings(recs, window_map=forked_map)
     except ValueError as exc:
         raise InputError(f"{', '.join(map(str, inputs))}: {exc}") from None
 

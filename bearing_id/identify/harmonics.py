@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field, replace
+from functools import partial
 import math
 import uuid
 
@@ -337,7 +338,7 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
     fit = harmonic_vectors(x, a, orders=(1,), transients=transients, sample_rate=win.sample_rate)
     std = np.sqrt(np.maximum(fit.std_re[0], fit.std_im[0]) ** 2 + stationarity_excess(x, a, win.sample_rate, fit))
     # with no decaying component kept, the fit is the plain one (harmonic_vectors keeps the plain regression then)
-    plain = PlainFit.of(harmonic_vectors(x, a, orders=(1,)) if fit.transient_rates.size else fit)
+    plain = PlainFit.of(fit if fit.plain is None else fit.plain)
     return WindowVector(w, fit.X[0], std, win.i0 + j0, win.i1, win, plain)
 
 
@@ -378,14 +379,12 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
     return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, plain)
 
 
-def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                      transients: int = DEFAULT_TRANSIENTS, max_window: float = DEFAULT_MAX_WINDOW
-                      ) -> list[WindowVector]:
+def recording_windows(rec, *, tol_rel=DEFAULT_TOL_REL, max_window: float = DEFAULT_MAX_WINDOW
+                      ) -> list[ClosedWindow]:
     """
-    Return the 1X vectors of every steady window of one recording.
+    Return the steady windows of one recording: fed whole to a :class:`RunStream`, split at its ``gaps``.
 
-    The recording is fed whole to a :class:`RunStream`, split at its ``gaps``; the pieces of a dwell split by a gap or
-    by the ``max_window`` [s] length limit are combined (:func:`combine_vectors`).
+    A window is closed at the ``max_window`` [s] length limit too (the next one is then marked ``continued``).
     """
     stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel, max_duration=max_window)
     cuts = [0] + sorted(int(g) for g in getattr(rec, 'gaps', ()) if 0 < g < rec.samples.shape[0]) + \
@@ -393,17 +392,46 @@ def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, mi
     wins = []
     for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
         wins += stream.feed(rec.samples[a:b], rec.angle[a:b], contiguous=k == 0)
-    wins += stream.close()
+    return wins + stream.close()
+
+
+def detached_window_vector(win: ClosedWindow, **kw) -> WindowVector | None:
+    """Return :func:`window_vector` of ``win`` (keywords passed on) without the window (small to send elsewhere)."""
+    v = window_vector(win, **kw)
+    return None if v is None else replace(v, window=None)
+
+
+def window_vectors(wins, vectors, tol_rel: float = DEFAULT_TOL_REL) -> list[WindowVector]:
+    """
+    Return one recording's 1X vectors from its windows ``wins`` and their :func:`window_vector` results ``vectors``.
+
+    Windows without a vector (None) are left out; a vector is given its window; the pieces of a dwell split by a gap
+    or by the window length limit are combined (:func:`combine_vectors`).
+    """
     out: list[WindowVector] = []
-    for win in wins:
-        v = window_vector(win, settle=settle, min_duration=min_duration, transients=transients)
+    for win, v in zip(wins, vectors):
         if v is None:
             continue
+        if v.window is not win:
+            v = replace(v, window=win)
         if (win.after_gap or win.continued) and out and abs(out[-1].speed - v.speed) <= tol_rel * v.speed:
             out[-1] = combine_vectors(out[-1], v)
         else:
             out.append(v)
     return out
+
+
+def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
+                      transients: int = DEFAULT_TRANSIENTS, max_window: float = DEFAULT_MAX_WINDOW
+                      ) -> list[WindowVector]:
+    """
+    Return the 1X vectors of every steady window of one recording.
+
+    Its windows (:func:`recording_windows`), each one's :func:`window_vector`, assembled by :func:`window_vectors`.
+    """
+    wins = recording_windows(rec, tol_rel=tol_rel, max_window=max_window)
+    return window_vectors(wins, [window_vector(w, settle=settle, min_duration=min_duration, transients=transients)
+                                 for w in wins], tol_rel)
 
 
 def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list]:
@@ -433,11 +461,15 @@ def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list
 
 
 def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                    transients: int = DEFAULT_TRANSIENTS) -> HarmonicData:
+                    transients: int = DEFAULT_TRANSIENTS, window_map=None) -> HarmonicData:
     """
     1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
 
     ``transients``: decaying components allowed in each window's fit (module docstring); 0 = the plain fit.
+    ``window_map``: how the windows' fits are run, a callable with the signature of ``map`` returning a list in order
+    (default: the built-in one, here and in order); it gets :func:`detached_window_vector` and every run's windows
+    (:func:`recording_windows`) in one list -- e.g. :func:`bearing_id.commands.workers.forked_map` fits them in worker
+    processes.  The vectors do not depend on it.
     """
     recordings = list(recordings)
     if not recordings:
@@ -447,8 +479,16 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
         if tuple((p.node, p.direction) for p in r.probes) != tuple((p.node, p.direction) for p in probes):
             raise ValueError(f'run {r.run.id} has channels {r.channels}, run {recordings[0].run.id} has '
                              f'{recordings[0].channels}: all runs must use the same probes')
-    per_run = [recording_vectors(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration,
-                                 transients=transients) for r in recordings]
+    wins = [recording_windows(r, tol_rel=tol_rel) for r in recordings]
+    flat = [w for run in wins for w in run]
+    fit = partial(detached_window_vector, settle=settle, min_duration=min_duration, transients=transients)
+    vectors = list((window_map or map)(fit, flat))
+    if len(vectors) != len(flat):
+        raise RuntimeError(f'window_map returned {len(vectors)} results for {len(flat)} windows')
+    per_run, k = [], 0
+    for run in wins:
+        per_run.append(window_vectors(run, vectors[k:k + len(run)], tol_rel))
+        k += len(run)
     return stack_vectors(recordings, per_run, tol_rel)
 
 
@@ -575,6 +615,7 @@ def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=N
 
 
 __all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
-           'stationarity_excess', 'combine_vectors', 'recording_vectors', 'common_speeds', 'stack_vectors',
+           'stationarity_excess', 'combine_vectors', 'recording_windows', 'detached_window_vector', 'window_vectors',
+           'recording_vectors', 'common_speeds', 'stack_vectors',
            'from_recordings', 'from_npz', 'from_bag', 'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE',
            'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']
