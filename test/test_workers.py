@@ -88,3 +88,59 @@ def test_from_recordings_with_forked_workers_equals_the_plain_route():
     for name in ('X', 'var_re', 'var_im', 'noise_var'):
         assert np.array_equal(getattr(got.plain, name), getattr(ref.plain, name))
     assert ref.X.shape[:2] == (2, 2)
+
+
+def _pid_and(x):
+    return os.getpid(), x * 2
+
+
+def _raise_value_error(msg):
+    raise ValueError(msg)
+
+
+def _unpicklable():
+    return lambda: os.getpid()                      # a lambda does not pickle: redone here
+
+
+def test_a_background_job_runs_in_a_worker_and_gives_the_plain_result():
+    with workers.in_background(_pid_and, 21) as bg:
+        assert bg.forked
+        pid, v = bg.result()
+    assert v == 42 and pid != PARENT
+    assert bg.result() == (pid, 42)                 # kept once collected
+
+
+def test_a_background_exception_is_raised_by_result():
+    with workers.in_background(_raise_value_error, 'no steady window') as bg:
+        with pytest.raises(ValueError, match='no steady window'):
+            bg.result()
+
+
+def test_an_unpicklable_background_result_is_computed_here():
+    with workers.in_background(_unpicklable) as bg:
+        assert bg.forked
+        assert bg.result()() == PARENT
+
+
+def test_close_stops_a_background_job_not_needed_any_more():
+    import time
+    bg = workers.in_background(time.sleep, 60.0)
+    assert bg.forked
+    t0 = time.perf_counter()
+    bg.close()
+    assert time.perf_counter() - t0 < 5.0
+
+
+def test_no_background_fork_with_another_thread_alive_or_workers_off(monkeypatch):
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait)
+    th.start()
+    try:
+        bg = workers.in_background(_pid_and, 1)
+        assert not bg.forked and bg.result() == (PARENT, 2)
+    finally:
+        stop.set()
+        th.join()
+    monkeypatch.setenv(workers.WORKERS_ENV, '0')
+    bg = workers.in_background(_pid_and, 1)
+    assert not bg.forked and bg.result() == (PARENT, 2)

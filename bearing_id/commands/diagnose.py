@@ -80,6 +80,29 @@ def _load(paths) -> list:
     return load_recordings(paths)
 
 
+def _floor_vectors(recs):
+    """
+    Return :func:`bearing_id.diagnose.floor.identify_vectors` of ``recs`` without the recordings in its HarmonicData.
+
+    What a worker sends back (the 1X vectors, not the samples); :func:`_with_recordings` puts them back.
+    """
+    from dataclasses import replace
+
+    from ..diagnose.floor import identify_vectors
+    obs = identify_vectors(recs)
+    if getattr(obs, 'harmonic_data', None) is not None:
+        obs.harmonic_data = replace(obs.harmonic_data, recordings=[])
+    return obs
+
+
+def _with_recordings(obs, recs):
+    """Return ``obs`` from :func:`_floor_vectors` with the recordings back in its HarmonicData."""
+    from dataclasses import replace
+    if getattr(obs, 'harmonic_data', None) is not None:
+        obs.harmonic_data = replace(obs.harmonic_data, recordings=list(recs))
+    return obs
+
+
 def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
         raise ParamError('--rel-tol must be in [0, 1)')
@@ -89,12 +112,18 @@ def run(args) -> int:
     check_probe_nodes(recs, rig.shaft.n_nodes)
     from ..diagnose import diagnose
     from ..diagnose.report import write_json, write_params, write_report
-    from .workers import forked_map
+    from .workers import in_background
+    # identify's 1X vectors for the noise-floor check, fitted in a worker while this process locates and selects
+    floor = None if args.no_noise_floor else in_background(_floor_vectors, recs)
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings,
-                     noise_floor=not args.no_noise_floor, window_map=forked_map)
+                     noise_floor=not args.no_noise_floor,
+                     floor_vectors=None if floor is None else lambda: _with_recordings(floor.result(), recs))
     except ValueError as exc:
         raise ParamError(f'cannot diagnose these recordings: {exc}') from None
+    finally:
+        if floor is not None:
+            floor.close()
     aug = args.augmented or (Path(args.report) / 'augmented_params.yaml' if args.report else
                              (Path(args.json).with_name(Path(args.json).stem + '_augmented_params.yaml')
                               if args.json else None))

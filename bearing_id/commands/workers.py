@@ -1,17 +1,21 @@
 """
 Forked worker processes for a command's independent fits (the 1X fit of every steady window): wall time.
 
-:func:`forked_map` is ``map`` for :func:`bearing_id.identify.harmonics.from_recordings`'s ``window_map``: it hands
-every (workers + 1)-th item to one of ``workers`` processes forked from this one (they inherit the function and the
-items, so nothing big is pickled but the results) and computes the rest here meanwhile.  The results are those of
-the built-in ``map`` (the same code on the same inputs, bit for bit; test/test_workers.py), in order; an exception
-is raised as the plain loop would raise it (that of the first failing item).
+* :func:`forked_map` is ``map`` for :func:`bearing_id.identify.harmonics.from_recordings`'s ``window_map``: it hands
+  every (workers + 1)-th item to one of ``workers`` processes forked from this one (they inherit the function and the
+  items, so nothing big is pickled but the results) and computes the rest here meanwhile.
+* :func:`in_background` starts ``fn(*args)`` in one forked process now and returns a :class:`Background` whose
+  ``result()`` collects it later (``diagnose`` fits identify's 1X vectors for its noise-floor check this way while it
+  locates and selects effects).
 
-Used only when it is safe and can help: there are two or more items, a spare core (``os.sched_getaffinity``), the
-platform forks, and this process runs no other thread (forking a threaded process can copy a lock held by another
-thread; the ROS nodes never come here).  ``BEARING_ID_WORKERS`` (an integer, 0 = none) overrides the default of
-one worker per spare core, at most 3.  A worker that dies (killed, out of memory) costs nothing but time: its items
-are computed here.
+The results are those of the plain call (the same code on the same inputs, bit for bit; test/test_workers.py), in
+order; an exception is raised as the plain call would raise it (for a map, that of the first failing item).
+
+Used only when it is safe and can help: a spare core (``os.sched_getaffinity``), the platform forks, and this
+process runs no other thread (forking a threaded process can copy a lock held by another thread; the ROS nodes never
+come here).  ``BEARING_ID_WORKERS`` (an integer, 0 = none) overrides the default of one worker per spare core, at
+most 3.  Otherwise the work is done here, at the point where the plain call would do it.  A worker that dies
+(killed, out of memory) or a result that does not pickle costs nothing but time: the work is redone here.
 """
 from __future__ import annotations
 
@@ -97,4 +101,84 @@ def forked_map(fn, items, workers: int | None = None) -> list:
     return [v for _, v in out]
 
 
-__all__ = ['forked_map', 'default_workers', 'WORKERS_ENV']
+def _may_fork() -> bool:
+    """Return True when this process may fork a worker now (a spare core, no other thread, no map running)."""
+    return default_workers() >= 1 and threading.active_count() == 1 and _JOB is None
+
+
+def _background_child(conn, fn, args) -> None:
+    """Run ``fn(*args)`` in the forked worker and send (ok, result or exception) back."""
+    try:
+        out = _outcome(lambda a: fn(*a), args)
+        try:
+            conn.send(out)
+        except Exception:               # noqa: B902 -- an unpicklable result: the parent computes it itself
+            pass
+    finally:
+        conn.close()
+
+
+class Background:
+    """
+    ``fn(*args)`` computed in a process forked by :func:`in_background`, or here when ``result()`` is first called.
+
+    ``result()`` returns it (or raises its exception); ``close()`` stops a worker whose result is not wanted any more
+    (the command failed before it needed it).  Use as a context manager to close it in any case.
+    """
+
+    def __init__(self, fn, args: tuple, fork: bool):
+        self._fn, self._args = fn, args
+        self._proc = self._conn = None
+        self._have = None                               # (ok, value) once known
+        self.forked = False                             # True when the work runs (or ran) in a forked worker
+        if fork:
+            try:
+                import multiprocessing
+                ctx = multiprocessing.get_context('fork')
+                self._conn, child = ctx.Pipe(duplex=False)
+                self._proc = ctx.Process(target=_background_child, args=(child, fn, args), daemon=True)
+                self._proc.start()                      # forked here: fn and args are inherited, not pickled
+                child.close()
+                self.forked = True
+            except (ImportError, ValueError, OSError):     # no fork on this platform, or no process left
+                self._proc = self._conn = None
+
+    def result(self):
+        """Return ``fn(*args)`` (waiting for the worker), or raise what it raised."""
+        if self._have is None:
+            if self._proc is not None:
+                try:
+                    self._have = self._conn.recv()
+                except (EOFError, OSError):            # the worker died or its result did not pickle: do it here
+                    pass
+                self.close()
+            if self._have is None:
+                self._have = _outcome(lambda a: self._fn(*a), self._args)
+        ok, v = self._have
+        if not ok:
+            raise v
+        return v
+
+    def close(self) -> None:
+        """Stop the worker if it still runs; release the pipe."""
+        if self._proc is not None:
+            if self._proc.is_alive() and self._have is None:
+                self._proc.kill()
+            self._proc.join()
+            self._conn.close()
+            self._proc.close()
+            self._proc = self._conn = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def in_background(fn, *args) -> Background:
+    """Start ``fn(*args)`` in a forked worker when that is safe and a core is spare; see :class:`Background`."""
+    return Background(fn, args, _may_fork())
+
+
+__all__ = ['forked_map', 'in_background', 'Background', 'default_workers', 'WORKERS_ENV']

@@ -107,20 +107,19 @@ class FloorCheck:
                 'note': self.note}
 
 
-def identify_vectors(recordings, window_map=None) -> Observations:
+def identify_vectors(recordings) -> Observations:
     """
     Return the 1X vectors identify uses, as Observations.
 
     Observations holding the 1X vectors of :func:`identify.harmonics.from_recordings` (one window per run and
-    speed, 1-sigma per real/imaginary part); runs whose speeds differ are taken one by one.  ``window_map``: passed
-    to ``from_recordings`` (how the window fits are run; the vectors do not depend on it).
+    speed, 1-sigma per real/imaginary part); runs whose speeds differ are taken one by one.
     """
     from ..identify.harmonics import from_recordings
     recordings = list(recordings)
     try:
-        datas = [from_recordings(recordings, window_map=window_map)]
+        datas = [from_recordings(recordings)]
     except ValueError:
-        datas = [from_recordings([r], window_map=window_map) for r in recordings]
+        datas = [from_recordings([r]) for r in recordings]
     recs, wins = [], []
     for d in datas:
         for r, run in enumerate(d.runs):
@@ -136,14 +135,15 @@ def identify_vectors(recordings, window_map=None) -> Observations:
     return obs
 
 
-def floor_problem(recordings, rig, *, model=None, nuisance: bool = True, window_map=None):
+def floor_problem(recordings, rig, *, model=None, nuisance: bool = True, vectors=None):
     """
     (Problem on identify's 1X vectors with their 1-sigma only, note): the noise-floor problem, or (None, why).
 
-    ``window_map``: see :func:`identify_vectors`.
+    ``vectors``: a callable returning :func:`identify_vectors` of ``recordings`` (e.g. computed meanwhile in another
+    process); default: computed here.
     """
     try:
-        obs = identify_vectors(recordings, window_map)
+        obs = identify_vectors(recordings) if vectors is None else vectors()
     except (ValueError, RuntimeError, KeyError, IndexError, np.linalg.LinAlgError) as exc:
         return None, f'noise-floor check skipped: {exc}'
     if len(obs.windows) < 2:
