@@ -88,16 +88,21 @@ def time_call(fn, repeats: int, *, warmup: int = 0, quiet: bool = True) -> Timin
     return Timing(wall, cpu, None, out)
 
 
-def _vm_hwm(pid: int) -> float:
-    """Return the peak RSS [MiB] of process ``pid``'s own address space (VmHWM), or 0 when it is not readable."""
+def _proc_mib(path: str, key: str) -> float:
+    """Return the ``key`` line of a /proc file (a size in kB) in MiB, or 0 when it is not readable."""
     try:
-        with open(f'/proc/{pid}/status') as fh:
+        with open(path) as fh:
             for line in fh:
-                if line.startswith('VmHWM:'):
+                if line.startswith(key):
                     return float(line.split()[1]) / 1024.0
     except (OSError, ValueError, IndexError):
         pass
     return 0.0
+
+
+def _vm_hwm(pid: int) -> float:
+    """Return the peak RSS [MiB] of process ``pid``'s own address space (VmHWM), or 0 when it is not readable."""
+    return _proc_mib(f'/proc/{pid}/status', 'VmHWM:')
 
 
 def _descendants(pid: int) -> list:
@@ -122,14 +127,7 @@ def _descendants(pid: int) -> list:
 
 def _pss(pid: int) -> float:
     """Return the proportional set size [MiB] of process ``pid`` (pages shared with a forked worker count half)."""
-    try:
-        with open(f'/proc/{pid}/smaps_rollup') as fh:
-            for line in fh:
-                if line.startswith('Pss:'):
-                    return float(line.split()[1]) / 1024.0
-    except (OSError, ValueError, IndexError):
-        pass
-    return 0.0
+    return _proc_mib(f'/proc/{pid}/smaps_rollup', 'Pss:')
 
 
 def run_process(argv, env=None, timeout: float = 900.0, tree: bool = False) -> tuple[float, float, float, int]:
