@@ -2,10 +2,11 @@
 Shared helpers of the benchmarks: repeated timings (wall and CPU), child processes with their own rusage, cached data.
 
 Every figure is the min and the median over ``repeats`` runs, wall time (``time.perf_counter``) and CPU time
-(``time.process_time`` plus reaped children in-process; user + system from ``os.wait4`` for a child process -- both
-include the worker processes a command forked).  A child's peak RSS is its own ``VmHWM`` (``/proc/<pid>/status``, read
-while it runs): ``wait4``'s ``ru_maxrss`` is not the child's own -- Linux carries the RSS of the process that spawned
-it into it at ``exec`` (this benchmark's own ~160 MiB showed up as every child's peak).  The machine load
+(``time.process_time`` plus reaped children's ``getrusage`` in-process; user + system from ``os.wait4`` for a child
+process -- both include the worker processes a command forked).  A child's peak RSS is its own ``VmHWM``
+(``/proc/<pid>/status``, read while it runs) plus the private memory of its forked workers (:func:`run_process`):
+``wait4``'s ``ru_maxrss`` is not the child's own -- Linux carries the RSS of the process that spawned it into it at
+``exec`` (this benchmark's own ~160 MiB showed up as every child's peak).  The machine load
 (``os.getloadavg``) is printed with every table: compare figures as ratios within one run.
 """
 from __future__ import annotations
@@ -125,19 +126,20 @@ def _descendants(pid: int) -> list:
     return out
 
 
-def _pss(pid: int) -> float:
-    """Return the proportional set size [MiB] of process ``pid`` (pages shared with a forked worker count half)."""
-    return _proc_mib(f'/proc/{pid}/smaps_rollup', 'Pss:')
+def _private(pid: int) -> float:
+    """Return the memory [MiB] process ``pid`` holds alone (Private_Clean + Private_Dirty: not shared with any)."""
+    path = f'/proc/{pid}/smaps_rollup'
+    return _proc_mib(path, 'Private_Clean:') + _proc_mib(path, 'Private_Dirty:')
 
 
-def run_process(argv, env=None, timeout: float = 900.0, tree: bool = False) -> tuple[float, float, float, int]:
+def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, float, int]:
     """
     Run ``argv`` as a child process -> (wall s, CPU s (user + system), peak RSS MiB, exit code).
 
     The CPU time includes that of the worker processes it forked and reaped.  The peak RSS is the child's VmHWM polled
-    every 2 ms while it runs (its last reading before exit); nan if never read.  ``tree``: instead, the largest sum of
-    the proportional set sizes (Pss) of the child and its descendants (its forked workers) seen by the polls -- the
-    memory the process tree holds, shared pages counted once; sampled, so a peak shorter than a poll can be missed.
+    every 2 ms while it runs (its last reading before exit), plus, for each worker process it forks, the largest
+    memory that worker held alone (private pages; what it shares with the command is in the command's VmHWM) seen by
+    the polls -- an upper bound of the process tree's peak, since the peaks need not coincide; nan if never read.
     """
     e = dict(os.environ)
     e.update(env or {})
@@ -145,11 +147,11 @@ def run_process(argv, env=None, timeout: float = 900.0, tree: bool = False) -> t
     p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=e, cwd=str(ROOT))
     deadline = w0 + timeout
     hwm = 0.0
+    workers: dict = {}
     while True:
-        if tree:
-            hwm = max(hwm, _pss(p.pid) + sum(_pss(c) for c in _descendants(p.pid)))
-        else:
-            hwm = max(hwm, _vm_hwm(p.pid))
+        hwm = max(hwm, _vm_hwm(p.pid))
+        for c in _descendants(p.pid):
+            workers[c] = max(workers.get(c, 0.0), _private(c))
         pid, status, ru = os.wait4(p.pid, os.WNOHANG)
         if pid:
             break
@@ -160,18 +162,14 @@ def run_process(argv, env=None, timeout: float = 900.0, tree: bool = False) -> t
         time.sleep(0.002)
     wall = time.perf_counter() - w0
     p.returncode = os.waitstatus_to_exitcode(status)
-    return wall, ru.ru_utime + ru.ru_stime, (hwm if hwm > 0 else float('nan')), p.returncode
+    return wall, ru.ru_utime + ru.ru_stime, (hwm + sum(workers.values()) if hwm > 0 else float('nan')), p.returncode
 
 
-def time_process(argv, repeats: int, env=None, ok_codes=(0, 1), tree: bool = False) -> Timing:
-    """
-    Time a command ``repeats`` times as a fresh process; a run exiting outside ``ok_codes`` is an error.
-
-    ``tree``: the memory figure is that of the process tree (:func:`run_process`).
-    """
+def time_process(argv, repeats: int, env=None, ok_codes=(0, 1)) -> Timing:
+    """Time a command ``repeats`` times as a fresh process; a run exiting outside ``ok_codes`` is an error."""
     wall, cpu, rss = [], [], []
     for _ in range(repeats):
-        w, c, r, code = run_process(argv, env, tree=tree)
+        w, c, r, code = run_process(argv, env)
         if code not in ok_codes:
             raise RuntimeError(f"{' '.join(map(str, argv))} exited {code}")
         wall.append(w)
@@ -184,9 +182,10 @@ CHILD = r"""
 import json, os, sys, time
 sys.path.insert(0, {root!r})
 {setup}
-def cpu():  # this process and its reaped children (the forked workers of bearing_id.commands.workers)
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
+def cpu():  # this process and its reaped children (the forked workers of bearing_id.commands.workers), in us
+    import resource
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + r.ru_utime + r.ru_stime
 w0, c0 = time.perf_counter(), cpu()
 {timed}
 w1, c1 = time.perf_counter(), cpu()
