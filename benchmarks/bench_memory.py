@@ -4,8 +4,8 @@ Peak-memory benchmark (issue 13 (e)): peak RSS of ``bearing-id identify`` agains
 Cases (two runs each, the default probes, ``bearing-id simulate``): 3, 9 and 27 speeds at the default dwell, and
 9 speeds at half and double the dwell.  Each case is run as a fresh process per method, with the window fits in that
 process (``BEARING_ID_WORKERS=0``: its own peak RSS, VmHWM) and as by default (a forked worker shares the
-window fits when there is a spare core: the command's VmHWM plus the worker's largest private memory, an upper
-bound).  Printed beside
+window fits when there is a spare core: the larger of the command's VmHWM and the largest sum of its resident and
+the worker's private memory seen every 10 ms).  Printed beside
 it: the samples per run, the recording's arrays in memory (both files), the import floor (a process that imports
 what ``identify`` imports, reads nothing and exits), and the least-squares line RSS = a + b x samples over the
 one-process figures with its worst residual (linear when the residuals are small against the growth).
@@ -137,8 +137,8 @@ def main(argv=None):
     heads = [h for m in methods for h in (f'peak RSS MiB, {m}, one process', f'{m}, with its forked worker')]
     print(bl.table(['case', 'samples per run', 'arrays MiB (2 files)', *heads, 'target', 'met'], rows))
     print('one process: BEARING_ID_WORKERS=0, the VmHWM of the process; with its forked worker (the default on a '
-          "machine with a spare core): the command's VmHWM plus the largest private memory of its worker seen every "
-          "2 ms (an upper bound of the two processes' peak)")
+          "machine with a spare core): the larger of the command's VmHWM and the largest sum of its resident memory "
+          "and the worker's private memory seen every 10 ms (the two processes' peak, sampled)")
     print()
     print('import floor (imports only, no data) MiB: ' + ', '.join(f'{m} {v:.0f}' for m, v in floors.items()))
     big = max(cases, key=lambda c: (len(c[1]), c[2] == dwell))

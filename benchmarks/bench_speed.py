@@ -23,8 +23,8 @@ Speed benchmark, like for like (issue 13): every comparison in one run, min/medi
 
 The commands fit the steady windows in a forked worker process when there is a spare core
 (:mod:`bearing_id.commands.workers`); every CPU figure includes the workers' CPU time, and rows marked "one process"
-(``BEARING_ID_WORKERS=0``) show the same job without them.  Peak RSS of a process row is the command's own VmHWM
-plus its workers' largest private memory (an upper bound, ``benchlib.run_process``).
+(``BEARING_ID_WORKERS=0``) show the same job without them.  Peak RSS of a process row is the command's own VmHWM,
+or the largest sum of its resident and its workers' private memory while they run (``benchlib.run_process``).
 
 Targets (issue 13): paper job in-process <= 10 ms (>= 400x the paper); 9-speed identify in-process <= 0.1 s (direct,
 physical), <= 0.3 s (paper); any ``bearing-id identify`` as a process <= 0.8 s; diagnose <= 1.5 s.  "met" is judged

@@ -4,7 +4,8 @@ Shared helpers of the benchmarks: repeated timings (wall and CPU), child process
 Every figure is the min and the median over ``repeats`` runs, wall time (``time.perf_counter``) and CPU time
 (``time.process_time`` plus reaped children's ``getrusage`` in-process; user + system from ``os.wait4`` for a child
 process -- both include the worker processes a command forked).  A child's peak RSS is its own ``VmHWM``
-(``/proc/<pid>/status``, read while it runs) plus the private memory of its forked workers (:func:`run_process`):
+(``/proc/<pid>/status``, read while it runs), or more while its forked workers hold memory of their own
+(:func:`run_process`):
 ``wait4``'s ``ru_maxrss`` is not the child's own -- Linux carries the RSS of the process that spawned it into it at
 ``exec`` (this benchmark's own ~160 MiB showed up as every child's peak).  The machine load
 (``os.getloadavg``) is printed with every table: compare figures as ratios within one run.
@@ -136,10 +137,10 @@ def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, f
     """
     Run ``argv`` as a child process -> (wall s, CPU s (user + system), peak RSS MiB, exit code).
 
-    The CPU time includes that of the worker processes it forked and reaped.  The peak RSS is the child's VmHWM polled
-    every 2 ms while it runs (its last reading before exit), plus, for each worker process it forks, the largest
-    memory that worker held alone (private pages; what it shares with the command is in the command's VmHWM) seen by
-    the polls -- an upper bound of the process tree's peak, since the peaks need not coincide; nan if never read.
+    The CPU time includes that of the worker processes it forked and reaped.  The peak RSS is the larger of the
+    child's VmHWM polled every 2 ms while it runs (its last reading before exit) and, while it has worker processes,
+    the largest sum of its resident memory and their private memory (what they hold alone; what they share with it
+    is in its own) seen every 10 ms: the process tree's peak, sampled; nan if never read.
     """
     e = dict(os.environ)
     e.update(env or {})
@@ -147,11 +148,14 @@ def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, f
     p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=e, cwd=str(ROOT))
     deadline = w0 + timeout
     hwm = 0.0
-    workers: dict = {}
+    k = 0
     while True:
         hwm = max(hwm, _vm_hwm(p.pid))
-        for c in _descendants(p.pid):
-            workers[c] = max(workers.get(c, 0.0), _private(c))
+        k += 1
+        if k % 5 == 0:
+            kids = _descendants(p.pid)
+            if kids:
+                hwm = max(hwm, _proc_mib(f'/proc/{p.pid}/status', 'VmRSS:') + sum(_private(c) for c in kids))
         pid, status, ru = os.wait4(p.pid, os.WNOHANG)
         if pid:
             break
@@ -162,7 +166,7 @@ def run_process(argv, env=None, timeout: float = 900.0) -> tuple[float, float, f
         time.sleep(0.002)
     wall = time.perf_counter() - w0
     p.returncode = os.waitstatus_to_exitcode(status)
-    return wall, ru.ru_utime + ru.ru_stime, (hwm + sum(workers.values()) if hwm > 0 else float('nan')), p.returncode
+    return wall, ru.ru_utime + ru.ru_stime, (hwm if hwm > 0 else float('nan')), p.returncode
 
 
 def time_process(argv, repeats: int, env=None, ok_codes=(0, 1)) -> Timing:
