@@ -2,8 +2,9 @@
 Forked workers for the window fits (bearing_id.commands.workers, issue 13): the results of the plain loop, bit for bit.
 
 Reference: the built-in ``map`` / list comprehension on the same function and items.  Also: work really runs in
-another process (pids), an exception is that of the first failing item in item order, a worker that dies costs no
-result, and no fork happens with another thread alive or with BEARING_ID_WORKERS=0.
+another process (pids), an exception is that of the first failing item in item order with this process's traceback
+(an item that failed in a worker is redone here), a worker that dies costs no result, workers never fork again, ignore
+Ctrl-C and die with their parent, and no fork happens with another thread alive or with BEARING_ID_WORKERS=0.
 """
 import os
 import threading
@@ -57,6 +58,19 @@ def _slow_fail_on(i):
     import time
     time.sleep(0.02)
     return _fail_on(i)
+
+
+def _fail_in_worker(i):
+    """Return i here; raise in a worker (what a worker-only fault looks like: redone here, so no error)."""
+    import time
+    time.sleep(0.03)
+    if os.getpid() != PARENT:
+        raise RuntimeError('worker-only fault')
+    return i
+
+
+def test_an_item_that_failed_in_a_worker_is_redone_here():
+    assert forked_map(_fail_in_worker, range(9), workers=1) == list(range(9))
 
 
 def _die_in_worker(i):
