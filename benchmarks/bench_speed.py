@@ -223,12 +223,11 @@ def main(argv=None):
     files9 = bl.simulated(speeds, probes=PROBES_ALL, fresh=args.fresh)
     if 'c' not in skip:
         methods = ('paper', 'direct') if args.quick else METHODS
-        load = bl.time_in_child('from bearing_id.commands.identify import load_data\nfrom bearing_id.params import '
-                                'load_rig\nrig = load_rig()\n' + bl.IMPORTS['identify'],
-                                f'load_data({list(map(str, files9))!r}, rig)', args.repeats)
-        load1 = bl.time_in_child('from bearing_id.commands.identify import load_data\nfrom bearing_id.params import '
-                                 'load_rig\nrig = load_rig()\n' + bl.IMPORTS['identify'],
-                                 f'load_data({list(map(str, files9))!r}, rig)', args.repeats, env=ONE_PROCESS)
+        load_setup = ('from bearing_id.commands.identify import load_data\nfrom bearing_id.params import '
+                      'load_rig\nrig = load_rig()\n' + bl.IMPORTS['identify'])
+        load_call = f'load_data({list(map(str, files9))!r}, rig)'
+        load = bl.time_in_child(load_setup, load_call, args.repeats)
+        load1 = bl.time_in_child(load_setup, load_call, args.repeats, env=ONE_PROCESS)
         rows = [bl.timing_row('files -> 1X vectors (load_data: read, steady windows, 1X fits)', load, None,
                               extra=('',)),
                 bl.timing_row('the same, one process (BEARING_ID_WORKERS=0)', load1, None, extra=('',))]

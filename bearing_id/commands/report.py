@@ -227,7 +227,10 @@ class _Renderer:
                 warm_up()                   # matplotlib loaded once, inherited by the forked workers
                 from concurrent.futures import ProcessPoolExecutor
                 import multiprocessing
-                self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context('fork'))
+
+                from .workers import worker_setup       # they ignore Ctrl-C and die with this process
+                self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context('fork'),
+                                                initializer=worker_setup)
             except (ValueError, OSError, ImportError):     # no fork on this platform: render here
                 self.pool = None
 

@@ -75,8 +75,12 @@ def _may_fork() -> bool:
     return threading.active_count() == 1 and not _IN_WORKER and _JOB is None
 
 
-def _worker_setup() -> None:
-    """In a forked worker: never fork again, leave Ctrl-C to the parent, die with the parent."""
+def worker_setup() -> None:
+    """
+    In a forked worker: never fork again, leave Ctrl-C to the parent, die with the parent.
+
+    The initializer of every worker pool a command forks (also the report's figure workers).
+    """
     global _IN_WORKER
     _IN_WORKER = True
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -137,7 +141,7 @@ def forked_map(fn, items, workers: int | None = None) -> list:
     here = set()
     _JOB, _PARENT = (fn, items, counter), os.getpid()
     try:
-        pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_setup)
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=worker_setup)
         try:
             futures = [pool.submit(_share) for _ in range(n)]             # forked here, inheriting _JOB
             while (i := _take(counter, len(items))) is not None:
@@ -169,7 +173,7 @@ def forked_map(fn, items, workers: int | None = None) -> list:
 
 def _background_child(conn, other, fn, args) -> None:
     """Run ``fn(*args)`` in the forked worker and send (ok, result or exception) back."""
-    _worker_setup()
+    worker_setup()
     other.close()                                     # the parent's end: EOF there if this process dies
     try:
         out = _outcome(lambda a: fn(*a), args)
@@ -251,4 +255,4 @@ def in_background(fn, *args) -> Background:
     return Background(fn, args, default_workers() >= 1 and _may_fork())
 
 
-__all__ = ['forked_map', 'in_background', 'Background', 'default_workers', 'WORKERS_ENV']
+__all__ = ['forked_map', 'in_background', 'Background', 'default_workers', 'worker_setup', 'WORKERS_ENV']
