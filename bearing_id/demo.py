@@ -62,7 +62,7 @@ def _ros_value(v) -> str:
     return str(v)
 
 
-def stop_processes(procs: dict, timeout: float = 8.0) -> dict:
+def stop_processes(procs: dict, timeout: float = 10.0) -> dict:
     """SIGINT every process, wait up to ``timeout`` s, SIGKILL what is left; returns {name: return code}."""
     for p in procs.values():
         if p.poll() is None:

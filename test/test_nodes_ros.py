@@ -137,3 +137,45 @@ def test_a_failing_callback_is_logged_with_its_traceback_and_the_node_goes_on():
     assert 'ticks 8' in r.stdout, r.stdout + r.stderr      # the timer kept firing after both failures
     assert r.stderr.count('callback failed') == 2 and "KeyError: 'bug'" in r.stderr, r.stderr
     assert '2 so far' in r.stderr and 'Traceback' in r.stderr, r.stderr
+
+
+HANGING_TEARDOWN_NODE = """
+import sys
+import time
+import rclpy
+from bearing_id.nodes import common
+from rclpy.node import Node
+
+common.TEARDOWN_LIMIT = 1.0
+rclpy.try_shutdown = lambda: time.sleep({sleep})      # a Fast DDS teardown that hangs ({sleep} s)
+
+
+class Closing(Node):
+    def close(self):
+        print('closed', flush=True)
+
+
+def make():
+    node = Closing('hanger')
+    node.finished = True
+    return node
+
+
+sys.exit(common.run_node('hanger', 'test node', [], make, ['hanger']))
+"""
+
+
+@pytest.mark.parametrize('sleep', [0.0, 60.0])
+def test_a_hanging_middleware_teardown_is_abandoned_after_the_node_closed(sleep):
+    t0 = time.monotonic()
+    r = rosutil.run_python(HANGING_TEARDOWN_NODE.replace('{sleep}', repr(sleep)), timeout=60)
+    took = time.monotonic() - t0
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out
+    assert 'closed' in r.stdout, out                  # close() (records) ran before the teardown
+    if sleep:
+        assert took < 20, out                          # abandoned after TEARDOWN_LIMIT, not after the 60 s hang
+        assert 'middleware teardown still running after 1 s' in r.stderr, out
+        assert 'most recent call first' in r.stderr and '_middleware_teardown' in r.stderr, out   # the stacks
+    else:
+        assert 'teardown still running' not in out, out

@@ -36,7 +36,9 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, field
+import faulthandler
 import math
+import os
 from pathlib import Path
 import signal
 import sys
@@ -745,6 +747,11 @@ def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
     return argv, ns
 
 
+CLOSE_TRACE_AFTER = 6.0      # s: a node's close() still running after this prints every thread's stack to stderr
+TEARDOWN_LIMIT = 2.0         # s: the DDS teardown after close() is abandoned after this (see _middleware_teardown)
+TEARDOWN_HARD_LIMIT = 4.0    # s: ... and the process ended from outside the interpreter after this
+
+
 def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=None) -> int:
     """
     Process entry point shared by the nodes.
@@ -774,13 +781,16 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
             return 0
         except ParamError as exc:
             print(f'{prog}: parameter error: {exc}', file=sys.stderr)
-            return 2
+            code = 2
+            return code
         except (FileNotFoundError, ValueError) as exc:
             print(f'{prog}: cannot start: {exc}', file=sys.stderr)
-            return 2
+            code = 2
+            return code
         except RCLError as exc:     # e.g. ROS_SECURITY_ENABLE with a Fast DDS built without security, bad enclave
             print(f'{prog}: cannot start: {str(exc).strip()}', file=sys.stderr)
-            return 2
+            code = 2
+            return code
         ex = SingleThreadedExecutor()
         ex.add_node(node)
         failures = 0
@@ -793,15 +803,44 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
         if stop.signal_name:
             node.get_logger().info(f'{stop.signal_name}: shutting down')
     finally:
+        faulthandler.dump_traceback_later(CLOSE_TRACE_AFTER)   # a close() that hangs leaves its stacks in the log
+        try:
+            if node is not None and hasattr(node, 'close'):
+                node.close()
+        finally:
+            faulthandler.cancel_dump_traceback_later()
+            _middleware_teardown(prog, rclpy, node, code)
+    return code
+
+
+def _middleware_teardown(prog: str, rclpy, node, code: int) -> None:
+    """
+    Destroy the node and shut the context down, at most :data:`TEARDOWN_LIMIT` s.
+
+    Runs after the node's ``close()`` (records flushed and closed, workers stopped), so nothing is lost when the DDS
+    teardown hangs (Fast DDS can): the process then prints every thread's stack to stderr (the node's log) and exits
+    with ``code`` without it.  Should the hang hold the interpreter lock, faulthandler's own thread dumps the stacks
+    and ends the process (exit code 1) :data:`TEARDOWN_HARD_LIMIT` s later.
+    """
+    def abandon():
+        print(f'{prog}: middleware teardown still running after {TEARDOWN_LIMIT:g} s (the node was closed, '
+              f'nothing is lost): exiting without it; the stacks follow', file=sys.stderr, flush=True)
+        faulthandler.dump_traceback(sys.stderr)
+        sys.stdout.flush()
+        os._exit(code)
+
+    watchdog = threading.Timer(TEARDOWN_LIMIT, abandon)
+    watchdog.daemon = True
+    watchdog.start()
+    faulthandler.dump_traceback_later(TEARDOWN_HARD_LIMIT, exit=True)
+    try:
         if node is not None:
-            try:
-                if hasattr(node, 'close'):
-                    node.close()
-            finally:
-                node.destroy_node()
+            node.destroy_node()
         if rclpy.ok():
             rclpy.try_shutdown()
-    return code
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+        watchdog.cancel()
 
 
 def callback_failure_text(exc: BaseException, count: int) -> str:
