@@ -18,6 +18,9 @@ def test_demo_runs_end_to_end(tmp_path):
     r = rosutil.run([py, '-m', 'bearing_id.demo', '--speeds', '1200,2400', '--dwell', '1.5', '--rate', '3',
                      '--out', str(tmp_path / 'demo'), '--timeout', '100'], timeout=150)
     out = r.stdout + r.stderr
+    for log in sorted((tmp_path / 'demo').glob('*.log')):     # a node that did not stop: its log says where it was
+        tail = log.read_text(errors='replace').splitlines()[-60:]
+        out += f'\n--- {log.name} (last 60 lines) ---\n' + '\n'.join(tail)
     assert r.returncode == 0, out
     assert 'all 2 speeds identified' in out
     assert "'identifier': 0, 'kf_estimator': 0, 'sensor_driver': 0" in out, out
