@@ -140,14 +140,18 @@ def test_a_failing_callback_is_logged_with_its_traceback_and_the_node_goes_on():
 
 
 HANGING_TEARDOWN_NODE = """
+import ctypes
 import sys
 import time
 import rclpy
 from bearing_id.nodes import common
 from rclpy.node import Node
 
-common.TEARDOWN_LIMIT = 1.0
-rclpy.try_shutdown = lambda: time.sleep({sleep})      # a Fast DDS teardown that hangs ({sleep} s)
+common.TEARDOWN_LIMIT, common.TEARDOWN_HARD_LIMIT = 1.0, 3.0
+HANGS = {'none': lambda: None,
+         'sleeping': lambda: time.sleep(60),                     # a teardown that hangs, the GIL released
+         'holding the GIL': lambda: ctypes.PyDLL(None).sleep(60)}   # libc sleep(60) with the GIL held
+rclpy.try_shutdown = HANGS[sys.argv[1]]
 
 
 class Closing(Node):
@@ -165,17 +169,19 @@ sys.exit(common.run_node('hanger', 'test node', [], make, ['hanger']))
 """
 
 
-@pytest.mark.parametrize('sleep', [0.0, 60.0])
-def test_a_hanging_middleware_teardown_is_abandoned_after_the_node_closed(sleep):
+@pytest.mark.parametrize('hang', ['none', 'sleeping', 'holding the GIL'])
+def test_a_hanging_middleware_teardown_is_abandoned_after_the_node_closed(hang):
     t0 = time.monotonic()
-    r = rosutil.run_python(HANGING_TEARDOWN_NODE.replace('{sleep}', repr(sleep)), timeout=60)
+    r = rosutil.run_python(HANGING_TEARDOWN_NODE, timeout=60, args=[hang])
     took = time.monotonic() - t0
     out = r.stdout + r.stderr
-    assert r.returncode == 0, out
     assert 'closed' in r.stdout, out                  # close() (records) ran before the teardown
-    if sleep:
-        assert took < 20, out                          # abandoned after TEARDOWN_LIMIT, not after the 60 s hang
+    if hang == 'none':
+        assert r.returncode == 0 and 'teardown' not in out and 'Timeout' not in out, out
+    elif hang == 'sleeping':                           # the watchdog thread: the node's own exit code
+        assert r.returncode == 0 and took < 20, out    # after TEARDOWN_LIMIT, not after the 60 s hang
         assert 'middleware teardown still running after 1 s' in r.stderr, out
         assert 'most recent call first' in r.stderr and '_middleware_teardown' in r.stderr, out   # the stacks
-    else:
-        assert 'teardown still running' not in out, out
+    else:                                              # no Python thread runs: faulthandler ends it (exit 1)
+        assert r.returncode == 1 and took < 20, out
+        assert 'Timeout (0:00:03)' in r.stderr and '_middleware_teardown' in r.stderr, out

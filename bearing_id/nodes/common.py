@@ -749,7 +749,7 @@ def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
 
 CLOSE_TRACE_AFTER = 6.0      # s: a node's close() still running after this prints every thread's stack to stderr
 TEARDOWN_LIMIT = 2.0         # s: the DDS teardown after close() is abandoned after this (see _middleware_teardown)
-TEARDOWN_HARD_LIMIT = 4.0    # s: ... and the process ended from outside the interpreter after this
+TEARDOWN_HARD_LIMIT = 4.0    # s: ... and the process ended from outside the interpreter this long after it began
 
 
 def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=None) -> int:
@@ -803,7 +803,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
         if stop.signal_name:
             node.get_logger().info(f'{stop.signal_name}: shutting down')
     finally:
-        faulthandler.dump_traceback_later(CLOSE_TRACE_AFTER)   # a close() that hangs leaves its stacks in the log
+        _trace_later(CLOSE_TRACE_AFTER)      # a close() that hangs leaves its stacks in the log
         try:
             if node is not None and hasattr(node, 'close'):
                 node.close()
@@ -813,26 +813,38 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
     return code
 
 
+def _trace_later(seconds: float, end_process: bool = False) -> None:
+    """Arm faulthandler: every thread's stack to stderr after ``seconds`` (then ``_exit(1)`` if ``end_process``)."""
+    try:
+        faulthandler.dump_traceback_later(seconds, exit=end_process)
+    except (AttributeError, ValueError, OSError):       # stderr without a file descriptor (embedded use): no trace
+        pass
+
+
 def _middleware_teardown(prog: str, rclpy, node, code: int) -> None:
     """
     Destroy the node and shut the context down, at most :data:`TEARDOWN_LIMIT` s.
 
     Runs after the node's ``close()`` (records flushed and closed, workers stopped), so nothing is lost when the DDS
     teardown hangs (Fast DDS can): the process then prints every thread's stack to stderr (the node's log) and exits
-    with ``code`` without it.  Should the hang hold the interpreter lock, faulthandler's own thread dumps the stacks
-    and ends the process (exit code 1) :data:`TEARDOWN_HARD_LIMIT` s later.
+    with ``code`` without it.  Should the hang hold the interpreter lock (the watchdog thread then cannot run),
+    faulthandler's own thread dumps the stacks and ends the process (exit code 1) :data:`TEARDOWN_HARD_LIMIT` s after
+    the teardown began.
     """
     def abandon():
-        print(f'{prog}: middleware teardown still running after {TEARDOWN_LIMIT:g} s (the node was closed, '
-              f'nothing is lost): exiting without it; the stacks follow', file=sys.stderr, flush=True)
-        faulthandler.dump_traceback(sys.stderr)
-        sys.stdout.flush()
+        try:
+            print(f'{prog}: middleware teardown still running after {TEARDOWN_LIMIT:g} s (the node was closed, '
+                  f'nothing is lost): exiting without it; the stacks follow', file=sys.stderr, flush=True)
+            faulthandler.dump_traceback(sys.stderr)
+            sys.stdout.flush()
+        except (AttributeError, ValueError, OSError):   # stdout / stderr closed or without a descriptor: exit anyway
+            pass
         os._exit(code)
 
     watchdog = threading.Timer(TEARDOWN_LIMIT, abandon)
     watchdog.daemon = True
     watchdog.start()
-    faulthandler.dump_traceback_later(TEARDOWN_HARD_LIMIT, exit=True)
+    _trace_later(TEARDOWN_HARD_LIMIT, end_process=True)
     try:
         if node is not None:
             node.destroy_node()
