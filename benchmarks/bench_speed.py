@@ -154,6 +154,17 @@ def kf_alone(files, repeats, ref_repeats, n_samples=None):
     return fast, plain, ref, d_ref, d_plain, kms[0].n
 
 
+def riccati_alone(files, repeats):
+    """Time one steady-state Riccati solve of the job's filter: doubling (the default) and scipy's route."""
+    from bearing_id import kalman
+    km = kf_models(files)[0][0]
+    args = (km.Phi, km.H, km.Q, km.R)
+    sda = bl.time_call(lambda: kalman.steady_state_gain(*args, method='sda'), repeats, warmup=1)
+    ref = bl.time_call(lambda: kalman.steady_state_gain(*args, method='scipy'), repeats, warmup=1)
+    d = float(np.abs(sda.out[0] - ref.out[0]).max() / np.abs(ref.out[0]).max())
+    return sda, ref, d
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--repeats', type=int, default=5, help='repeats of every fast job (min and median reported)')
@@ -214,6 +225,15 @@ def main(argv=None):
         print(bl.table(bl.TIMING_HEADER + ['vs fast_filter', 'max rel. diff of estimates', 'target', 'met'], rows))
         if not (d_ref <= 1e-9 and d_plain <= 1e-9):
             failures.append('KF estimates disagree')
+        sda, sp, d_p = riccati_alone(files, args.repeats)
+        print(f'\nOne steady-state Riccati solve of that filter ({n} states; the job needs one per run, each run has '
+              'its own probe noise):\n')
+        rows = [bl.timing_row('kalman.steady_state_gain, doubling (default)', sda, None, extra=('1x', '')),
+                bl.timing_row("scipy.linalg.solve_discrete_are + Newton refinement (method='scipy')", sp, None,
+                              extra=(f'{sp.wall_min / sda.wall_min:.1f}x slower', f'{d_p:.1e}'))]
+        print(bl.table(bl.TIMING_HEADER + ['vs doubling', 'max rel. diff of P', 'target', 'met'], rows))
+        if not d_p <= 1e-9:
+            failures.append('Riccati solutions disagree')
 
     # ------------------------------------------------------------------ (c) 9-speed identify per method
     speeds = [600, 1800, 3000] if args.quick else None
