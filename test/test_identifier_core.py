@@ -72,9 +72,9 @@ def _feed_all(core, bl, run, skip=()):
         if k in skip:
             prev_ok = False
             continue
-        wins += core.feed(b, run, 'measured', prev_ok, 0.0)
+        wins += core.feed(b, run, prev_ok, 0.0)
         prev_ok = True
-    wins += core.flush('measured', 1e9, 0.0)
+    wins += core.flush(1e9, 0.0)
     return [w for w in wins if core.add_window(w)]
 
 
@@ -86,18 +86,18 @@ def test_a_dwell_split_by_a_lost_block_uses_both_halves(rec, rig, tmp_path):
     bl = list(blocks(rec))
     used = _feed_all(core, bl, rec.run, skip={len(bl) // 2})
     assert len(used) == 2                                   # both halves were fitted and stored ...
-    (speed, X, X_std, _, _), = core.vectors['measured'][rec.run.id]     # ... as one combined vector
+    (speed, X, X_std, _, _), = core.vectors[rec.run.id]     # ... as one combined vector
     assert abs(speed - ref[0].speed) <= 1e-9 * speed
     assert np.all(np.abs(X - ref[0].X) <= 3 * np.hypot(X_std, ref[0].X_std))
     # said once, although the rest of the dwell was handed out provisionally (the end of the data) and cut again
-    again = core.streams['measured'].stream.peek()
+    again = core.stream.stream.peek()
     assert again and all(core.add_window(w) for w in again)
     assert sum('combined with its first part' in n for n in core.notes) == 1, list(core.notes)
     core.close()
     # each half alone is less certain than the combination
     core2 = IdentifierCore(rig, 'physical', tmp_path / 'halves')
     first_half = _feed_all(core2, bl[:len(bl) // 2], rec.run)
-    assert first_half and np.all(core2.vectors['measured'][rec.run.id][0][2] > X_std)
+    assert first_half and np.all(core2.vectors[rec.run.id][0][2] > X_std)
     core2.close()
 
 
@@ -105,7 +105,7 @@ def test_a_restarted_identifier_knows_its_runs_and_vectors_from_the_record(rec, 
     core = IdentifierCore(rig, 'physical', tmp_path)
     core.add_excitation(rec.run, stamp=12.5)
     _feed_all(core, list(blocks(rec)), rec.run)
-    n = len(core.vectors['measured'][rec.run.id])
+    n = len(core.vectors[rec.run.id])
     core.close()
     again = IdentifierCore(rig, 'physical', tmp_path)
     assert again.resumed['vectors'] == n and list(again.runs) == [rec.run.id]
@@ -142,6 +142,28 @@ def test_a_malformed_record_line_is_skipped_with_a_note(rec, rig, tmp_path):
     again = IdentifierCore(rig, 'physical', tmp_path)
     assert again.resumed['malformed'] == 1 and again.resumed['vectors'] == 1
     assert any('malformed' in n for n in again.notes)
+    again.close()
+
+
+def test_estimated_vectors_of_an_old_record_are_not_resumed(rec, rig, tmp_path):
+    """Records written before 27 Nov 2026 may hold the kf_estimator's 'estimated' vectors: skipped, never stacked."""
+    core = IdentifierCore(rig, 'physical', tmp_path)
+    core.add_excitation(rec.run)
+    _feed_all(core, list(blocks(rec)), rec.run)
+    ref = core.assemble()
+    core.close()
+    lines = (tmp_path / 'record.jsonl').read_text().splitlines()
+    old = [json.loads(x) for x in lines]
+    vec = next(e for e in old if e['type'] == 'vector')
+    est = dict(vec, n=99, source='estimated', X=dict(vec['X'], re=[2.0 * v for v in vec['X']['re']]))   # other X
+    wd = {'n': 100, 'type': 'withdrawn', 'source': 'estimated', 'run_id': vec['run_id'], 'window': vec['window']}
+    with open(tmp_path / 'record.jsonl', 'a') as fh:
+        fh.write(json.dumps(est) + '\n' + json.dumps(wd) + '\n')
+    again = IdentifierCore(rig, 'physical', tmp_path)
+    assert again.resumed['vectors'] == sum(e['type'] == 'vector' for e in old) and again.resumed['malformed'] == 0
+    data = again.assemble()
+    np.testing.assert_array_equal(data.X, ref.X)             # the measured vectors only, the withdrawal ignored
+    np.testing.assert_array_equal(data.X_std, ref.X_std)
     again.close()
 
 
@@ -209,7 +231,7 @@ def test_warm_started_solves_give_the_cold_answers(rig, tmp_path):
             for r, run in enumerate(data.runs):
                 if k == 0:
                     core.add_excitation(run)
-                core._store('measured', run.id, float(w), X[r, k], std[r, k], data.probes)
+                core._store(run.id, float(w), X[r, k], std[r, k], data.probes)
         out = {}
         for name, core in (('warm', warm), ('cold', cold)):
             def counting(*a, _name=name, **kw):
@@ -255,16 +277,16 @@ def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig
     final, = stream.close()
     assert final.key == provisional.key and final.i1 > provisional.i1
     assert core.add_window(provisional)
-    (_, X_prov, S_prov, _, _), = core.vectors['measured'][rec.run.id]
+    (_, X_prov, S_prov, _, _), = core.vectors[rec.run.id]
     assert core.add_window(final)
-    (speed, X, S, _, _), = core.vectors['measured'][rec.run.id]       # replaced, not a second (duplicate) entry
+    (speed, X, S, _, _), = core.vectors[rec.run.id]       # replaced, not a second (duplicate) entry
     ref, = harmonics.recording_vectors(rec)
     np.testing.assert_array_equal(X, ref.X)
     assert np.all(S < S_prov) and not np.array_equal(X, X_prov)
     short = replace(final, i1=final.i0 + 10, samples=final.samples[:10], angle=final.angle[:10],
                     speed=final.speed[:10])
     assert core.add_window(short) == []
-    assert core.vectors['measured'][rec.run.id] == [None] and core.assemble() is None
+    assert core.vectors[rec.run.id] == [None] and core.assemble() is None
     core.close()
     again = IdentifierCore(rig, 'physical', tmp_path)
     assert again.vector_counts() == {rec.run.id: 0} and again.assemble() is None
@@ -292,8 +314,8 @@ def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, m
         core.add_excitation(r.run, stamp=100.0 * k)
         wins = []
         for b in blocks(r, t0=100.0 * k):
-            wins += core.feed(b, r.run, 'measured', True, 0.0)
-        wins += core.flush('measured', 1e9, 0.0)
+            wins += core.feed(b, r.run, True, 0.0)
+        wins += core.flush(1e9, 0.0)
         for w in wins:
             core.add_window(w)
     live, data = core.solve(record=False)

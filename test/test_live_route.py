@@ -141,8 +141,8 @@ def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scen
             noisy = _with_noise(rec, 0.01, rng)
             wins = []
             for b in _blocks(noisy):
-                wins += core.feed(b, rec.run, 'measured', True, 0.0)
-            wins += core.flush('measured', 1e9, 0.0)
+                wins += core.feed(b, rec.run, True, 0.0)
+            wins += core.flush(1e9, 0.0)
             for w in wins:
                 core.add_window(w)
         results, _ = core.solve()

@@ -218,12 +218,12 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path, pauses):
             continue
         b = messages.block_from_msg(msg)
         assert b.has_sample_angles and b.run_id in core.runs
-        wins += core.feed(b, core.runs[b.run_id], 'measured', True, float(n))
+        wins += core.feed(b, core.runs[b.run_id], True, float(n))
         n += 1
         if pauses == 'after every block' or (pauses == 'after every 7th block' and n % 7 == 0):
-            wins += core.flush('measured', n + 1.0, 0.3)
-            assert not core.flush('measured', n + 2.0, 0.3)         # once per pause
-    wins += core.flush('measured', 1e9, 0.0)
+            wins += core.flush(n + 1.0, 0.3)
+            assert not core.flush(n + 2.0, 0.3)         # once per pause
+    wins += core.flush(1e9, 0.0)
     for w in wins:
         core.add_window(w)
     if pauses != 'none':
@@ -273,8 +273,8 @@ def test_identifier_paper_method_equals_the_offline_route(tmp_path, R_std):
             core.add_excitation(messages.excitation_from_msg(msg))
         else:
             b = messages.block_from_msg(msg)
-            wins += core.feed(b, core.runs[b.run_id], 'measured', True, 0.0)
-    wins += core.flush('measured', 1e9, 0.0)
+            wins += core.feed(b, core.runs[b.run_id], True, 0.0)
+    wins += core.flush(1e9, 0.0)
     for w in wins:
         core.add_window(w)
     data = core.assemble()

@@ -87,7 +87,7 @@ SPECS = [
 # ------------------------------------------------------------------------------------------------ pure part
 @dataclass
 class _Stream:
-    """The open sample stream of one source (measured / estimated): the run and probe set it carries."""
+    """The open stream of the measured probes' samples: the run and probe set it carries."""
 
     run: Run
     probes: tuple
@@ -104,18 +104,19 @@ class IdentifierCore:
     """
     Windows, vectors per (run, speed), the record, and the solve (no ROS).
 
-    ``feed(block, run, source, contiguous, now)`` appends a checked block to the source's run stream
+    ``feed(block, run, contiguous, now)`` appends a checked block of the measured probes to the run stream
     (:class:`bearing_id.identify.harmonics.RunStream`, the offline route's windowing) and returns the steady windows
     it closed (cheap: the data path); ``flush`` hands out the open windows of a stream that paused, provisionally
     (the stream stays open: when in doubt, a window is not ended by wall-clock time, only by the data -- lost blocks,
-    a change of run -- as offline); ``add_window(window, source)`` fits one window
+    a change of run -- as offline); ``add_window(window)`` fits one window
     (:func:`bearing_id.identify.harmonics.window_vector`) and stores its vector (the worker thread); a later cut of
     the same window (:attr:`ClosedWindow.key`: the final one after a provisional one) replaces its vector;
     ``solve()`` identifies at every speed at which all required runs have a measured vector; with ``warm_start``
     (default) the physical method starts from the parameters of the previous solve (the same answer to the solver's
     tolerance, fewer iterations: :func:`bearing_id.identify.physical.fit_physical` ``p0``).
-    source is 'measured' (the probes); every method, paper included, identifies from the measured vectors as
-    ``bearing-id identify`` does (the paper method's filter acts on them through its closed-form 1X transfer).
+    Every method, paper included, identifies from the measured probes' vectors as ``bearing-id identify`` does (the
+    paper method's filter acts on them through its closed-form 1X transfer); the kf_estimator's estimates are not
+    accumulated (records written before 27 Nov 2026 may hold such 'estimated' vectors: not resumed).
     Vectors are kept per probe set: a probe set that changes (between runs, or across a restart that resumes the
     record) is never stacked with another; the latest probe set is the one identified.
     """
@@ -136,14 +137,14 @@ class IdentifierCore:
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
-        # source -> run id -> [(speed, X, X_std, probes, plain)] (plain: the window's plain 1X fit, harmonics.PlainFit)
-        self.vectors: dict = {'measured': {}, 'estimated': {}}
-        self._last_stored: dict = {}           # (source, run id) -> index of the vector its last window went to
-        self._parts: dict = {}                 # (source, run id) -> per vector: [[key, (speed, X, X_std, plain)]]
-        self._window_at: dict = {}             # (source, run id, window key) -> (vector index, part index)
+        # run id -> [(speed, X, X_std, probes, plain)] (plain: the window's plain 1X fit, harmonics.PlainFit)
+        self.vectors: dict = {}
+        self._last_stored: dict = {}           # run id -> index of the vector its last window went to
+        self._parts: dict = {}                 # run id -> per vector: [[key, (speed, X, X_std, plain)]]
+        self._window_at: dict = {}             # (run id, window key) -> (vector index, part index)
         self._noted_combined: set = set()      # window keys whose 'combined' note was given
         self._noted_no_plain = False           # the note on resumed vectors without a plain fit was given
-        self.streams: dict = {'measured': None, 'estimated': None}
+        self.stream = None                     # _Stream: the open stream of the measured probes
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
         self.results: dict = {}                # speed -> IdentResult (latest)
@@ -166,6 +167,8 @@ class IdentifierCore:
                     if run.id not in self.runs:
                         self.runs[run.id] = run
                         self.run_starts.append((float(e.get('stamp', -math.inf)), run))
+                elif e.get('source', 'measured') != 'measured':
+                    continue                                # an 'estimated' vector of an old record: never used
                 elif e['type'] == 'vector' and e.get('used', True):
                     probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
                     X = np.asarray(e['X']).astype(complex).reshape(-1)
@@ -177,13 +180,13 @@ class IdentifierCore:
                     if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
                             (plain is not None and plain.X.size != len(probes)):
                         raise ValueError(f'{X.size} values for {len(probes)} probes')
-                    self._store(str(e['source']), str(e['run_id']), float(e['speed']), X, Xs, probes,
-                                bool(e.get('after_gap', False)), e.get('window'), plain)
+                    self._store(str(e['run_id']), float(e['speed']), X, Xs, probes, bool(e.get('after_gap', False)),
+                                e.get('window'), plain)
                     if e.get('sample_rate') is not None:
                         self.sample_rate = float(e['sample_rate'])
                     n_vec += 1
                 elif e['type'] == 'withdrawn':
-                    self._withdraw(str(e['source']), str(e['run_id']), str(e['window']))
+                    self._withdraw(str(e['run_id']), str(e['window']))
                 elif e['type'] == 'result':
                     n_res += 1
             except (KeyError, ValueError, TypeError, AttributeError) as exc:
@@ -209,7 +212,7 @@ class IdentifierCore:
                                     for e in run.excitation])
         return True
 
-    def _store(self, source, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None) -> str:
+    def _store(self, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None) -> str:
         """
         Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
 
@@ -220,32 +223,31 @@ class IdentifierCore:
         used -- the offline route keeps the first too.
         """
         pkey = _probe_key(probes)
-        lst = self.vectors[source].setdefault(run_id, [])
-        parts = self._parts.setdefault((source, run_id), [])
-        at = self._window_at.get((source, run_id, key)) if key is not None else None
+        lst = self.vectors.setdefault(run_id, [])
+        parts = self._parts.setdefault(run_id, [])
+        at = self._window_at.get((run_id, key)) if key is not None else None
         if at is not None:
             parts[at[0]][at[1]][1] = (speed, X, X_std, plain)
             lst[at[0]] = self._combined(parts[at[0]], probes)
             return 'combined' if at[1] > 0 else 'replaced'
-        last = self._last_stored.get((source, run_id))
+        last = self._last_stored.get(run_id)
         if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
                 abs(lst[last][0] - speed) <= self.tol_rel * speed:
             parts[last].append([key, (speed, X, X_std, plain)])
-            self._window_at[(source, run_id, key)] = (last, len(parts[last]) - 1)
+            self._window_at[(run_id, key)] = (last, len(parts[last]) - 1)
             lst[last] = self._combined(parts[last], probes)
             return 'combined'
         if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
-            self._last_stored.pop((source, run_id), None)
+            self._last_stored.pop(run_id, None)
             return 'duplicate'
         lst.append((speed, X, X_std, probes, plain))
         parts.append([[key, (speed, X, X_std, plain)]])
-        self._window_at[(source, run_id, key)] = (len(lst) - 1, 0)
-        self._last_stored[(source, run_id)] = len(lst) - 1
-        if source == 'measured':
-            if self.probe_set is not None and self.probe_set != pkey:
-                self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in pkey]}: '
-                                  f'vectors of different probe sets are kept apart; the new set is identified')
-            self.probe_set = pkey
+        self._window_at[(run_id, key)] = (len(lst) - 1, 0)
+        self._last_stored[run_id] = len(lst) - 1
+        if self.probe_set is not None and self.probe_set != pkey:
+            self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in pkey]}: '
+                              f'vectors of different probe sets are kept apart; the new set is identified')
+        self.probe_set = pkey
         return 'new'
 
     @staticmethod
@@ -260,28 +262,28 @@ class IdentifierCore:
             v = w if v is None else combine_vectors(v, w)        # as offline (recording_vectors)
         return None if v is None else (v.speed, v.X, v.X_std, probes, v.plain)
 
-    def _withdraw(self, source, run_id, key) -> bool:
+    def _withdraw(self, run_id, key) -> bool:
         """Drop the stored part of window ``key`` (its final cut gives no vector); returns whether one was stored."""
-        at = self._window_at.pop((source, run_id, key), None)
+        at = self._window_at.pop((run_id, key), None)
         self._noted_combined.discard(key)
         if at is None:
             return False
-        lst, parts = self.vectors[source][run_id], self._parts[(source, run_id)][at[0]]
+        lst, parts = self.vectors[run_id], self._parts[run_id][at[0]]
         parts[at[1]][1] = None
         lst[at[0]] = None if lst[at[0]] is None else self._combined(parts, lst[at[0]][3])
         return True
 
     # ---- data path (callback thread)
-    def feed(self, block, run: Run, source: str, contiguous: bool, now: float) -> list:
+    def feed(self, block, run: Run, contiguous: bool, now: float) -> list:
         """
-        Append a checked block of ``run`` to the source's stream; returns the steady windows it closed.
+        Append a checked block of ``run`` (the measured probes) to the stream; returns the steady windows it closed.
 
         The block has ``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``, ``stamp``,
         ``seq``.
         """
         from ..identify.harmonics import RunStream
         out = []
-        cur = self.streams[source]
+        cur = self.stream
         probes = tuple(block.probes)
         if cur is not None and (cur.run.id != run.id or _probe_key(cur.probes) != _probe_key(probes)
                                 or cur.stream.fs != float(block.sample_rate)):
@@ -290,18 +292,17 @@ class IdentifierCore:
                 out += closed
             cur = None
         if cur is None:
-            cur = self.streams[source] = _Stream(run, probes, RunStream(run, probes, float(block.sample_rate),
-                                                                        tol_rel=self.tol_rel,
-                                                                        max_duration=self.max_window))
+            cur = self.stream = _Stream(run, probes, RunStream(run, probes, float(block.sample_rate),
+                                                               tol_rel=self.tol_rel, max_duration=self.max_window))
             contiguous = True
         out += cur.stream.feed(block.samples, block.angles(), contiguous=contiguous, stamp=block.stamp,
                                seq=block.seq)
         cur.last_arrival, cur.peeked = now, False
         return out
 
-    def flush(self, source: str, now: float, timeout: float) -> list:
+    def flush(self, now: float, timeout: float) -> list:
         """
-        Return the source's open windows, provisionally, when no block arrived for ``timeout`` [s].
+        Return the stream's open windows, provisionally, when no block arrived for ``timeout`` [s].
 
         The end of a run's data, or only a pause in their arrival (a loaded machine, a paused replay): either way the
         windows are cut as if the stream ended now (:meth:`RunStream.peek`) so that their vectors are used at once,
@@ -309,25 +310,25 @@ class IdentifierCore:
         provisional vector.  Wall-clock time never cuts the data: the vectors are those of the offline route whatever
         the arrival timing.  Once per pause.
         """
-        cur = self.streams[source]
+        cur = self.stream
         if cur is None or cur.peeked or now - cur.last_arrival < timeout:
             return []
         cur.peeked = True
         return cur.stream.peek()
 
-    def wants(self, win, source: str, min_duration: float) -> bool:
+    def wants(self, win, min_duration: float) -> bool:
         """Whether a window is worth fitting: ``min_duration`` [s] long, or a later cut of one stored already."""
         if win.duration >= min_duration:
             return True
         with self.lock:
-            return (source, win.run.id, win.key) in self._window_at
+            return (win.run.id, win.key) in self._window_at
 
     # ---- accumulation (worker thread)
-    def add_window(self, win, source: str = 'measured') -> list[tuple]:
+    def add_window(self, win) -> list[tuple]:
         """Fit one closed window (the offline rule) and store its vector; returns [(speed, X)] newly usable."""
         from ..identify import harmonics
-        what = (f'{source} window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
-                f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'{source} window of run {win.run.id}')
+        what = (f'window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
+                f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'window of run {win.run.id}')
         try:
             v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
         except ValueError:
@@ -336,17 +337,17 @@ class IdentifierCore:
             v = None                # the data so far do not make a vector yet (e.g. under one revolution)
         if v is None:
             with self.lock:
-                withdrawn = self._withdraw(source, win.run.id, win.key)
+                withdrawn = self._withdraw(win.run.id, win.key)
             if withdrawn:           # its provisional cut was stored; the final one is too short
-                self.record.append('withdrawn', source=source, run_id=win.run.id, window=win.key)
+                self.record.append('withdrawn', source='measured', run_id=win.run.id, window=win.key)
             elif win.duration >= 0.5 * self.min_window and not win.provisional:
                 self.notes.append(f'{what} ({win.duration:.2f} s): too short for a 1X vector; not used')
             return []
         with self.lock:
-            how = self._store(source, win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued,
-                              win.key, v.plain)
+            how = self._store(win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued, win.key,
+                              v.plain)
             self.sample_rate = win.sample_rate
-        self.record.append('vector', source=source, run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
+        self.record.append('vector', source='measured', run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
                            plain_X=None if v.plain is None else v.plain.X, sample_rate=win.sample_rate,
                            plain_var=None if v.plain is None else np.array(v.plain.arrays()[1:]),
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
@@ -362,9 +363,10 @@ class IdentifierCore:
             self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
         return [(v.speed, v.X)]
 
-    def vector_counts(self, source: str = 'measured') -> dict:
+    def vector_counts(self) -> dict:
+        """Return {run id: number of usable vectors}."""
         with self.lock:
-            return {rid: sum(x is not None for x in v) for rid, v in self.vectors[source].items()}
+            return {rid: sum(x is not None for x in v) for rid, v in self.vectors.items()}
 
     def required_runs(self) -> list[str]:
         return list(self.required) if self.required else list(self.runs)
@@ -381,8 +383,8 @@ class IdentifierCore:
             if not req or any(r not in self.runs for r in req) or self.probe_set is None:
                 return None
 
-            def of_set(source, rid):
-                out = [v for v in self.vectors[source].get(rid, [])
+            def of_set(rid):
+                out = [v for v in self.vectors.get(rid, [])
                        if v is not None and _probe_key(v[3]) == self.probe_set]
                 if self.method == 'paper' and any(v[4] is None for v in out):
                     if not self._noted_no_plain:
@@ -393,7 +395,7 @@ class IdentifierCore:
                     out = [v for v in out if v[4] is not None]
                 return out
 
-            meas = [of_set('measured', rid) for rid in req]
+            meas = [of_set(rid) for rid in req]
             speeds, picks = common_speeds(meas, self.tol_rel)
             if not speeds:
                 return None
@@ -578,7 +580,7 @@ def _make_node():
 
         def _feed(self, b, run, contiguous, now):
             try:
-                wins = self.core.feed(b, run, 'measured', contiguous, now)
+                wins = self.core.feed(b, run, contiguous, now)
             except ValueError as exc:
                 self._problem(f'measured block seq {b.seq} not accumulated: {exc}')
                 return
@@ -588,12 +590,12 @@ def _make_node():
             # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
             # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
             for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
-                if self.core.wants(w, 'measured', 0.5 * self.core.min_window):
-                    self._jobs.put(('window', w, 'measured', now))
+                if self.core.wants(w, 0.5 * self.core.min_window):
+                    self._jobs.put(('window', w, now))
 
         def tick(self):
             now = time.monotonic()
-            self._close(self.core.flush('measured', now, self.values['segment_timeout']), now)
+            self._close(self.core.flush(now, self.values['segment_timeout']), now)
 
         def _work(self):
             t_req = None              # when the oldest window not yet solved closed (latency reference)
@@ -607,11 +609,11 @@ def _make_node():
                 if job is None:
                     return
                 if job[0] == 'window':                 # fit and accumulate it
-                    _, win, source, closed_at = job
+                    _, win, closed_at = job
                     try:
-                        added = self.core.add_window(win, source)
+                        added = self.core.add_window(win)
                     except Exception as exc:          # reported; the window is lost, nothing else is
-                        self._problem(f'harmonic fit failed on a {source} window: {type(exc).__name__}: {exc}')
+                        self._problem(f'harmonic fit failed on a measured window: {type(exc).__name__}: {exc}')
                         added = []
                     if added:
                         t_req = closed_at if t_req is None else min(t_req, closed_at)
@@ -672,7 +674,7 @@ def _make_node():
                 ex.level = WARN
                 ex.message = f"{rs.dropped} block(s) dropped after waiting too long for their run's excitation"
             items.append(ex)
-            nvec = self.core.vector_counts('measured')
+            nvec = self.core.vector_counts()
             acc = DiagItem(f'{NAME}: accumulation', OK, 'ok', {
                 'vectors_per_run': ', '.join(f'{k}: {n}' for k, n in nvec.items()) or 'none',
                 'record': str(self.core.record.path), 'resumed_vectors': self.core.resumed['vectors'],
