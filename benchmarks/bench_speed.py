@@ -151,13 +151,12 @@ def kf_alone(files, repeats, ref_repeats, n_samples=None):
         return max(float(np.abs(x - y).max() / np.abs(y).max()) for x, y in zip(a, b))
     d_ref = rel([f.estimates for f in fast.out], [r.estimates for r in ref.out])
     d_plain = rel([f.estimates for f in fast.out], [p[0] for p in plain.out])
-    return fast, plain, ref, d_ref, d_plain, kms[0].n
+    return fast, plain, ref, d_ref, d_plain, kms
 
 
-def riccati_alone(files, repeats):
-    """Time one steady-state Riccati solve of the job's filter: doubling (the default) and scipy's route."""
+def riccati_alone(km, repeats):
+    """Time one steady-state Riccati solve of the filter ``km``: doubling (the default) and scipy's route."""
     from bearing_id import kalman
-    km = kf_models(files)[0][0]
     args = (km.Phi, km.H, km.Q, km.R)
     sda = bl.time_call(lambda: kalman.steady_state_gain(*args, method='sda'), repeats, warmup=1)
     ref = bl.time_call(lambda: kalman.steady_state_gain(*args, method='scipy'), repeats, warmup=1)
@@ -213,7 +212,8 @@ def main(argv=None):
     # ------------------------------------------------------------------ (b) the Kalman filter alone
     if 'b' not in skip:
         ns = 2048 if args.quick else None
-        fast, plain, ref, d_ref, d_plain, n = kf_alone(files, args.repeats, args.ref_repeats, ns)
+        fast, plain, ref, d_ref, d_plain, kms = kf_alone(files, args.repeats, args.ref_repeats, ns)
+        n = kms[0].n
         print(f'\n## (b) the Kalman filter alone: {n} states, 2 runs x {ns or N_SAMPLES} samples, model built '
               f'({bl.load_note()})\n')
         rows = [bl.timing_row('kalman.fast_filter (vectorised steady state)', fast, None,
@@ -225,7 +225,7 @@ def main(argv=None):
         print(bl.table(bl.TIMING_HEADER + ['vs fast_filter', 'max rel. diff of estimates', 'target', 'met'], rows))
         if not (d_ref <= 1e-9 and d_plain <= 1e-9):
             failures.append('KF estimates disagree')
-        sda, sp, d_p = riccati_alone(files, args.repeats)
+        sda, sp, d_p = riccati_alone(kms[0], args.repeats)
         print(f'\nOne steady-state Riccati solve of that filter ({n} states; the job needs one per run, each run has '
               'its own probe noise):\n')
         rows = [bl.timing_row('kalman.steady_state_gain, doubling (default)', sda, None, extra=('1x', '')),
