@@ -5,8 +5,8 @@ Each subcommand lives in ``bearing_id/commands/<name>.py`` and exposes ``add_par
 ``run(args) -> int``.  Exit codes: 0 success, 1 a result that must not be trusted (e.g. undetermined
 coefficients), 2 bad input (parameters, files), 3 an internal error (a bug), 130 interrupted.
 
-Bad input never shows a traceback: the readers (:mod:`bearing_id.params`, :mod:`bearing_id.rig`,
-:mod:`bearing_id.daq`, :mod:`bearing_id.io.bags`) turn every malformed file into an error naming the file and the
+Bad input never shows a traceback: the readers (:mod:`bearing_id.config.params`, :mod:`bearing_id.simulation.rig`,
+:mod:`bearing_id.io.daq`, :mod:`bearing_id.io.bags`) turn every malformed file into an error naming the file and the
 problem, printed here as one paragraph on stderr.  An unexpected exception is reported as an internal error with
 where it happened; ``BEARING_ID_TRACEBACK=1`` prints the full traceback.
 """
@@ -20,7 +20,10 @@ import sys
 import traceback
 
 from . import blas_threads  # noqa: F401  (before numpy: one BLAS thread unless the user set one)
-from .params import ParamError
+from .commands.inputs import InputError
+from .config.params import ParamError
+from .io.bags import BagError
+from .io.daq import DaqError
 
 COMMANDS = ('model', 'simulate', 'design', 'identify', 'diagnose', 'report', 'record', 'play', 'import_ross')
 
@@ -61,8 +64,6 @@ def _say(command: str, text: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .daq import DaqError
-    from .io.bags import BagError
     argv = sys.argv[1:] if argv is None else list(argv)
     name = argv[0].replace('-', '_') if argv else None         # 'import-ross' is bearing_id.commands.import_ross
     parser = build_parser(name if name in COMMANDS else None)
@@ -74,7 +75,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except ParamError as exc:
-        from .commands.inputs import InputError
         _say(cmd, exc if isinstance(exc, InputError) else f'parameter error: {exc}')
         return 2
     except (BagError, DaqError) as exc:

@@ -36,9 +36,9 @@ Phasors and phase reference
     Phase angles reported to people are arg(X) in degrees; all other angles are radians.
     Keyphasor pulse: phi = 0 when the pulse's rising edge crosses 50 % of its low-to-high swing; a square (TTL)
     keyphasor is high while phi mod 2 pi is in [0, width), so a sample exactly on the mark is high
-    (bearing_id.keyphasor rebuilds phi from a sampled pulse; KEY_MARK_CONVENTION there).
+    (bearing_id.signals.keyphasor rebuilds phi from a sampled pulse; KEY_MARK_CONVENTION there).
     Streams carry phi of every sample (DisplacementBlock.sample_angles); the speed of a sample is the forward
-    difference of phi (bearing_id.signals.speed_from_angle).
+    difference of phi (bearing_id.signals.harmonics.speed_from_angle).
 
 Probe directions (measurement rows)
     A displacement probe at angle a in the x-y plane (a measured from +x towards +y, i.e. in the spin direction;

@@ -20,7 +20,12 @@ import time
 
 import numpy as np
 
+from .config.params import load_rig
 from .conventions import COEFF_ORDER, rad_s_to_rpm
+from .io import messages as M
+from .nodes.common import loopback_dds_env, qos_latched, TOPIC_COEFFICIENTS
+from .rotor.supports import bearing_fn
+from .simulation import rig as rigmod
 
 NODES = ('identifier', 'kf_estimator', 'sensor_driver')
 
@@ -32,7 +37,6 @@ def ros_env(domain_id: int | None = None) -> dict:
     DDS on this machine only: LOCALHOST discovery and the loopback Fast DDS profile
     (:func:`bearing_id.nodes.common.loopback_dds_env`).
     """
-    from .nodes.common import loopback_dds_env
     env = dict(os.environ)
     env.update(loopback_dds_env())
     if domain_id is None:
@@ -87,8 +91,6 @@ class Listener:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
-        from .io import messages as M
-        from .nodes.common import qos_latched, TOPIC_COEFFICIENTS
         self.rclpy = rclpy
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
@@ -240,8 +242,6 @@ def main(argv=None) -> int:
     ap.add_argument('--timeout', type=float, default=170.0, help='give up after this many seconds (default 170)')
     args = ap.parse_args(argv)
 
-    from . import rig as rigmod
-    from .params import load_rig
     rig = load_rig(args.params or None)
     speeds = [float(s) for s in args.speeds.split(',')] if args.speeds else list(rig.simulation.speeds_rpm)
     out = Path(args.out)
@@ -289,7 +289,7 @@ def main(argv=None) -> int:
     elapsed = time.monotonic() - t0
     results = dict(listener.results)
     truth_fn = rigmod.truth_bearing_fn(rig)
-    theory_fn = rigmod.nominal_bearing_fn(rig)
+    theory_fn = bearing_fn(rig)
     if results:
         print()
         print(format_table(results, truth_fn, theory_fn))

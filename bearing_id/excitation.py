@@ -11,8 +11,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from .config.params import ExcitationEntry
 from .conventions import dof_index, DOF_PER_NODE, force_phasors, unbalance_phasors
-from .params import ExcitationEntry
 
 
 def harmonic_forces(entries: Iterable[ExcitationEntry], speed: float, n_nodes: int,

@@ -52,12 +52,13 @@ import time
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bearing_id.config.params import load_rig, Probe  # noqa: E402
 from bearing_id.identify import eq38_error, get_method  # noqa: E402
 from bearing_id.identify.harmonics import from_recordings, HarmonicData  # noqa: E402
 from bearing_id.identify.physical import fit_physical  # noqa: E402
-from bearing_id.params import load_rig, Probe  # noqa: E402
-from bearing_id.rig import scenario, simulate_run  # noqa: E402
+from bearing_id.rotor import supports  # noqa: E402
 from bearing_id.rotor.assembly import RotorModel  # noqa: E402
+from bearing_id.simulation.rig import scenario, simulate_run  # noqa: E402
 import numpy as np  # noqa: E402
 
 ALL_NODES = (1, 3, 5, 6, 7, 9, 11)
@@ -305,9 +306,9 @@ def q_sweep(rig, model, full):
 
 def _threshold_line(rig, model, speeds):
     try:
-        from bearing_id.bearings.stability import threshold_speed
+        from bearing_id.rotor.stability import threshold_speed
         from bearing_id.conventions import rad_s_to_rpm, rpm_to_rad_s
-        from bearing_id.rig import truth_bearing_fn
+        from bearing_id.simulation.rig import truth_bearing_fn
         thr = threshold_speed(model, truth_bearing_fn(rig), rpm_to_rad_s(20000.0))
         print(f'stability threshold of the truth rig: {rad_s_to_rpm(thr):.0f} rpm (highest speed {max(speeds):g} rpm)'
               '\n')
@@ -331,7 +332,7 @@ def _physical_row(model, rig, data, bearing_model, label, plan, truth_label):
 
 def model_form(rig, model, speeds, seed):
     """Truth = finite-length Reynolds bearing; estimators: physical (short / finite bearing) and direct (model-free)."""
-    from bearing_id.rig import with_truth
+    from bearing_id.simulation.rig import with_truth
     sim = rig.simulation
     print('\n## Model-form case: truth = finite-length Reynolds bearing (L/D = 1); estimators: physical with the short '
           'bearing (wrong form), physical with the finite bearing (right form), direct (no bearing model); every '
@@ -385,12 +386,11 @@ def issue11_recordings(rig, model, runs, probes, speeds, bfn, seed):
 
 def issue11(rig, model, n_mc, seed):
     """Run the issue-11 scenario, Monte Carlo over ``n_mc`` seeds, every method (see the module docstring)."""
-    from bearing_id import bearings
-    from bearing_id.bearings.stability import threshold_speed
+    from bearing_id.rotor.stability import threshold_speed
     from bearing_id.conventions import rad_s_to_rpm, rpm_to_rad_s
     speeds = tuple(float(v) for v in np.linspace(600.0, 3528.0, 6))
     probes = tuple(Probe(f'p{n}{d}', n, d) for n in (3, 6, 9) for d in ('x', 'y'))
-    bfn = bearings.bearing_fn(rig, viscosity_factor=ISSUE11_VF, clearance_factor=ISSUE11_CF)
+    bfn = supports.bearing_fn(rig, viscosity_factor=ISSUE11_VF, clearance_factor=ISSUE11_CF)
     thr = threshold_speed(model, bfn, rpm_to_rad_s(20000.0))
     print(f'\n## Issue-11 scenario: probes at nodes 3, 6, 9 (x, y), 6 speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rpm, '
           f'1 s dwells, DC up to +-{ISSUE11_DC * 1e6:.0f} um per channel, truth viscosity x{ISSUE11_VF[0]:g}/'

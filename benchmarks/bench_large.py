@@ -53,7 +53,7 @@ OPTIONS = {'paper': {'reduce': True}}
 
 def large_rig(factor: int = 5, pedestal: bool = False):
     """Return the plant-like example with every element split into ``factor`` (RigParams)."""
-    from bearing_id.params import load_yaml_bounded, parse_rig
+    from bearing_id.config.params import load_yaml_bounded, parse_rig
     d = copy.deepcopy(load_yaml_bounded(EXAMPLE))
 
     def node(n):
@@ -82,7 +82,7 @@ def simulate(rig):
     eigendecomposition of the 2 ndof state matrix per ramp step (~1.3 s each at 160 elements, minutes per run).
     """
     from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.rig import simulate_run
+    from bearing_id.simulation.rig import simulate_run
     from bench_accuracy import join_dwells
     return from_recordings([join_dwells([simulate_run(rig, run, speeds_rpm=(s,), ramp=0.0, seed=11 + 97 * k + j)
                                          for j, s in enumerate(SPEEDS_RPM)])

@@ -59,7 +59,7 @@ def import_floor(method: str) -> float:
     """Peak RSS [MiB] of a process importing what ``identify --method`` imports, reading nothing."""
     code = ('import bearing_id.cli, bearing_id.commands.identify, bearing_id.identify.harmonics, '
             f'bearing_id.identify.{method}, bearing_id.identify.plausibility, bearing_id.rotor.assembly, '
-            'bearing_id.bearings, bearing_id.rig')
+            'bearing_id.bearings, bearing_id.simulation.rig')
     return bl.run_process([sys.executable, '-c', code])[2]
 
 
@@ -70,10 +70,10 @@ sys.path.insert(0, {root!r})
 def rss():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 import bearing_id.cli, bearing_id.commands.identify, bearing_id.identify.harmonics, bearing_id.identify.plausibility
-import bearing_id.identify.{method}, bearing_id.rotor.assembly, bearing_id.bearings, bearing_id.rig
+import bearing_id.identify.{method}, bearing_id.rotor.assembly, bearing_id.bearings, bearing_id.simulation.rig
 from bearing_id.commands.identify import load_data
 from bearing_id.identify import identify
-from bearing_id.params import load_rig
+from bearing_id.config.params import load_rig
 from bearing_id.rotor.assembly import RotorModel
 out = [rss()]
 rig = load_rig()
@@ -108,7 +108,7 @@ def main(argv=None):
     ap.add_argument('--quick', action='store_true', help='smoke run: 1 and 3 speeds at a 1 s dwell, direct only')
     ap.add_argument('--fresh', action='store_true', help='simulate the inputs again (else cached in out/bench_data)')
     args = ap.parse_args(argv)
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     sim = load_rig().simulation
     dwell = float(sim.dwell)
     methods = ['direct'] if args.quick else [m for m in args.methods.split(',') if m]

@@ -81,7 +81,7 @@ kalman.fast_filter = lambda km, y, a, **kw: kalman.reference_filter(km, y, a)
 def identify_alone(files, method: str, repeats: int):
     """Time ``identify.identify`` alone on the loaded 1X data, in a fresh interpreter (caches cold)."""
     setup = ('from bearing_id.commands.identify import load_data\nfrom bearing_id.identify import identify\n'
-             'from bearing_id.params import load_rig\nfrom bearing_id.rotor.assembly import RotorModel\n'
+             'from bearing_id.config.params import load_rig\nfrom bearing_id.rotor.assembly import RotorModel\n'
              f'rig = load_rig()\ndata = load_data({list(map(str, files))!r}, rig)\n'
              'model = RotorModel.from_params(rig)\n' + bl.IMPORTS['identify'])
     return bl.time_in_child(setup, f'identify({method!r}, model, rig, data)', repeats)
@@ -90,17 +90,18 @@ def identify_alone(files, method: str, repeats: int):
 # ------------------------------------------------------------------------------------------------ (b) KF alone
 def kf_models(files):
     """One KalmanModel per run at the job's speed (nominal theory, each run's own R from its 1X-fit residual)."""
-    from bearing_id import kalman
+    from bearing_id.estimation import kalman
     from bearing_id.excitation import harmonic_forces
-    from bearing_id.params import load_rig
-    from bearing_id.rig import load_npz, nominal_bearing_fn
+    from bearing_id.config.params import load_rig
+    from bearing_id.io.recordings import load_npz
+    from bearing_id.rotor.supports import bearing_fn
     from bearing_id.rotor.assembly import RotorModel
-    from bearing_id.signals import harmonic_vectors
+    from bearing_id.signals.harmonics import harmonic_vectors
     rig = load_rig()
     model = RotorModel.from_params(rig)
     recs = [load_npz(f) for f in files]
     speed = float(np.median(recs[0].speed))
-    theory = nominal_bearing_fn(rig)(speed)
+    theory = bearing_fn(rig)(speed)
     kms, data = [], []
     for r in recs:
         fit = harmonic_vectors(r.samples, r.angle)
@@ -138,7 +139,7 @@ def plain_loop(km, samples, angle):
 
 
 def kf_alone(files, repeats, ref_repeats, n_samples=None):
-    from bearing_id import kalman
+    from bearing_id.estimation import kalman
     kms, data = kf_models(files)
     if n_samples:
         data = [(y[:n_samples], a[:n_samples]) for y, a in data]
@@ -156,7 +157,7 @@ def kf_alone(files, repeats, ref_repeats, n_samples=None):
 
 def riccati_alone(km, repeats):
     """Time one steady-state Riccati solve of the filter ``km``: doubling (the default) and scipy's route."""
-    from bearing_id import kalman
+    from bearing_id.estimation import kalman
     args = (km.Phi, km.H, km.Q, km.R)
     sda = bl.time_call(lambda: kalman.steady_state_gain(*args, method='sda'), repeats, warmup=1)
     ref = bl.time_call(lambda: kalman.steady_state_gain(*args, method='scipy'), repeats, warmup=1)
@@ -238,12 +239,12 @@ def main(argv=None):
     # ------------------------------------------------------------------ (c) 9-speed identify per method
     speeds = [600, 1800, 3000] if args.quick else None
     if speeds is None:
-        from bearing_id.params import load_rig
+        from bearing_id.config.params import load_rig
         speeds = list(load_rig().simulation.speeds_rpm)
     files9 = bl.simulated(speeds, probes=PROBES_ALL, fresh=args.fresh)
     if 'c' not in skip:
         methods = ('paper', 'direct') if args.quick else METHODS
-        load_setup = ('from bearing_id.commands.identify import load_data\nfrom bearing_id.params import '
+        load_setup = ('from bearing_id.commands.identify import load_data\nfrom bearing_id.config.params import '
                       'load_rig\nrig = load_rig()\n' + bl.IMPORTS['identify'])
         load_call = f'load_data({list(map(str, files9))!r}, rig)'
         load = bl.time_in_child(load_setup, load_call, args.repeats)

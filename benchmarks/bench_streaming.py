@@ -67,7 +67,7 @@ def run_once(rate: float, speeds, dwell: float, method: str, out: Path) -> dict:
     env = ros_env(_domain_id())
     os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_DOMAIN_ID',
                                            'FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')})
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     n_runs = len(rig.simulation.runs)
     data_s = n_runs * len(speeds) * dwell

@@ -26,10 +26,10 @@ import time
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bearing_id import signals  # noqa: E402
+from bearing_id.config.params import load_rig  # noqa: E402
 from bearing_id.identify import harmonics  # noqa: E402
-from bearing_id.params import load_rig  # noqa: E402
-from bearing_id.rig import simulate_plan  # noqa: E402
+from bearing_id.signals import harmonics as signals  # noqa: E402
+from bearing_id.simulation.rig import simulate_plan  # noqa: E402
 import numpy as np  # noqa: E402
 
 

@@ -235,17 +235,18 @@ def cli_in_child(argv, repeats: int, setup: str = '', ok_codes=(0, 1)) -> Timing
 # them): in-process figures import them before the clock too, like every other module; the process rows carry them
 LIBS = 'import scipy.linalg, scipy.optimize, scipy.sparse, scipy.sparse.linalg, scipy.special\n'
 IMPORTS = {     # what each command imports on its way (imported before the clock starts)
-    'identify': (LIBS + 'import bearing_id.commands.identify, bearing_id.commands.inputs, bearing_id.rig, '
+    'identify': (LIBS + 'import bearing_id.commands.identify, bearing_id.commands.inputs, bearing_id.simulation.rig, '
                  'bearing_id.identify, bearing_id.identify.harmonics, bearing_id.identify.plausibility, '
                  'bearing_id.identify.paper, bearing_id.identify.conventional, bearing_id.identify.direct, '
-                 'bearing_id.identify.physical, bearing_id.identify.lsq, bearing_id.kalman, bearing_id.signals, '
-                 'bearing_id.bearings, bearing_id.bearings.stability, bearing_id.rotor.assembly, '
-                 'bearing_id.excitation'),
-    'diagnose': (LIBS + 'import bearing_id.commands.diagnose, bearing_id.commands.inputs, bearing_id.rig, '
+                 'bearing_id.identify.physical, bearing_id.identify.lsq, bearing_id.estimation.kalman, '
+                 'bearing_id.signals.harmonics, bearing_id.bearings, bearing_id.rotor.stability, '
+                 'bearing_id.rotor.assembly, bearing_id.excitation'),
+    'diagnose': (LIBS + 'import bearing_id.commands.diagnose, bearing_id.commands.inputs, bearing_id.simulation.rig, '
                  'bearing_id.identify, bearing_id.identify.harmonics, bearing_id.identify.plausibility, '
-                 'bearing_id.identify.physical, bearing_id.identify.direct, bearing_id.kalman, bearing_id.signals, '
-                 'bearing_id.bearings, bearing_id.rotor.assembly, bearing_id.diagnose, bearing_id.diagnose.locate, '
-                 'bearing_id.diagnose.select, bearing_id.diagnose.effects, bearing_id.diagnose.report'),
+                 'bearing_id.identify.physical, bearing_id.identify.direct, bearing_id.estimation.kalman, '
+                 'bearing_id.signals.harmonics, bearing_id.bearings, bearing_id.rotor.assembly, bearing_id.diagnose, '
+                 'bearing_id.diagnose.locate, bearing_id.diagnose.select, bearing_id.diagnose.effects, '
+                 'bearing_id.diagnose.report'),
 }
 
 

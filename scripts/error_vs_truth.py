@@ -16,10 +16,10 @@ import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bearing_id.config.params import load_rig  # noqa: E402
 from bearing_id.conventions import rad_s_to_rpm  # noqa: E402
 from bearing_id.identify import identify  # noqa: E402
-from bearing_id.identify.harmonics import from_npz  # noqa: E402
-from bearing_id.params import load_rig  # noqa: E402
+from bearing_id.io.recordings import from_npz  # noqa: E402
 from bearing_id.rotor.assembly import RotorModel  # noqa: E402
 import numpy as np  # noqa: E402
 

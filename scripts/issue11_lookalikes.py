@@ -17,20 +17,21 @@ import math
 import sys
 import time
 
-from bearing_id import bearings, rig as rigmod, truth_effects as te
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.diagnose import diagnose
 from bearing_id.identify import identify
 from bearing_id.identify.harmonics import from_recordings
-from bearing_id.params import load_rig
+from bearing_id.rotor import supports
 from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import effects as te, rig as rigmod
 
 TEST_SPEEDS = (800, 1200, 1600, 2400, 2800)
 
 
 def direct_finite_fn(rig, vf=1.25, cf=0.8):
     from bearing_id.bearings.finite import reynolds
-    loads = bearings.static_loads(rig)
+    loads = supports.static_loads(rig)
     cache = {}
 
     def fn(W):

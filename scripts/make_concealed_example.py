@@ -1,7 +1,7 @@
 """
 Make the README's worked example: recordings of the default rig with two effects the nominal model lacks.
 
-Hidden in the truth (simulator side, bearing_id.truth_effects): a flexible pedestal under bearing 2 (node 10),
+Hidden in the truth (simulator side, bearing_id.simulation.effects): a flexible pedestal under bearing 2 (node 10),
 vertical, k = 2.5e5 N/m, c = 40 N s/m; and 3 um of electrical runout at 120 deg on probe p6y.  Everything else is the
 default simulated rig of params/rig.yaml (bearings 25 % off theory, 1 % noise, 600-3000 rpm, 2 s dwells, ramps).
 
@@ -13,9 +13,9 @@ import math
 from pathlib import Path
 import sys
 
-from bearing_id import rig as rigmod
-from bearing_id import truth_effects as te
-from bearing_id.params import load_rig
+from bearing_id.config.params import load_rig
+from bearing_id.io.recordings import save_npz
+from bearing_id.simulation import effects as te, rig as rigmod
 
 
 def main(out='out/example'):
@@ -26,7 +26,7 @@ def main(out='out/example'):
                te.ProbeRunout('p6y', 3e-6, math.radians(120.0))]
     for run in rig.simulation.runs:
         rec = rigmod.simulate_run(rig, run, effects=effects)
-        print('wrote', rec.save_npz(out / f'run_{run.id}.npz'))
+        print('wrote', save_npz(rec, out / f'run_{run.id}.npz'))
 
 
 if __name__ == '__main__':

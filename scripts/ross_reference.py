@@ -14,7 +14,7 @@ packages)::
 
 Part 1 (``--paper``, test/test_rotor_ross.py) -- test/data/ross_reference.json, the paper rig built in ROSS.
 
-The rig is read from params/rig.yaml with bearing_id.params (pure Python + PyYAML, no numpy needed there) so the
+The rig is read from params/rig.yaml with bearing_id.config.params (pure Python + PyYAML, no numpy needed there) so the
 geometry has one source.  ROSS model, like for like with bearing_id.rotor:
   * ShaftElement: Timoshenko with shear (Cowper's kappa, see SHEAR below), rotary inertia, gyroscopics;
     per-element proportional damping alpha, beta from shaft.damping_alpha/beta (bearing_id uses the shaft matrices
@@ -55,7 +55,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bearing_id.params import load_rig  # noqa: E402, I100  (after the sys.path insert above)
+from bearing_id.config.params import load_rig  # noqa: E402, I100  (after the sys.path insert above)
 import ross as rs  # noqa: E402
 
 # Constant bearing coefficients (our (x, y) frame, force on shaft -K q - C q'), one set per bearing node (1-based):

@@ -81,7 +81,7 @@ if ! stamp_ok msgs "$h_msgs" || ! "$VPY" -c 'import bearing_id_msgs.msg' >/dev/n
 fi
 
 # ------------------------------------------------------------------------------------------- 4. editable install
-h_pkg="$(hash_of setup.py setup.cfg package.xml)"
+h_pkg="$(hash_of pyproject.toml setup.py setup.cfg package.xml)"
 if ! stamp_ok editable "$h_pkg" || [ ! -x "$VENV/bin/bearing-id" ]; then
     say "installing bearing_id (editable)"
     "$VPY" -m pip install "${PIPQ[@]}" --disable-pip-version-check --no-deps --no-build-isolation --use-pep517 -e "$REPO" \

@@ -45,7 +45,7 @@ def _fastdds_shm_cleanup():
 @pytest.fixture(scope='session')
 def rig():
     """Return the packaged paper rig, params/rig.yaml."""
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     return load_rig()
 
 

@@ -114,10 +114,10 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     seed, count = int(argv[0]), int(argv[1])
     rng = random.Random(seed)
-    from bearing_id import rig as R
+    from bearing_id.simulation import rig as R
     from bearing_id.io import messages as M
     from bearing_id.nodes.sensor_driver import stream_messages
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     from bearing_id_msgs.msg import DisplacementBlock, Excitation, RotorSpeed
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy

@@ -530,7 +530,7 @@ def build_with_converters(sample: dict, types=None):
     rclpy when ``types`` is None, else rosbags from that typestore.
     """
     from bearing_id.io import messages as M
-    from bearing_id.params import ExcitationEntry
+    from bearing_id.config.params import ExcitationEntry
     import numpy as np
 
     f = sample['fields']

@@ -90,7 +90,7 @@ def peer(spec_path: str, out_path: str) -> int:
     from bearing_id.io import messages as M
     from bearing_id.nodes.common import qos_latched, qos_stream
     from bearing_id.nodes.sensor_driver import stream_messages
-    from bearing_id.rig import load_npz
+    from bearing_id.io.recordings import load_npz
 
     spec = json.loads(Path(spec_path).read_text())
     recs = [load_npz(p) for p in spec['recordings']]
@@ -145,11 +145,12 @@ pytestmark = pytest.mark.ros
 @pytest.fixture(scope='module')
 def recordings(tmp_path_factory):
     """Write runs A and B of the rig, 1200 and 2400 rpm, 1 s each (npz, written once)."""
-    from bearing_id import rig as R
-    from bearing_id.params import load_rig
+    from bearing_id.io.recordings import save_npz
+    from bearing_id.simulation import rig as R
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     d = tmp_path_factory.mktemp('recs')
-    return [str(R.simulate_run(rig, r, speeds_rpm=SPEEDS_RPM, dwell=DWELL).save_npz(d / f'run_{r.id}.npz'))
+    return [str(save_npz(R.simulate_run(rig, r, speeds_rpm=SPEEDS_RPM, dwell=DWELL), d / f'run_{r.id}.npz'))
             for r in rig.simulation.runs]
 
 
@@ -183,7 +184,7 @@ def diag_text(got, name_part=''):
 
 
 def vectors(tmp_path):
-    from bearing_id.record import Record
+    from bearing_id.io.record import Record
     return [v for v in Record(tmp_path / 'record', fsync=False).entries('vector') if v['used']]
 
 
@@ -337,15 +338,15 @@ def test_identifier_restart_resumes_from_its_record(recordings, tmp_path):
     with identifier(tmp_path, env) as node:
         got = drive(recordings, tmp_path, 'runs', ['B'], env=env)
         finish(node)
-    from bearing_id.record import Record
+    from bearing_id.io.record import Record
     entries = Record(tmp_path / 'record', fsync=False).entries()
     sessions = [e for e in entries if e['type'] == 'session']
     assert sessions[-1]['resumed_vectors'] == 2
     assert len(set(got['coefficients'])) == 2         # A (from the record) + B (new) solved at both speeds
     # the resumed result equals an uninterrupted run on the same data (offline route on the same windows)
     from bearing_id.identify import harmonics, identify
-    from bearing_id.params import load_rig
-    from bearing_id.rig import load_npz
+    from bearing_id.config.params import load_rig
+    from bearing_id.io.recordings import load_npz
     from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(

@@ -50,7 +50,7 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0, set
     close, so a speed's first result may come from some of the runs only (its later solves, with every run, follow
     within ``SOLVE_AFTER`` plus the solve); the settle period waits for those.
     """
-    from bearing_id.record import Record
+    from bearing_id.io.record import Record
     t_end = time.monotonic() + timeout
     last_n, last_change = -1, time.monotonic()
     while time.monotonic() < t_end:
@@ -112,8 +112,8 @@ def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
     ref = offline(bag, 'physical', tmp_path)
     assert len(ref) == len(speeds)
     assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
-    from bearing_id.params import load_rig
-    from bearing_id.rig import truth_bearing_fn
+    from bearing_id.config.params import load_rig
+    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     for r in ref:
         d = live[round(r['speed_rad_s'], 6)]
@@ -157,8 +157,8 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
                                          identifier_params={'segment_timeout': 0.01})
     ref = offline(bag, 'direct', tmp_path)
     assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
-    from bearing_id.params import load_rig
-    from bearing_id.rig import truth_bearing_fn
+    from bearing_id.config.params import load_rig
+    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     z = []
     for r in ref:

@@ -8,8 +8,9 @@ import math
 
 from bearing_id import bearings
 from bearing_id.bearings import short
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import GRAVITY, rpm_to_rad_s, whirl_direction
-from bearing_id.params import load_rig
+from bearing_id.rotor import supports
 import numpy as np
 import pytest
 
@@ -96,7 +97,7 @@ def test_speed_must_be_positive(rig):
     for bad in (0.0, -10.0, float('nan')):
         with pytest.raises(ValueError, match='speed'):
             bearings.coefficients(b, bad, W)
-    fn = bearings.bearing_fn(rig)
+    fn = supports.bearing_fn(rig)
     with pytest.raises(ValueError, match='zero speed'):
         fn(0.0)
 
@@ -104,7 +105,7 @@ def test_speed_must_be_positive(rig):
 def test_default_loads_are_the_rotor_weight_share(rig):
     """Loads from rotor statics: two symmetric bearings share the total weight, about 9.7 N each (paper rig)."""
     from bearing_id.rotor.assembly import RotorModel
-    fn = bearings.bearing_fn(rig)
+    fn = supports.bearing_fn(rig)
     model = RotorModel.from_params(rig)
     total = model.total_mass() * GRAVITY if hasattr(model, 'total_mass') else None
     shaft_mass = rig.shaft.mass + sum(d.mass for d in rig.discs)
@@ -117,8 +118,8 @@ def test_default_loads_are_the_rotor_weight_share(rig):
 
 def test_bearing_fn_factors_override_and_cache(rig):
     w = rpm_to_rad_s(1800)
-    nom = bearings.bearing_fn(rig)
-    tru = bearings.bearing_fn(rig, viscosity_factor=[1.25, 1.0], clearance_factor=0.8, loads={2: 9.7, 10: 9.7})
+    nom = supports.bearing_fn(rig)
+    tru = supports.bearing_fn(rig, viscosity_factor=[1.25, 1.0], clearance_factor=0.8, loads={2: 9.7, 10: 9.7})
     assert nom.solutions(w) is nom.solutions(w)                      # cached per speed
     b1, b2 = rig.bearings
     K, C = tru(w)[b1.node]
@@ -127,17 +128,17 @@ def test_bearing_fn_factors_override_and_cache(rig):
     K2, _ = tru(w)[b2.node]
     assert not np.allclose(K, K2)                                    # per-bearing factor applied to bearing 1 only
     with pytest.raises(ValueError, match='viscosity_factor'):
-        bearings.bearing_fn(rig, viscosity_factor=[1.0, 1.0, 1.0])
+        supports.bearing_fn(rig, viscosity_factor=[1.0, 1.0, 1.0])
     sol = nom.solutions(w)[b1.node]
     assert 0 < sol.eccentricity < 1 and sol.sommerfeld > 0
 
 
 def test_stability_threshold_short_rig(rig):
     """Ocvirk rig at mu = 0.03 Pa s whips from about 3800 rpm; the crossing is a real sign change of max Re."""
-    from bearing_id.bearings import stability
+    from bearing_id.rotor import stability
     from bearing_id.rotor.assembly import RotorModel, state_space
     model = RotorModel.from_params(rig)
-    fn = bearings.bearing_fn(rig, model='short')
+    fn = supports.bearing_fn(rig, model='short')
     th = stability.threshold_speed(model, fn, rpm_to_rad_s(10000))
     rpm = th * 60 / (2 * math.pi)
     assert 3600 < rpm < 4000, rpm
@@ -157,11 +158,11 @@ def test_stability_threshold_short_rig(rig):
 
 def test_threshold_from_a_campbell_scan_equals_the_dense_search(rig):
     """The threshold bracketed on a Campbell grid (its max real parts) is the geometric-grid search's, to brentq's."""
-    from bearing_id.bearings import stability
+    from bearing_id.rotor import stability
     from bearing_id.rotor.assembly import RotorModel
     from bearing_id.rotor.modal import campbell
     model = RotorModel.from_params(rig)
-    fn = bearings.bearing_fn(rig, model='short')
+    fn = supports.bearing_fn(rig, model='short')
     hi = rpm_to_rad_s(10000)
     grid = np.linspace(hi / 60, hi, 25)
     cb = campbell(model, grid, fn, 4)

@@ -10,8 +10,8 @@ batched coefficients and difference Jacobian (``beta_and_grad_speeds``) then equ
 from __future__ import annotations
 
 from bearing_id.bearings.short import ocvirk, ocvirk_batch, short_eccentricity, short_eccentricity_batch
+from bearing_id.config.params import load_rig
 from bearing_id.identify.physical import _Parametrisation
-from bearing_id.params import load_rig
 from bearing_id.rotor.assembly import RotorModel
 import numpy as np
 import pytest

@@ -1,9 +1,10 @@
 """`bearing-id identify` end to end on simulated .npz recordings: refusal (exit 1) and flagged output (exit 0)."""
 import json
 
-from bearing_id import rig as rigmod
 from bearing_id.cli import main
-from bearing_id.params import load_rig
+from bearing_id.config.params import load_rig
+from bearing_id.io.recordings import save_npz
+from bearing_id.simulation import rig as rigmod
 import numpy as np
 import pytest
 
@@ -15,7 +16,7 @@ def npz_runs(tmp_path_factory):
     paths = []
     for run in rig.simulation.runs:       # unbalance A and B, node-6 probes: undetermined by design (rank 8 of 16)
         rec = rigmod.simulate_run(rig, run, speeds_rpm=[1200, 1800], dwell=0.6, noise=0.01)
-        paths.append(str(rec.save_npz(d / f'run_{run.id}.npz')))
+        paths.append(str(save_npz(rec, d / f'run_{run.id}.npz')))
     return d, paths
 
 

@@ -1,21 +1,20 @@
 """
 Proof on concealed effects (issue 6 item 6).
 
-Recordings are made here, at test time, by the simulated rig with a simulator-side effect (bearing_id.truth_effects,
-parameters chosen in this file and not shared with the code), and diagnosed with the nominal params that lack it.
-Asserted: the right effect ranked first, its key parameter within 15 % of the truth, the residual reduced by >= 80 %,
-held-out validation passed; "none" on clean recordings (also with bearings 25 % off theory: they are nuisance);
-both effects found in a two-effect case.
+Recordings are made here, at test time, by the simulated rig with a simulator-side effect
+(bearing_id.simulation.effects, parameters chosen in this file and not shared with the code), and diagnosed with the
+nominal params that lack it. Asserted: the right effect ranked first, its key parameter within 15 % of the truth, the
+residual reduced by >= 80 %, held-out validation passed; "none" on clean recordings (also with bearings 25 % off theory:
+they are nuisance); both effects found in a two-effect case.
 
 Schedule: 1.5 s slow roll at 200 rpm, then 1 s dwells at 800 ... 2800 rpm (1 % noise).
 """
 import math
 
-from bearing_id import rig as rigmod
-from bearing_id import truth_effects as te
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.diagnose import diagnose
-from bearing_id.params import load_rig
+from bearing_id.simulation import effects as te, rig as rigmod
 import numpy as np
 import pytest
 
@@ -134,7 +133,7 @@ def test_json_shape(rigs, tmp_path):
     import json
 
     from bearing_id.diagnose.report import write_json, write_params
-    from bearing_id.params import load_rig as lr
+    from bearing_id.config.params import load_rig as lr
     d = record(rigs[1], [te.ProbeRunout('p6x', 5e-6, 0.3)], 'runout')
     write_params(d, lr(), tmp_path / 'aug.yaml')
     j = json.loads(write_json(d, tmp_path / 'd.json').read_text())
@@ -176,9 +175,9 @@ def test_augmented_measurement_corrections_invert_the_truth_probe_effects():
     Runout and a turned probe applied in the time domain (truth_effects) are removed by the augmented model's
     phasor correction (a different route: harmonic domain, inverse map).
     """
-    from bearing_id import signals
+    from bearing_id.signals import harmonics as signals
     from bearing_id.diagnose.augmented import AugmentedModel
-    from bearing_id.params import Probe
+    from bearing_id.config.params import Probe
     from bearing_id.rotor.assembly import RotorModel
     nominal = load_rig()
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))

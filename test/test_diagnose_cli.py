@@ -2,7 +2,7 @@
 `bearing-id diagnose` as a command: what it prints, --report (the page with the before / after), --no-noise-floor.
 
 A recording made here by the simulated rig with 4 um of probe runout hidden on p6x (simulator side,
-bearing_id.truth_effects; parameters chosen in this file), run A, a 1.5 s slow roll and 1 s dwells at 5 speeds (the
+bearing_id.simulation.effects; parameters chosen in this file), run A, a 1.5 s slow roll and 1 s dwells at 5 speeds (the
 schedule of test/test_diagnose.py): small enough for a command-level test.  The diagnosis itself is proven in
 test/test_diagnose*.py; here the command's wiring: the verdict printed, the page written with the diagnosis section,
 its figures as PNG, the augmented params, the noise-floor check run or skipped on request, and the help text.
@@ -12,25 +12,26 @@ from __future__ import annotations
 import json
 import os
 
+from bearing_id.io.recordings import save_npz
 import pytest
 
 
 @pytest.fixture(scope='module')
 def runout_npz(tmp_path_factory):
-    from bearing_id import rig as rigmod
-    from bearing_id import truth_effects as te
-    from bearing_id.params import load_rig
+    from bearing_id.simulation import rig as rigmod
+    from bearing_id.simulation import effects as te
+    from bearing_id.config.params import load_rig
     from bearing_id.conventions import rpm_to_rad_s
     rig = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     d = tmp_path_factory.mktemp('runout')
     sched = [rigmod.Segment(float(rpm_to_rad_s(200)), 1.5)] + rigmod.step_schedule((800, 1200, 1600, 2400, 2800), 1.0)
     rec = rigmod.simulate(rig, rig.simulation.runs[0], sched, effects=[te.ProbeRunout('p6x', 4e-6, 0.5)])
-    return [str(rec.save_npz(d / 'run_A.npz'))]
+    return [str(save_npz(rec, d / 'run_A.npz'))]
 
 
 def test_diagnose_report_writes_the_page(runout_npz, tmp_path, capsys):
     from bearing_id.cli import main
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rep = tmp_path / 'rep'
     assert main(['diagnose', *runout_npz, '--report', str(rep), '--json', str(tmp_path / 'd.json')]) == 0
     out = capsys.readouterr().out

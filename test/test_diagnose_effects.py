@@ -7,15 +7,14 @@ closed forms (a bowed shaft on rigid supports at slow roll takes the bow's shape
 """
 import math
 
-from bearing_id import bearings
-from bearing_id import rig as rigmod
-from bearing_id import truth_effects as te
+from bearing_id.config.params import load_rig, parse_rig
 from bearing_id.conventions import dof_index
 from bearing_id.diagnose import effects as fx
 from bearing_id.diagnose.report import rig_to_dict
 from bearing_id.excitation import harmonic_forces
-from bearing_id.params import load_rig, parse_rig
+from bearing_id.rotor import supports
 from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
+from bearing_id.simulation import effects as te, rig as rigmod
 import numpy as np
 import pytest
 
@@ -24,7 +23,7 @@ import pytest
 def setup():
     rig = load_rig()
     model = RotorModel.from_params(rig)
-    return rig, model, bearings.bearing_fn(rig)
+    return rig, model, supports.bearing_fn(rig)
 
 
 def test_support_series_impedance_equals_appended_pedestal_dofs(setup):

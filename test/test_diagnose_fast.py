@@ -7,8 +7,9 @@ and solves the systems of equal shape in one stacked ``numpy.linalg.solve``; the
 offers (extra pedestal DOFs, force columns, measurement columns, bearing factors and forms, the sub-synchronous
 whirl), alone and three at once, at nonzero bearing nuisance, on all windows and on a held-out subset.
 
-The recording: the simulated rig with a whirl line at 0.45X from 2000 rpm (simulator side, bearing_id.truth_effects),
-so that the problem carries sub-synchronous data; 1 s dwells at 5 speeds after a 1.5 s slow roll.
+The recording: the simulated rig with a whirl line at 0.45X from 2000 rpm (simulator side,
+bearing_id.simulation.effects), so that the problem carries sub-synchronous data; 1 s dwells at 5 speeds after a 1.5 s
+slow roll.
 """
 from __future__ import annotations
 
@@ -18,12 +19,12 @@ import pytest
 
 @pytest.fixture(scope='module')
 def prob():
-    from bearing_id import rig as rigmod
-    from bearing_id import truth_effects as te
+    from bearing_id.simulation import rig as rigmod
+    from bearing_id.simulation import effects as te
     from bearing_id.conventions import rpm_to_rad_s
     from bearing_id.diagnose.locate import observe
     from bearing_id.diagnose.predict import Problem
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     truth = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     sched = [rigmod.Segment(float(rpm_to_rad_s(200)), 1.5)] + rigmod.step_schedule((800, 1200, 1600, 2400, 2800), 1.0)
     rec = rigmod.simulate(truth, truth.simulation.runs[0], sched, effects=[te.OilWhirl(10, 2000.0, 0.45, 0.5)])

@@ -5,21 +5,20 @@ Honest numbers (issue 11, diagnose side): the bearing model form is a default ca
 identify; a probe pair turned as a whole is one effect with both axes; pedestal parameters are given within 15 % or
 reported undetermined with what the data do fix; held-out validation learns nothing from the held-out windows.
 
-Recordings are made here by the simulated rig with simulator-side truth (bearing_id.truth_effects; finite-length truth
-bearings straight from the direct Reynolds solver, bearing_id.bearings.finite.reynolds -- not the table the fitting
-side evaluates), with parameters chosen in this file and not shared with the code.  Every assertion is against that
-hidden truth, with the tolerance stated next to it.
+Recordings are made here by the simulated rig with simulator-side truth (bearing_id.simulation.effects; finite-length
+truth bearings straight from the direct Reynolds solver, bearing_id.bearings.finite.reynolds -- not the table the
+fitting side evaluates), with parameters chosen in this file and not shared with the code.  Every assertion is against
+that hidden truth, with the tolerance stated next to it.
 
 Schedule: 1.5 s slow roll at 200 rpm, then 1 s dwells at 800 ... 2800 rpm (1 % noise), run A of the default rig.
 """
 import math
 
-from bearing_id import bearings
-from bearing_id import rig as rigmod
-from bearing_id import truth_effects as te
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.diagnose import diagnose
-from bearing_id.params import load_rig
+from bearing_id.rotor import supports
+from bearing_id.simulation import effects as te, rig as rigmod
 import numpy as np
 
 SPEEDS = (800, 1200, 1600, 2400, 2800)
@@ -33,7 +32,7 @@ def schedule():
 def direct_finite_bearings(rig, vf=TRUTH_VF, cf=TRUTH_CF):
     """Truth bearing function: finite-length (L/D = 1) bearings from the direct Reynolds solver."""
     from bearing_id.bearings.finite import reynolds
-    loads = bearings.static_loads(rig)
+    loads = supports.static_loads(rig)
     cache = {}
 
     def fn(speed):
@@ -105,14 +104,14 @@ def test_rotated_probe_pair_is_one_effect_on_both_axes_and_the_bearings_do_not_a
     # the augmented model undoes the pair: corrected phasors equal the clean ones
     from bearing_id.diagnose.augmented import AugmentedModel
     from bearing_id.diagnose.report import augmented_rig
-    from bearing_id.params import Probe
+    from bearing_id.config.params import Probe
     from bearing_id.rotor.assembly import RotorModel
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
     U = np.array([3e-6 * np.exp(0.4j), 2e-6 * np.exp(-1.1j)])
     ang = np.linspace(0.0, 40 * math.pi, 4000, endpoint=False)
     clean = np.real(np.outer(np.exp(1j * ang), U))
     x = te.ProbePairOrientation(6, math.radians(angle), gx, gy).measure(clean, ang, None, probes)
-    from bearing_id import signals
+    from bearing_id.signals import harmonics as signals
     X = signals.harmonic_vectors(x, ang, (1,)).X[0]
     nominal = load_rig()
     Xc = AugmentedModel(RotorModel.from_params(nominal), augmented_rig(d, nominal)).correct_phasors(X, probes)

@@ -22,8 +22,8 @@ from __future__ import annotations
 import sys
 import types
 
+from bearing_id.config.params import PACKAGE_PARAMS
 from bearing_id.conventions import rpm_to_rad_s
-from bearing_id.params import PACKAGE_PARAMS
 import numpy as np
 import pytest
 from test_diagnose_trf import check_same_fit
@@ -45,7 +45,7 @@ def _problem(params=None, runs=2):
     """Problem on synthetic windows: the nominal prediction at nuisance ``theta_true``, perturbed by a few %."""
     from bearing_id.diagnose.locate import Observations, Window
     from bearing_id.diagnose.predict import Problem
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig(params)
     recs = [types.SimpleNamespace(run=rig.simulation.runs[r % len(rig.simulation.runs)], probes=tuple(rig.probes))
             for r in range(runs)]
@@ -168,11 +168,11 @@ def test_a_fit_imports_neither_scipy_linalg_nor_scipy_optimize(problems, monkeyp
 
 
 def test_observe_fits_each_window_once_with_its_lines(monkeypatch):
-    from bearing_id import rig as rigmod
-    from bearing_id import signals
-    from bearing_id import truth_effects as te
+    from bearing_id.simulation import rig as rigmod
+    from bearing_id.signals import harmonics as signals
+    from bearing_id.simulation import effects as te
     import bearing_id.diagnose.locate  # noqa: F401  (the module; bearing_id.diagnose.locate is also a function)
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     locate = sys.modules['bearing_id.diagnose.locate']
     truth = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     sched = [rigmod.Segment(float(rpm_to_rad_s(200)), 1.0)] + rigmod.step_schedule((900, 2200, 2800), 1.0)
@@ -180,7 +180,7 @@ def test_observe_fits_each_window_once_with_its_lines(monkeypatch):
     calls = []
     real = signals.harmonic_vectors
 
-    class Counted:              # locate's view of bearing_id.signals, its harmonic fits counted
+    class Counted:              # locate's view of bearing_id.signals.harmonics, its harmonic fits counted
         def __getattr__(self, name):
             return getattr(signals, name)
 

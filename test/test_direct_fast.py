@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bearing_id.bearings import bearing_fn
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.conventions import dof_index
 from bearing_id.identify import direct
-from bearing_id.params import load_rig, Probe
 from bearing_id.rotor.assembly import RotorModel
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
 
@@ -91,7 +91,7 @@ def test_whole_fit_agrees_with_the_reference():
 @pytest.mark.parametrize('sparse_ndof', [10_000, 0])
 def test_gate_orbits_fast_equals_the_reference(sparse_ndof, monkeypatch):
     from bearing_id.identify import plausibility as pl
-    from bearing_id.identify.harmonics import simulate_data
+    from bearing_id.simulation.rig import simulate_data
     monkeypatch.setattr(direct, 'SPARSE_NDOF', sparse_ndof)       # dense, then the sparse LU on the same model
     rig = load_rig(EXAMPLES / 'plant_like.yaml')
     model = RotorModel.from_params(rig)

@@ -14,8 +14,9 @@ import time
 
 from bearing_id import bearings
 from bearing_id.bearings import finite, finite_table, short
-from bearing_id.identify.harmonics import simulate_data
-from bearing_id.params import Probe
+from bearing_id.config.params import Probe
+from bearing_id.rotor import supports
+from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
 
@@ -99,7 +100,7 @@ def finite_truth(rig, model):
 
     Truth = finite bearing at viscosity x1.3 / clearance x0.7, x0.85.
     """
-    bfn = bearings.bearing_fn(rig, model='finite', viscosity_factor=(1.3, 1.3), clearance_factor=(0.7, 0.85))
+    bfn = supports.bearing_fn(rig, model='finite', viscosity_factor=(1.3, 1.3), clearance_factor=(0.7, 0.85))
     return simulate_data(rig, rig.simulation.runs, tuple(np.linspace(600, 3528, 6)), probes=P6, bearing_fn=bfn,
                          model=model)
 
@@ -135,7 +136,7 @@ def test_physical_finite_fits_a_finite_truth_in_seconds(rig, model, finite_truth
 def test_finite_misfit_note_does_not_suggest_the_finite_model(rig, model):
     """Data from the short bearing fitted with the finite model: a misfit whose note points elsewhere."""
     from bearing_id.identify.physical import fit_physical
-    bfn = bearings.bearing_fn(rig, model='short', viscosity_factor=1.3, clearance_factor=0.8)
+    bfn = supports.bearing_fn(rig, model='short', viscosity_factor=1.3, clearance_factor=0.8)
     data = _noisy(simulate_data(rig, rig.simulation.runs, (900, 1800, 2700), probes=P6, bearing_fn=bfn,
                                 model=model), 6)
     fit, res = fit_physical(model, rig, data, bearing_model='finite')

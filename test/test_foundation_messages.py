@@ -11,9 +11,8 @@ import math
 import subprocess
 import sys
 
-from bearing_id.io import bags
-from bearing_id.io import messages as M
-from bearing_id.params import ExcitationEntry, Probe, Run
+from bearing_id.config.params import ExcitationEntry, Probe, Run
+from bearing_id.io import bags, messages as M
 import numpy as np
 import pytest
 import rosutil

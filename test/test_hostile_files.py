@@ -50,7 +50,7 @@ def peer(spec_path: str) -> int:
 
     sys.path.insert(0, str(REPO))
     from bearing_id.io import messages as M
-    from bearing_id.params import ExcitationEntry, Run
+    from bearing_id.config.params import ExcitationEntry, Run
 
     spec = json.loads(Path(spec_path).read_text())
     stop = []
@@ -393,7 +393,7 @@ shaft: *i
 
 
 def _rig_text() -> str:
-    from bearing_id.params import default_rig_path
+    from bearing_id.config.params import default_rig_path
     return default_rig_path().read_text()
 
 
@@ -508,15 +508,15 @@ CASES = {
 @pytest.fixture(scope='module')
 def base(tmp_path_factory):
     """One small valid run (1200 rpm, 0.6 s) as .npz, .csv and the sensor_driver messages of a bag."""
-    from bearing_id import daq
-    from bearing_id import rig as R
-    from bearing_id.io import bags
+    from bearing_id.config.params import load_rig
+    from bearing_id.io import bags, daq
+    from bearing_id.io.recordings import save_npz
     from bearing_id.nodes.sensor_driver import stream_messages
-    from bearing_id.params import load_rig
+    from bearing_id.simulation import rig as R
     rig = load_rig()
     d = tmp_path_factory.mktemp('base')
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1200.0], dwell=0.6, ramp=0.0)
-    npz = rec.save_npz(d / 'run_A.npz')
+    npz = save_npz(rec, d / 'run_A.npz')
     csv = daq.write_csv(rec, d / 'run_A.csv')
     msgs = [(t, ns, m) for t, ns, m, _ in stream_messages([rec], 1024, 1_700_000_000 * 10**9, rig.name,
                                                           types=bags.typestore())]
@@ -575,7 +575,7 @@ def test_malformed_input_exits_2_with_one_paragraph(case, command, campaign):
 
 
 def test_billion_laughs_parse_is_refused_in_under_a_second(base, built):
-    from bearing_id.params import load_yaml_bounded, ParamError
+    from bearing_id.config.params import load_yaml_bounded, ParamError
     for case in ('yaml billion laughs', 'yaml 10,000-deep lists', 'yaml 10,000-deep maps', 'yaml 100 MB file'):
         t = time.perf_counter()
         with pytest.raises(ParamError):
@@ -593,7 +593,7 @@ def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():
     """
     import copy
 
-    from bearing_id.params import ParamError, parse_rig
+    from bearing_id.config.params import ParamError, parse_rig
     import yaml
     raw = yaml.safe_load(_rig_text())
 
@@ -632,7 +632,7 @@ def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
     """
     import random
 
-    from bearing_id.rig import load_npz
+    from bearing_id.io.recordings import load_npz
     blob = base['npz'].read_bytes()
     rng = random.Random(2)
     other = []
@@ -657,7 +657,7 @@ def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
 
 def test_legitimate_aliases_still_load(tmp_path):
     """Anchors that expand to a few nodes (as yaml.safe_dump writes for shared objects) are fine."""
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     text = _rig_text().replace('  - {node: 4, outer_diameter: 0.08,', '  - &disc {node: 4, outer_diameter: 0.08,', 1)
     text = text.replace('  - {node: 8, outer_diameter: 0.08, inner_diameter: 0.01265, thickness: 0.015, '
                         'density: 7800.0}', '  - {<<: *disc, node: 8}', 1)

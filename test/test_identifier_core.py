@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import json
 
-from bearing_id import rig as R
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.identify import harmonics
 from bearing_id.io.messages import Block
 from bearing_id.nodes.identifier import IdentifierCore
 from bearing_id.nodes.runs import RunResolver
-from bearing_id.params import load_rig, Probe
+from bearing_id.simulation import rig as R
+from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
 
@@ -218,7 +219,7 @@ def test_warm_started_solves_give_the_cold_answers(rig, tmp_path):
     """
     from bearing_id.identify import physical
     speeds = (900, 1500, 2100, 2700)
-    data = harmonics.simulate_data(rig, rig.simulation.runs, speeds)
+    data = simulate_data(rig, rig.simulation.runs, speeds)
     rng = np.random.default_rng(3)
     std = 1e-3 * np.abs(data.X)
     X = data.X + std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))

@@ -1,9 +1,9 @@
 """Experiment-design check (identify/design.py): ranks per speed, the analytic Jacobian, and the advice."""
+from bearing_id.config.params import ExcitationEntry, load_rig, Probe, Run
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.identify.design import analyse, check_design, coefficient_jacobian
-from bearing_id.params import ExcitationEntry, load_rig, Probe, Run
-from bearing_id.rig import scenario
 from bearing_id.rotor.assembly import harmonic_response, probe_matrix, RotorModel
+from bearing_id.simulation.rig import scenario
 import numpy as np
 import pytest
 

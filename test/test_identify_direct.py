@@ -16,14 +16,13 @@ K and for C (the accuracy benchmark, benchmarks/bench_accuracy.py, uses the same
 """
 import math
 
+from bearing_id.config.params import Probe
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.excitation import harmonic_forces
 from bearing_id.identify import eq38_error
 from bearing_id.identify.direct import Case, coeffs_to_beta, fit_speed, identify_direct, response_and_jacobian
-from bearing_id.identify.harmonics import simulate_data
-from bearing_id.params import Probe
-from bearing_id.rig import scenario
 from bearing_id.rotor.assembly import harmonic_response, probe_matrix
+from bearing_id.simulation.rig import scenario, simulate_data
 import numpy as np
 import pytest
 
@@ -108,7 +107,7 @@ def test_force_plan_node6_one_percent_noise_within_benchmark_tolerance(rig, mode
 def test_unbalance_node6_is_rank_8_and_undetermined(rig, model, n_runs):
     runs = list(rig.simulation.runs)
     if n_runs == 3:   # a third, different unbalance distribution adds no rank (the 2-D subspace argument)
-        from bearing_id.params import ExcitationEntry, Run
+        from bearing_id.config.params import ExcitationEntry, Run
         runs.append(Run('C', (ExcitationEntry('unbalance', 4, 2.0e-5, 2.0, 'forward'),
                               ExcitationEntry('unbalance', 8, 1.0e-5, -1.0, 'forward'))))
     data = noisy(simulate_data(rig, runs, (1200, 2400), probes=P6, model=model), seed=5)
@@ -155,7 +154,7 @@ def test_unknown_option_is_refused(rig, model):
 @pytest.fixture(scope='module')
 def force_schedule_data(rig, model):
     from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.rig import simulate_run
+    from bearing_id.simulation.rig import simulate_run
     recs = [simulate_run(rig, run, probes=P6, seed=40 + k)
             for k, run in enumerate(scenario('force'))]
     return from_recordings(recs)
@@ -197,32 +196,3 @@ def test_direct_on_the_schedule_meets_target_and_its_std_predicts_its_error(rig,
         assert any('no redundancy' in note for note in r.notes)
     zr = math.sqrt(np.mean(np.square(z)))
     assert 0.5 < zr < 1.8, zr
-
-
-def test_lm_without_scipy_equals_scipys_lm(rig, model, monkeypatch):
-    """
-    The fits run MINPACK's lmder in numpy (bearing_id.lm); scipy.optimize's lmder is the reference.
-
-    Force plan at node 6 with 1 % noise (every coefficient determined, so the profile-chi2 check runs its 64 extra fits
-    too) and with a prior: coefficients, 1-sigma and chi2 equal to 1e-9 relative, both converged, and no
-    scipy.optimize import on the fast path.  (The evaluation counts may differ by a step or two: a run that ends by
-    ftol accepts its last step on rounding, bearing_id/lm.py.)
-    """
-    import sys
-    import types
-    from bearing_id.identify import direct
-    data = noisy(simulate_data(rig, scenario('force'), (900, 2100), probes=P6, model=model), seed=3)
-    for options in ({}, {'prior_weight': 4.0}):
-        out = {}
-        for how in ('scipy', 'fast'):
-            monkeypatch.setattr(direct, 'LSQ_METHOD', how)
-            if how == 'fast':       # an import of scipy.optimize now fails
-                monkeypatch.setitem(sys.modules, 'scipy.optimize', types.ModuleType('scipy.optimize'))
-            out[how] = identify_direct(model, rig, data, options=options)
-            monkeypatch.undo()
-        for a, b in zip(out['fast'], out['scipy']):
-            assert a.fully_determined and b.fully_determined
-            for x, y in ((a.K, b.K), (a.C, b.C), (a.K_std, b.K_std), (a.C_std, b.C_std)):
-                np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-9, atol=0)
-            assert abs(a.extra['chi2'] - b.extra['chi2']) <= 1e-9 * max(b.extra['chi2'], 1.0)     # (0 redundancy: ~0)
-            assert not any('did not converge' in n for n in a.notes + b.notes)

@@ -6,13 +6,14 @@ short-bearing coefficients), so the tests do not depend on the bearing models.
 """
 import json
 
-from bearing_id import rig as rigmod
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.conventions import dof_index, rpm_to_rad_s
 from bearing_id.identify import eq38_error, harmonics
 from bearing_id.identify.conventional import identify_conventional, interpolate
 from bearing_id.identify.paper import identify_paper
-from bearing_id.params import load_rig, Probe
 from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import rig as rigmod
+from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
 
@@ -50,7 +51,7 @@ def test_paper_algebra_recovers_truth_from_exact_bearing_displacements(setup):
     rig, model = setup
     runs = rig.simulation.runs
     speeds = [float(rpm_to_rad_s(s)) for s in (900, 1800, 2700)]
-    data = harmonics.simulate_data(rig, runs, (900, 1800, 2700), bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, runs, (900, 1800, 2700), bearing_fn=truth_fn, model=model)
     zB = exact_bearing_vectors(rig, model, runs, speeds)
     res = identify_paper(model, rig, data, rig.probes, runs, {'bearing_fn': theory_fn, 'z_B': zB})
     assert len(res) == 3
@@ -68,7 +69,7 @@ def test_one_run_is_rank_deficient_per_bearing_row(setup):
     rig, model = setup
     runs = rig.simulation.runs[:1]
     w = float(rpm_to_rad_s(1500))
-    data = harmonics.simulate_data(rig, runs, (1500,), bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, runs, (1500,), bearing_fn=truth_fn, model=model)
     zB = exact_bearing_vectors(rig, model, runs, [w])
     r = identify_paper(model, rig, data, rig.probes, runs, {'bearing_fn': theory_fn, 'z_B': zB})[0]
     assert r.extra['ls_rank'] == 8
@@ -106,8 +107,8 @@ def test_conventional_with_a_probe_at_the_bearing_is_exact(setup):
     # probe is 1, so z_B is exact and the shared solve must return the truth to round-off (as above).
     rig, model = setup
     probes = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 3, 9, 10) for d in ('x', 'y'))
-    data = harmonics.simulate_data(rig, rig.simulation.runs, (1200, 2400), probes=probes, bearing_fn=truth_fn,
-                                   model=model)
+    data = simulate_data(rig, rig.simulation.runs, (1200, 2400), probes=probes, bearing_fn=truth_fn,
+                         model=model)
     res = identify_conventional(model, rig, data, probes, data.runs, {'bearing_fn': theory_fn})
     for r in res:
         tr = truth_fn(r.speed)
@@ -132,7 +133,7 @@ def test_conventional_interpolation_weights_closed_form(setup):
 
 def test_conventional_needs_two_probes_per_direction(setup):
     rig, model = setup
-    data = harmonics.simulate_data(rig, rig.simulation.runs, (1200,), bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, rig.simulation.runs, (1200,), bearing_fn=truth_fn, model=model)
     with pytest.raises(ValueError, match='needs two'):
         identify_conventional(model, rig, data, rig.probes, data.runs, {'bearing_fn': theory_fn})
 
@@ -150,7 +151,7 @@ def test_to_dict_is_json_and_hides_nothing_silently(setup):
     rig, model = setup
     runs = rig.simulation.runs[:1]
     w = float(rpm_to_rad_s(1500))
-    data = harmonics.simulate_data(rig, runs, (1500,), bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, runs, (1500,), bearing_fn=truth_fn, model=model)
     r = identify_paper(model, rig, data, rig.probes, runs,
                        {'bearing_fn': theory_fn, 'z_B': exact_bearing_vectors(rig, model, runs, [w])})[0]
     d = json.loads(json.dumps(r.to_dict()))
@@ -239,7 +240,7 @@ def test_conventional_flags_interpolation_bias_only_where_the_line_misses(setup)
     rig, model = setup
     runs = rigmod.scenario('force')
     far = tuple(Probe(f'p{n}{d}', n, d) for n in (1, 3, 9, 11) for d in ('x', 'y'))
-    data = harmonics.simulate_data(rig, runs, (1500,), probes=far, bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, runs, (1500,), probes=far, bearing_fn=truth_fn, model=model)
     r = identify_conventional(model, rig, data, far, data.runs, {'bearing_fn': truth_fn})[0]
     assert not r.fully_determined
     assert any('interpolation bias' in n for n in r.notes)
@@ -249,7 +250,7 @@ def test_conventional_flags_interpolation_bias_only_where_the_line_misses(setup)
     det = np.concatenate([r.K_determined.reshape(-1), r.C_determined.reshape(-1)])
     assert np.all(err[det] <= 0.05) and np.any(err[~det] > 0.05)
     near = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 3, 9, 10) for d in ('x', 'y'))
-    data = harmonics.simulate_data(rig, runs, (1500,), probes=near, bearing_fn=truth_fn, model=model)
+    data = simulate_data(rig, runs, (1500,), probes=near, bearing_fn=truth_fn, model=model)
     r = identify_conventional(model, rig, data, near, data.runs, {'bearing_fn': truth_fn})[0]
     assert r.fully_determined and not any('carry an interpolation bias' in n for n in r.notes)
 

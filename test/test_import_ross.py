@@ -15,7 +15,7 @@ import json
 import math
 from pathlib import Path
 
-from bearing_id import ross_import
+from bearing_id.io import ross_import
 from bearing_id.rotor.elements import DiscElement, ShaftElement
 import numpy as np
 import pytest
@@ -185,8 +185,8 @@ def test_added_mass_layers_are_an_approximation():
 # ------------------------------------------------------------------------------------------- route 2: product
 @pytest.mark.parametrize('name', ROTORS)
 def test_yaml_loads_and_model_matches_ross(tmp_path, name):
-    from bearing_id.bearings import bearing_fn
-    from bearing_id.params import load_rig
+    from bearing_id.rotor.supports import bearing_fn
+    from bearing_id.config.params import load_rig
     from bearing_id.rotor.assembly import RotorModel, system_matrices
     out = tmp_path / f'{name}.yaml'
     ross_import.import_ross(DATA / f'{name}.toml', out)
@@ -242,8 +242,8 @@ def test_compressor_through_load_rig_equals_route_1(tmp_path, layers):
     route 1's (element by element with rotor.elements, damping summed per element as ROSS does) to 1e-12 relative,
     and the lowest 40 eigenvalues to 1e-9.
     """
-    from bearing_id.bearings import bearing_fn
-    from bearing_id.params import load_rig
+    from bearing_id.rotor.supports import bearing_fn
+    from bearing_id.config.params import load_rig
     from bearing_id.rotor.assembly import RotorModel, system_matrices
     out = tmp_path / 'compressor.yaml'
     p = ross_import.import_ross(DATA / 'compressor.toml', out, layers=layers)
@@ -320,7 +320,7 @@ def test_mixed_shear_methods_give_every_element_and_layer_ross_kappa(tmp_path, e
     computes for it (``ross_kappa``), summed per station -- independent of how the importer spreads the coefficients
     over shaft, element and layer keys.
     """
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     from bearing_id.rotor.assembly import RotorModel
     d = ross_import.read_toml(DATA / 'compressor.toml')
     keys = [k for k in d if k.startswith('ShaftElement')]

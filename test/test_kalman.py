@@ -11,7 +11,7 @@ rotor case.
 """
 import math
 
-from bearing_id import kalman as kf
+from bearing_id.estimation import kalman as kf
 import numpy as np
 import pytest
 from scipy.integrate import quad_vec, solve_ivp
@@ -219,9 +219,9 @@ def test_streaming_equals_batch_and_checks_band():
 @pytest.fixture(scope='module')
 def rotor_case():
     pytest.importorskip('bearing_id.rotor.assembly')
-    from bearing_id import rig as rigmod
+    from bearing_id.simulation import rig as rigmod
     from bearing_id.excitation import harmonic_forces
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     from bearing_id.rotor.assembly import RotorModel
 
     rig = load_rig()
@@ -232,7 +232,7 @@ def rotor_case():
     speed = 1500 * 2 * math.pi / 60
     run = rig.simulation.runs[0]
     probes = [(6, 'x'), (6, 'y')] + [(b, d) for b in model.bearing_nodes for d in ('x', 'y')]
-    from bearing_id.params import Probe
+    from bearing_id.config.params import Probe
     probes = tuple(Probe(name=f'p{n}{d}', node=n, direction=d) for n, d in probes)
     rec = rigmod.simulate(rig, run, rigmod.step_schedule([1500.0], 0.3), probes=probes, noise=0.0,
                           bearing_fn=lambda w: coeffs, model=model)

@@ -1,15 +1,17 @@
 """
 Issue 13: the Kalman filter's NIS band and chunked innovations, fast paths against their references.
 
-* :func:`bearing_id.kalman.chi2_quantile_fast` (the lower tail of a large-dof chi-square, the gamma series summed with
+* :func:`bearing_id.estimation.kalman.chi2_quantile_fast` (the lower tail of a large-dof chi-square, the gamma series
+summed with
   numpy) against :func:`bearing_id.stats.chi2_quantile` (the reference, itself tied to scipy) to 1e-12 relative;
-  :func:`bearing_id.kalman.nis_band` against the band computed with the reference.
-* :class:`bearing_id.kalman._ChunkedLTI` (the Toeplitz block now gathered by one index array, the innovation operator
+  :func:`bearing_id.estimation.kalman.nis_band` against the band computed with the reference.
+* :class:`bearing_id.estimation.kalman._ChunkedLTI` (the Toeplitz block now gathered by one index array, the innovation
+operator
   on 64-sample chunks) against a plain per-sample loop of the same steady-state filter, 1e-9 relative.
 """
 from __future__ import annotations
 
-from bearing_id import kalman
+from bearing_id.estimation import kalman
 from bearing_id.stats import chi2_quantile
 import numpy as np
 import pytest

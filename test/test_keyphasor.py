@@ -1,8 +1,8 @@
 """
-Key marks and rotor angle from a sampled keyphasor pulse (bearing_id.keyphasor), checked against the true angle.
+Key marks and rotor angle from a sampled keyphasor pulse (bearing_id.signals.keyphasor), checked against the true angle.
 
-Every pulse here is generated in the test from a known rotor angle (independent of bearing_id.keyphasor): a square
-pulse is high while the true angle mod 2 pi is in [0, width) (sample k is high iff it is at or after the mark);
+Every pulse here is generated in the test from a known rotor angle (independent of bearing_id.signals.keyphasor): a
+square pulse is high while the true angle mod 2 pi is in [0, width) (sample k is high iff it is at or after the mark);
 a finite-rise pulse has linear edges centred on the true mark.  Mark positions are in samples (sample k at t = k/fs).
 """
 from __future__ import annotations
@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
-from bearing_id import daq
-from bearing_id.keyphasor import angle_from_keyphasor, angle_from_marks, key_marks, KeyphasorError
-from bearing_id.signals import harmonic_vectors
+from bearing_id.io import daq
+from bearing_id.signals.harmonics import harmonic_vectors
+from bearing_id.signals.keyphasor import angle_from_keyphasor, angle_from_marks, key_marks, KeyphasorError
 import numpy as np
 import pytest
 
@@ -255,8 +255,8 @@ def test_read_csv_names_the_file_for_a_bad_keyphasor_column(tmp_path):
 
 # ------------------------------------------------------------------------------------------------ DAQ files
 def _recording(rpm: float, n: int, angle0: float = 0.0):
-    from bearing_id.params import Probe, Run
-    from bearing_id.rig import Recording
+    from bearing_id.config.params import Probe, Run
+    from bearing_id.signals.recording import Recording
     W = rpm * TWO_PI / 60
     t = np.arange(n) / FS
     ang = angle0 + W * t
@@ -301,7 +301,7 @@ def test_simulated_run_through_a_keyphasor_csv_keeps_its_1x_vectors(rig, tmp_pat
     > 3e-3 relative).
     """
     from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.rig import simulate_run
+    from bearing_id.simulation.rig import simulate_run
     rec = simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[rpm], dwell=1.0)
     back = daq.read_csv(daq.write_csv(rec, tmp_path / 'rec.csv', keyphasor=True))
     a, b = from_recordings([rec]), from_recordings([back])

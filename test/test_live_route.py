@@ -11,6 +11,8 @@ Issue 9: the live node route gives the offline answer, with an honest 1-sigma.
 """
 from __future__ import annotations
 
+from bearing_id.io import recordings
+from bearing_id.io.recordings import save_npz
 import numpy as np
 import pytest
 import rosutil
@@ -21,8 +23,8 @@ TRUTH_CLEARANCE = [0.80, 1.10]
 
 
 def _truth(rig):
-    from bearing_id import bearings
-    return bearings.bearing_fn(rig, viscosity_factor=TRUTH_VISCOSITY, clearance_factor=TRUTH_CLEARANCE)
+    from bearing_id.rotor import supports
+    return supports.bearing_fn(rig, viscosity_factor=TRUTH_VISCOSITY, clearance_factor=TRUTH_CLEARANCE)
 
 
 def _z(results, truth_fn):
@@ -40,10 +42,10 @@ def _z(results, truth_fn):
 @pytest.mark.ros
 @pytest.mark.slow
 def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coefficients(tmp_path):
-    from bearing_id import rig as R
-    from bearing_id.identify import harmonics, identify
-    from bearing_id.params import load_rig
-    from bearing_id.record import Record
+    from bearing_id.simulation import rig as R
+    from bearing_id.identify import identify
+    from bearing_id.config.params import load_rig
+    from bearing_id.io.record import Record
     from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     truth = _truth(rig)
@@ -51,8 +53,8 @@ def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coef
     paths = []
     for k, run in enumerate(rig.simulation.runs):
         rec = R.simulate_run(rig, run, speeds_rpm=speeds, dwell=1.5, ramp=1.0, bearing_fn=truth, seed=4242 + k)
-        paths.append(rec.save_npz(tmp_path / f'run_{run.id}.npz'))
-    ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_npz(paths))
+        paths.append(save_npz(rec, tmp_path / f'run_{run.id}.npz'))
+    ref = identify('physical', RotorModel.from_params(rig), rig, recordings.from_npz(paths))
 
     env = rosutil.ros_env()
     rec_dir = tmp_path / 'rec'
@@ -123,9 +125,9 @@ def _with_noise(rec, noise, rng):
 @pytest.mark.slow
 @pytest.mark.parametrize('method, scenario', [('physical', 'default'), ('direct', 'force')])
 def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scenario, tmp_path):
-    from bearing_id import rig as R
+    from bearing_id.simulation import rig as R
     from bearing_id.nodes.identifier import IdentifierCore
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     truth = _truth(rig)
     runs = rig.simulation.runs if scenario == 'default' else R.scenario(scenario)

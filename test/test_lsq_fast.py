@@ -9,10 +9,10 @@ to 1e-4 relative.
 """
 from __future__ import annotations
 
+from bearing_id.config.params import load_rig
 from bearing_id.identify import lsq
-from bearing_id.params import load_rig
-from bearing_id.rig import nominal_bearing_fn
 from bearing_id.rotor.assembly import harmonic_response, RotorModel
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 
 
@@ -21,7 +21,7 @@ def _case():
     model = RotorModel.from_params(rig)
     w = 180.0
     F = lsq.forces_at(model, rig.simulation.runs, w)
-    co = nominal_bearing_fn(rig)(w)
+    co = bearing_fn(rig)(w)
     b = lsq.bearing_dofs(model)
     rng = np.random.default_rng(7)
     zB = np.array([harmonic_response(model, w, w, f, co)[b].reshape(-1, 2) for f in F])

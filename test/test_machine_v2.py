@@ -9,15 +9,13 @@ import copy
 import dataclasses
 import json
 import math
-import subprocess
-import sys
 
 from bearing_id import conventions as cv
-from bearing_id.bearings import bearing_fn
 from bearing_id.bearings.table import interpolate
-from bearing_id.params import default_rig_path, load_rig, PACKAGE_PARAMS, ParamError, parse_rig
+from bearing_id.config.params import default_rig_path, load_rig, PACKAGE_PARAMS, ParamError, parse_rig
 from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
 from bearing_id.rotor.modal import free_free_frequencies
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -75,13 +73,6 @@ def test_units_in_strings(raw):
         with pytest.raises(ParamError, match=r'shaft\.diameter must be a number \[m\]'):
             parse_rig(d)
         assert time.perf_counter() - t0 < 1.0
-
-
-def test_pint_is_imported_only_for_unit_strings():
-    code = ('import sys; from bearing_id.params import load_rig; load_rig(); '
-            "print('pint' in sys.modules)")
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
-    assert out.stdout.strip() == 'False', out.stderr
 
 
 @pytest.mark.parametrize('edit,field', [
@@ -267,7 +258,7 @@ def test_materials_may_be_soft_but_not_zero():
 
 
 def test_layers_and_element_shear_round_trip():
-    from bearing_id.params import rig_to_dict
+    from bearing_id.config.params import rig_to_dict
     rig = parse_rig(_layered())
     text = yaml.safe_dump(rig_to_dict(rig), sort_keys=False)
     back = parse_rig(yaml.safe_load(text))
@@ -353,8 +344,8 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
     R = np.array([[c, s], [c, -s]])
     assert np.array_equal(pm, R @ xy)            # exact: the rows are (cos, sin) of each probe axis
     # and through the simulated rig (time domain, no noise): the +-45 channels are the rotated x/y channels
-    from bearing_id.params import Probe
-    from bearing_id.rig import simulate_run
+    from bearing_id.config.params import Probe
+    from bearing_id.simulation.rig import simulate_run
     run = rig.simulation.runs[0]
     kw = {'speeds_rpm': [1200, 2400], 'dwell': 0.2, 'ramp': 0.0, 'noise': 0.0}
     a = simulate_run(rig, run, probes=(Probe('x', 6, 'x'), Probe('y', 6, 'y')), **kw)
@@ -366,7 +357,7 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
 def test_messages_carry_the_probe_angle():
     from bearing_id.io.bags import typestore
     from bearing_id.io.messages import block_from_msg, block_to_msg, validate_block
-    from bearing_id.params import Probe
+    from bearing_id.config.params import Probe
     probes = (Probe('p5L', 5, cv.probe_direction(135.0)), Probe('p5R', 5, cv.probe_direction(45.0, 1.01)))
     x = np.zeros((8, 2)) + 1e-6
     msg = block_to_msg(x, 1, 1000.0, 100.0, 0.0, probes, types=typestore(), sample_angles=np.arange(8) * 0.1)
@@ -381,7 +372,7 @@ def test_messages_carry_the_probe_angle():
 @pytest.fixture(scope='module')
 def plant_data():
     from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.rig import simulate_plan
+    from bearing_id.simulation.rig import simulate_plan
     rig = load_rig(PLANT)
     model = RotorModel.from_params(rig)
     recs = simulate_plan(rig, ramp=0.0, model=model)        # time domain, 1 % noise, instant speed steps
@@ -389,7 +380,7 @@ def plant_data():
 
 
 def _worst_errors(rig, results):
-    from bearing_id.rig import truth_bearing_fn
+    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(rig)
     ek = ec = 0.0
     for r in results:
@@ -403,7 +394,7 @@ def _worst_errors(rig, results):
 
 def test_plant_truth_is_10_to_30_percent_off(plant_data):
     rig, _, _ = plant_data
-    from bearing_id.rig import truth_bearing_fn
+    from bearing_id.simulation.rig import truth_bearing_fn
     w = 3000 * math.pi / 30
     nom, tru = bearing_fn(rig)(w), truth_bearing_fn(rig)(w)
     for n in nom:
@@ -483,8 +474,8 @@ def test_load_vector_rotates_the_bearing_against_the_film_force_itself(raw):
 def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
     """Two identified table bearings (cross-coupled, speed-dependent), truth = table x (1.2 on K, 0.85 on C)."""
     from bearing_id.identify import identify
-    from bearing_id.identify.harmonics import simulate_data
-    from bearing_id.rig import truth_bearing_fn
+    from bearing_id.simulation.rig import simulate_data
+    from bearing_id.simulation.rig import truth_bearing_fn
     d = copy.deepcopy(raw)
     rpm = [500, 1500, 3500]
     tab = {'speed_rpm': rpm, 'kxx': [2e5, 3e5, 4e5], 'kxy': [2e4, 8e4, 2e5], 'kyx': [-2e4, -8e4, -2e5],
@@ -522,7 +513,7 @@ def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
 
 @pytest.mark.parametrize('path', [None, PLANT])
 def test_rig_to_dict_round_trips(path, tmp_path):
-    from bearing_id.params import rig_to_dict
+    from bearing_id.config.params import rig_to_dict
     rig = load_rig(path)
     text = yaml.safe_dump(rig_to_dict(rig), sort_keys=False)
     back = parse_rig(yaml.safe_load(text))
@@ -534,9 +525,9 @@ def test_rig_to_dict_round_trips(path, tmp_path):
 def test_conventional_from_pm45_pairs_equals_from_xy_pairs():
     """The conventional method on +-45 deg pairs (x, y rebuilt at each probe node) = on x/y pairs at those nodes."""
     from bearing_id.identify.conventional import identify_conventional
-    from bearing_id.identify.harmonics import simulate_data
-    from bearing_id.params import Probe
-    from bearing_id.rig import nominal_bearing_fn
+    from bearing_id.simulation.rig import simulate_data
+    from bearing_id.config.params import Probe
+    from bearing_id.rotor.supports import bearing_fn
     rig = load_rig()
     model = RotorModel.from_params(rig)
     nodes = (1, 3, 9, 11)
@@ -548,7 +539,7 @@ def test_conventional_from_pm45_pairs_equals_from_xy_pairs():
     for probes in (xy, pm):
         data = simulate_data(rig, runs, speeds, probes=probes, noise=0.0, model=model)
         data.X_std[...] = 1e-3 * np.abs(data.X).max()
-        out.append(identify_conventional(model, rig, data, probes, runs, {'bearing_fn': nominal_bearing_fn(rig)}))
+        out.append(identify_conventional(model, rig, data, probes, runs, {'bearing_fn': bearing_fn(rig)}))
     for a, b in zip(*out):
         assert np.allclose(a.K, b.K, rtol=1e-9, atol=1e-9 * np.abs(a.K).max())
         assert np.allclose(a.C, b.C, rtol=1e-9, atol=1e-9 * np.abs(a.C).max())

@@ -8,12 +8,12 @@ the dense ones.
 """
 from __future__ import annotations
 
-from bearing_id.bearings import bearing_fn
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
-from bearing_id.params import load_rig
 from bearing_id.plots.data import campbell_data
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.rotor.modal import damped_modes, FastModes, modes_solver
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
 from test_stability_fast import paper_rig_refined

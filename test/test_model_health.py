@@ -1,11 +1,12 @@
 """Live model health from Kalman innovations (kf_estimator's /diagnostics item), against closed forms and the rig."""
-from bearing_id import rig as rigmod
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
+from bearing_id.estimation.kalman import rotor_kalman_model, StreamingKF
 from bearing_id.excitation import harmonic_forces
-from bearing_id.kalman import rotor_kalman_model, StreamingKF
 from bearing_id.nodes.kf_estimator import HEALTH_COHERENT, innovation_health, innovation_health_terms
-from bearing_id.params import load_rig
 from bearing_id.rotor.assembly import RotorModel
+from bearing_id.rotor.supports import bearing_fn
+from bearing_id.simulation import rig as rigmod
 import numpy as np
 import pytest
 
@@ -41,7 +42,7 @@ def setting():
 def test_health_flags_a_wrong_model_only(setting, truth_model, flagged):
     rig, model, run, rec = setting
     W = rpm_to_rad_s(1500.0)
-    bfn = rigmod.truth_bearing_fn(rig) if truth_model else rigmod.nominal_bearing_fn(rig)
+    bfn = rigmod.truth_bearing_fn(rig) if truth_model else bearing_fn(rig)
     R = float(np.mean((0.01 * np.sqrt(np.mean(rec.samples**2, axis=0))) ** 2))
     km = rotor_kalman_model(model, W, bfn(W), rec.probes, rec.sample_rate,
                             forces=harmonic_forces(run.excitation, W, model.n_nodes), Q=1e-16, R=R)

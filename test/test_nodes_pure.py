@@ -4,10 +4,11 @@ from __future__ import annotations
 import json
 import math
 
-from bearing_id.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
+from bearing_id.config.params import ParamError, Probe, Run
+from bearing_id.io import recordings
+from bearing_id.io.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
+from bearing_id.io.record import Record
 from bearing_id.nodes.common import ParamSpec, StreamMonitor, validate_values, with_common, yaml_block
-from bearing_id.params import ParamError, Probe, Run
-from bearing_id.record import Record
 import numpy as np
 import pytest
 
@@ -151,7 +152,7 @@ def test_keyphasor_angle_matches_the_true_angle_within_one_sample():
 
 
 def test_csv_round_trip_with_units_and_bad_headers(tmp_path):
-    from bearing_id.rig import Recording
+    from bearing_id.signals.recording import Recording
     fs = 10240.0
     n = 2048
     t = np.arange(n) / fs
@@ -178,7 +179,7 @@ def test_params_yaml_documents_every_parameter_with_its_default(node):
     """params/<node>.yaml holds every declared parameter (set ones equal the default, unset ones commented)."""
     import importlib
 
-    from bearing_id.params import PACKAGE_PARAMS
+    from bearing_id.config.params import PACKAGE_PARAMS
     import yaml
     mod = importlib.import_module(f'bearing_id.nodes.{node}')
     text = (PACKAGE_PARAMS / f'{node}.yaml').read_text()
@@ -204,12 +205,11 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path, pauses):
     the final cut of each replaces them -- the wall clock never cuts the data (a loaded CI machine once split a dwell
     that way and the live result moved 0.3 %).
     """
-    from bearing_id.identify import harmonics
     from bearing_id.io import bags, messages
     from bearing_id.nodes.identifier import IdentifierCore
-    from bearing_id.params import load_rig, PACKAGE_PARAMS
+    from bearing_id.config.params import load_rig, PACKAGE_PARAMS
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
-    ref = harmonics.from_bag(bag)
+    ref = recordings.from_bag(bag)
     core = IdentifierCore(load_rig(), 'physical', tmp_path)
     wins, n = [], 0
     for topic, _, _, msg in bags.read_bag(bag, ['/rotor/excitation', '/rotor/displacement']):
@@ -256,14 +256,14 @@ def test_identifier_paper_method_equals_the_offline_route(tmp_path, R_std):
     NIS (offline: from the samples) is missing there.  (Until 27 Nov the node used the kf_estimator's time-domain
     estimates and dropped every one of them -- no result at all.)
     """
-    from bearing_id.identify import harmonics, identify
+    from bearing_id.identify import identify
     from bearing_id.io import bags, messages
     from bearing_id.nodes.identifier import IdentifierCore
-    from bearing_id.params import load_rig, PACKAGE_PARAMS
+    from bearing_id.config.params import load_rig, PACKAGE_PARAMS
     from bearing_id.rotor.assembly import RotorModel
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
     rig = load_rig()
-    ref_data = harmonics.from_bag(bag).select([0, 4, 8])          # three speeds: the test's time
+    ref_data = recordings.from_bag(bag).select([0, 4, 8])          # three speeds: the test's time
     R = R_std ** 2 or None
     ref = identify('paper', RotorModel.from_params(rig), rig, ref_data, options=None if R is None else {'R': R})
     core = IdentifierCore(rig, 'paper', tmp_path, options={'kf': {'Q': 1e-16, 'R': R}})
@@ -302,11 +302,11 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     import time as _time
     from types import SimpleNamespace
 
-    from bearing_id import rig as R
+    from bearing_id.simulation import rig as R
     from bearing_id.excitation import harmonic_forces
-    from bearing_id.kalman import fast_filter, rotor_kalman_model
+    from bearing_id.estimation.kalman import fast_filter, rotor_kalman_model
     from bearing_id.nodes.kf_estimator import EstimatorCore
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0], dwell=0.5)
     core = EstimatorCore(rig, 1e-16, 1e-7, 0.01)
@@ -346,10 +346,10 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
     import time as _time
     from types import SimpleNamespace
 
-    from bearing_id import rig as R
+    from bearing_id.simulation import rig as R
     from bearing_id.conventions import rpm_to_rad_s
     from bearing_id.nodes.kf_estimator import EstimatorCore
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     run = R.scenario('paper_table3')[0]
     ref = R.check_validity(rig, [run], [rpm_to_rad_s(600.0), rpm_to_rad_s(2400.0)])

@@ -51,7 +51,7 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
         assert rc == 0 and time.monotonic() - t < 5.0, p.output()
         assert 'SIGTERM: shutting down' in p.stderr + p.stdout and 'Traceback' not in p.stderr, p.output()
     if node == 'identifier':
-        from bearing_id.record import Record
+        from bearing_id.io.record import Record
         assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['session']
 
 
@@ -73,7 +73,7 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
                                   '-p', 'exit_when_done:=true'], env=env, hard_timeout=120)
         procs.append(drv)
         assert drv.wait(90) == 0, drv.output()
-        from bearing_id.record import Record
+        from bearing_id.io.record import Record
         t_end = time.monotonic() + 30
         res = []
         while time.monotonic() < t_end:
@@ -90,9 +90,9 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
     finally:
         for p in procs:
             p.close()
-    from bearing_id import rig as R
+    from bearing_id.simulation import rig as R
     from bearing_id.identify import harmonics, identify
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     recs = [R.simulate_run(rig, r, speeds_rpm=speeds, dwell=1.5) for r in rig.simulation.runs]

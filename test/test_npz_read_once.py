@@ -2,15 +2,17 @@
 Issue 13: ``rig.load_npz`` reads every array of a recording once, and its result equals a plain ``np.load`` reading.
 
 References: ``numpy.load`` of the same file (the library's own reader, independent of the checked reader in
-``bearing_id.rig``) and the Recording that was written; the count of ``numpy.lib.format.read_array`` calls against the
-number of members of the archive.
+``bearing_id.simulation.rig``) and the Recording that was written; the count of ``numpy.lib.format.read_array`` calls
+against the number of members of the archive.
 """
 from __future__ import annotations
 
 import zipfile
 
-from bearing_id import rig as rigmod
-from bearing_id.params import ExcitationEntry, Probe, Run
+from bearing_id.config.params import ExcitationEntry, Probe, Run
+from bearing_id.io import recordings
+from bearing_id.io.recordings import save_npz
+from bearing_id.signals.recording import Recording
 import numpy as np
 import pytest
 
@@ -32,15 +34,15 @@ def _recording(n=5000, seed=3):
                                          for node in (2, 10)}
                               for s in np.linspace(60.0, 320.0, N_TRUTH_SPEEDS)}}
     segments = [(0, n // 2, 150.0, True), (n // 2, n, 150.0, False)]
-    rec = rigmod.Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples, run=run,
-                           segments=segments, truth=truth, rig_name='test rig')
+    rec = Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples, run=run,
+                    segments=segments, truth=truth, rig_name='test rig')
     return rec
 
 
 @pytest.fixture(scope='module')
 def written(tmp_path_factory):
     rec = _recording()
-    path = rec.save_npz(tmp_path_factory.mktemp('npz') / 'run_A.npz')
+    path = save_npz(rec, tmp_path_factory.mktemp('npz') / 'run_A.npz')
     return rec, path
 
 
@@ -59,19 +61,19 @@ def test_every_member_is_read_at_most_once(written, monkeypatch):
 
     monkeypatch.setattr(np.lib.format, 'read_array', counting)
     monkeypatch.setattr(zipfile.ZipFile, 'open', counting_open)
-    rigmod.load_npz(path)
+    recordings.load_npz(path)
     with zipfile.ZipFile(path) as zf:
         members = {i.filename: i.file_size for i in zf.infolist() if i.filename.endswith('.npy')}
     assert len(calls) == len(set(calls)), 'a member was read twice'
     # each member opened once (header and data), a large one twice (header first, data after every check)
     for m, size in members.items():
-        assert opens.count(m) == (1 if size <= rigmod.NPZ_SMALL_BYTES else 2), (m, size, opens.count(m))
+        assert opens.count(m) == (1 if size <= recordings.NPZ_SMALL_BYTES else 2), (m, size, opens.count(m))
     assert len(opens) < 2 * len(members)
 
 
 def test_result_equals_a_plain_np_load_reading(written):
     rec, path = written
-    got = rigmod.load_npz(path)
+    got = recordings.load_npz(path)
     with np.load(path, allow_pickle=False) as z:
         ref = {k: z[k] for k in z.files}
     for name in ('t', 'speed', 'angle', 'samples'):
@@ -111,7 +113,7 @@ def test_only_members_that_shrink_are_deflated(written):
         assert set(infos) == set(z.files)
         for key, info in infos.items():
             data = z[key].tobytes()                    # the array's bytes, without the .npy header
-            if len(data) < rigmod.NPZ_DEFLATE_ALWAYS_BELOW:
+            if len(data) < recordings.NPZ_DEFLATE_ALWAYS_BELOW:
                 assert info.compress_type == zipfile.ZIP_DEFLATED, key
                 continue
             saving = 1.0 - len(zlib.compress(data[:1 << 20], 1)) / len(data[:1 << 20])
@@ -123,7 +125,7 @@ def test_only_members_that_shrink_are_deflated(written):
         arrays = {k: z[k] for k in z.files}
     plain = path.with_name('plain.npz')
     np.savez_compressed(plain, **arrays)
-    a, b = rigmod.load_npz(path), rigmod.load_npz(plain)
+    a, b = recordings.load_npz(path), recordings.load_npz(plain)
     for name in ('t', 'speed', 'angle', 'samples'):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert a.run == b.run and a.segments == b.segments and a.truth.keys() == b.truth.keys()

@@ -1,7 +1,7 @@
 """Parameter loading: the packaged rig parses, and bad files fail with a message that names the field."""
 import copy
 
-from bearing_id.params import default_rig_path, load_rig, ParamError, parse_rig
+from bearing_id.config.params import default_rig_path, load_rig, ParamError, parse_rig
 import pytest
 import yaml
 

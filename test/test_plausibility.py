@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import copy
 
-from bearing_id.identify import harmonics, identify
-from bearing_id.params import load_rig
+from bearing_id.config.params import load_rig
+from bearing_id.identify import identify
 from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
 
@@ -21,7 +22,7 @@ def setup():
     rig = load_rig()
     model = RotorModel.from_params(rig)
     # 1-sigma 0.1 % of |X| per 1X vector (the rig's 1 % sample noise averaged over a dwell is smaller still)
-    data = harmonics.simulate_data(rig, rig.simulation.runs, [900.0, 1800.0, 2700.0], noise=0.001, model=model)
+    data = simulate_data(rig, rig.simulation.runs, [900.0, 1800.0, 2700.0], noise=0.001, model=model)
     rng = np.random.default_rng(5)
     data.X = data.X + (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape)) * data.X_std
     return rig, model, data

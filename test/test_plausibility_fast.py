@@ -2,16 +2,16 @@
 Issue 13: the plausibility gate's shortened stability search decides as the full search does.
 
 Reference: :func:`bearing_id.identify.plausibility.stability_threshold` (the full geometric-grid search of
-:func:`bearing_id.bearings.stability.threshold_speed` with brentq), on fresh models (no cached threshold), for data
+:func:`bearing_id.rotor.stability.threshold_speed` with brentq), on fresh models (no cached threshold), for data
 below the threshold (the shortened search stops early) and data reaching above it (it must find the same threshold).
 """
 from __future__ import annotations
 
 import math
 
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.identify import plausibility as pl
-from bearing_id.params import load_rig
 from bearing_id.rotor.assembly import RotorModel
 import pytest
 
@@ -35,7 +35,7 @@ def test_gate_threshold_decides_as_the_full_search(rig, top_rpm):
 
 
 def test_the_stable_case_stops_early(rig, monkeypatch):
-    from bearing_id.bearings import stability
+    from bearing_id.rotor import stability
     calls = []
     orig = stability.max_real_part
     monkeypatch.setattr(stability, 'max_real_part', lambda *a: calls.append(a[2]) or orig(*a))
@@ -63,7 +63,7 @@ def test_certificate_never_proves_an_unstable_model_stable(example):
     """
     from pathlib import Path
     import numpy as np
-    from bearing_id.bearings import bearing_fn
+    from bearing_id.rotor.supports import bearing_fn
     from bearing_id.rotor.assembly import state_space
     rig = load_rig(Path(__file__).resolve().parent.parent / 'params' / 'examples' / f'{example}.yaml')
     model = RotorModel.from_params(rig)

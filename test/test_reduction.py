@@ -5,12 +5,12 @@ References: the full FE model (every fixed-interface mode kept makes the reducti
 the reduced filter must equal the full one to round-off: 1e-9); the Guyan property (no mode kept: the static
 receptance between kept DOFs is exact); convergence of the 1X receptance with the cutoff.
 """
-from bearing_id import kalman
-from bearing_id import rig as rigmod
+from bearing_id.config.params import load_rig, Probe
+from bearing_id.estimation import kalman
 from bearing_id.identify import harmonics, paper
-from bearing_id.params import load_rig, Probe
 from bearing_id.rotor import reduction
 from bearing_id.rotor.assembly import dynamic_stiffness, RotorModel
+from bearing_id.simulation import rig as rigmod
 import numpy as np
 import pytest
 

@@ -20,6 +20,8 @@ import re
 import time
 
 from bearing_id.conventions import RPM_PER_RAD_S, rpm_to_rad_s
+from bearing_id.io.recordings import save_npz
+from bearing_id.rotor import supports
 import numpy as np
 import pytest
 
@@ -33,7 +35,7 @@ def demo(tmp_path_factory):
     """Return the report of the demo-like recording (bags/unbalance_ab_sweep, method physical), figures kept."""
     from bearing_id.commands.inputs import attach_excitation, load_recordings
     from bearing_id.commands.report import build_report
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     rig = load_rig()
     recs = attach_excitation(load_recordings([str(BAG)]), rig, required=False)
     out = tmp_path_factory.mktemp('report')
@@ -48,7 +50,7 @@ def _by_gid(fig, gid):
 # ------------------------------------------------------------------------------------------------ Campbell
 def test_campbell_1x_crossing_equals_the_reported_critical_speed(tmp_path):
     from bearing_id.commands.model import analyse, campbell_from_report
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     from bearing_id.plots.campbell import campbell_figure
     r = analyse(load_rig(), [600.0, 3000.0], max_rpm=6000.0, update=False)
     crit = r['critical_speeds_rpm']
@@ -94,10 +96,9 @@ def test_model_command_plots_each_bearing_visibly(tmp_path, capsys):
 
 
 def test_mode_shapes_are_the_damped_modes(rig, model):
-    from bearing_id import bearings
     from bearing_id.plots.data import critical_mode_index, mode_shapes
     from bearing_id.rotor.modal import damped_modes
-    bfn = bearings.bearing_fn(rig)
+    bfn = supports.bearing_fn(rig)
     w = rpm_to_rad_s(1964.0)
     shapes = mode_shapes(model, bfn, w, 4)
     m = damped_modes(model, w, bfn(w), 4)
@@ -181,9 +182,8 @@ def test_interpolated_bearings_are_exact_at_the_speeds_and_refuse_to_extrapolate
 
 
 def test_adaptive_curve_resolves_the_resonance(rig, model):
-    from bearing_id import bearings
     from bearing_id.plots.data import response_curves, response_curves_adaptive
-    bfn = bearings.bearing_fn(rig)
+    bfn = supports.bearing_fn(rig)
     runs = rig.simulation.runs
     test = rpm_to_rad_s(np.array([600.0, 1800.0, 3000.0]))
     g, Y = response_curves_adaptive(model, bfn, runs, rig.probes, test, test[0], test[-1])
@@ -219,7 +219,7 @@ def test_orbit_from_probes_at_plus_minus_45_degrees_is_the_xy_orbit():
 
     from bearing_id.conventions import probe_row
     from bearing_id.plots.data import orbit_data, probe_stations
-    from bearing_id.rig import Probe
+    from bearing_id.config.params import Probe
     probes = (Probe('a', 7, '45.0deg*1.02'), Probe('m', 4, 'x'), Probe('b', 7, '135.0deg'), Probe('c', 9, '45.0deg'),
               Probe('d', 9, '60.0deg'))
     st = probe_stations(probes)
@@ -252,9 +252,8 @@ def test_spectrum_amplitude_of_a_sinusoid():
 
 
 def test_journal_positions_are_the_bearing_equilibrium(rig):
-    from bearing_id import bearings
     from bearing_id.plots.data import journal_positions
-    bfn = bearings.bearing_fn(rig)
+    bfn = supports.bearing_fn(rig)
     w = np.array([50.0, 200.0, 300.0])
     jp = journal_positions(bfn, w)
     for node, d in jp.items():
@@ -317,7 +316,7 @@ def test_diagnosis_section_from_a_diagnosis_like_object(tmp_path):
     """The before/after section draws what the diagnosis predicts (here a stand-in with the same interface)."""
     from types import SimpleNamespace
 
-    from bearing_id.params import Probe, Run
+    from bearing_id.config.params import Probe, Run
     from bearing_id.plots.data import diagnosis_curves
     from bearing_id.plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
@@ -352,12 +351,12 @@ def test_diagnosis_section_from_a_diagnosis_like_object(tmp_path):
 @pytest.fixture(scope='module')
 def small_npz(tmp_path_factory):
     """Two simulated runs (truth != theory) at 3 speeds, as .npz files."""
-    from bearing_id.params import load_rig
-    from bearing_id.rig import simulate_run
+    from bearing_id.config.params import load_rig
+    from bearing_id.simulation.rig import simulate_run
     rig = load_rig()
     d = tmp_path_factory.mktemp('small')
-    return [str(simulate_run(rig, run, speeds_rpm=[900.0, 1500.0, 2400.0], dwell=0.8, ramp=0.2, seed=3)
-                .save_npz(d / f'run_{run.id}.npz')) for run in rig.simulation.runs]
+    return [str(save_npz(simulate_run(rig, run, speeds_rpm=[900.0, 1500.0, 2400.0], dwell=0.8, ramp=0.2, seed=3),
+                         d / f'run_{run.id}.npz')) for run in rig.simulation.runs]
 
 
 def test_cli_report(small_npz, tmp_path, capsys):

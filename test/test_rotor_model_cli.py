@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip('bearing_id.bearings')
-pytest.importorskip('bearing_id.bearings.stability')
+pytest.importorskip('bearing_id.rotor.stability')
 
 from bearing_id.cli import main  # noqa: E402, I100  (after the importorskip guards)
 

@@ -10,8 +10,8 @@ import json
 import math
 from pathlib import Path
 
+from bearing_id.config.params import load_rig
 from bearing_id.conventions import dof_index, unbalance_phasors
-from bearing_id.params import load_rig
 from bearing_id.rotor.assembly import harmonic_response, RotorModel
 from bearing_id.rotor.elements import ShaftElement
 from bearing_id.rotor.modal import damped_modes, free_free_frequencies

@@ -8,8 +8,8 @@ whirl orbits (x = a cos, y = +-a sin).
 import math
 
 from bearing_id.conventions import phasor_to_time
-from bearing_id.signals import (harmonic_vectors, slow_roll_compensate, slow_roll_vector, steady_windows,
-                                subsynchronous, whole_revolutions)
+from bearing_id.signals.harmonics import (harmonic_vectors, slow_roll_compensate, slow_roll_vector, steady_windows,
+                                          subsynchronous, whole_revolutions)
 import numpy as np
 import pytest
 

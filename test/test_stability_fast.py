@@ -1,8 +1,8 @@
 """
 Issue 12 item 4: the fast stability path (reduced screen, full-model shift-invert refinement) against the dense one.
 
-Reference: :func:`bearing_id.bearings.stability.max_real_part` (every eigenvalue of the full 2 ndof state matrix,
-numpy) and :func:`~bearing_id.bearings.stability.threshold_speed` with ``method='full'``.  Models: the paper rig
+Reference: :func:`bearing_id.rotor.stability.max_real_part` (every eigenvalue of the full 2 ndof state matrix,
+numpy) and :func:`~bearing_id.rotor.stability.threshold_speed` with ``method='full'``.  Models: the paper rig
 (10 elements) and the same rig refined to 40 elements (nodes mapped so the bearings, discs and probes sit at the
 same positions), forced onto the fast path (``method='fast'``), which large models take by default.
 """
@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import math
 
-from bearing_id.bearings import bearing_fn
-from bearing_id.bearings import stability
+from bearing_id.config.params import load_yaml_bounded, parse_rig
 from bearing_id.identify import plausibility as pl
-from bearing_id.params import load_yaml_bounded, parse_rig
+from bearing_id.rotor import stability
 from bearing_id.rotor.assembly import RotorModel, state_space
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
 

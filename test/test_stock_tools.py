@@ -330,7 +330,7 @@ def test_unset_parameters_are_declared_with_a_typed_value_and_read_back_as_unset
 
 def test_a_repeated_excitation_is_ignored():
     """The latched excitation arrives twice from a transient-local publisher (both subscriptions match it)."""
-    from bearing_id.params import load_rig
+    from bearing_id.config.params import load_rig
     run = load_rig().simulation.runs[0]
     tl = common.ExcitationTimeline()
     assert tl.add(1000.0, run) is True

@@ -14,7 +14,7 @@ Fast paths of the diagnosis' signal side against their references.
 """
 import math
 
-from bearing_id import signals
+from bearing_id.signals import harmonics as signals
 import numpy as np
 import pytest
 

@@ -1,8 +1,8 @@
 """
 The fast transient-aware 1X fit equals its reference implementation (issue 13: every fast path keeps its reference).
 
-Reference: ``bearing_id.signals._transient_fit_reference`` (the first implementation, unchanged: variable projection
-on the full (N nch,) residual) and ``_VarPro``.  The fast path (``_transient_fit``, ``_VarProFast``: reduced
+Reference: ``bearing_id.signals.harmonics._transient_fit_reference`` (the first implementation, unchanged: variable
+projection on the full (N nch,) residual) and ``_VarPro``.  The fast path (``_transient_fit``, ``_VarProFast``: reduced
 coordinates from one QR, exponentials by products on a uniform grid, all screening candidates at once) must give the
 same vectors, std, decaying components and residual to 1e-9 relative on windows that exercise every branch: steady
 (nothing kept), a ringing mode beside 1X (kept, split candidates), a steady sub-synchronous line (rejected), noisy, a
@@ -10,8 +10,8 @@ short window (no coarse grid), jittered sample times (no uniform grid), and a si
 """
 import math
 
-from bearing_id import signals
-from bearing_id.signals import _VarPro, _VarProFast, harmonic_vectors
+from bearing_id.signals import harmonics as signals
+from bearing_id.signals.harmonics import _VarPro, _VarProFast, harmonic_vectors
 import numpy as np
 import pytest
 
@@ -100,8 +100,8 @@ def test_fast_fit_equals_reference_on_a_short_window_and_jittered_times():
 
 def test_fast_fit_equals_reference_on_a_simulated_rig_window_after_a_ramp():
     """The rig simulator's response after a speed ramp (the rotor's own modes ringing), as window_vector fits it."""
-    from bearing_id.params import load_rig
-    from bearing_id.rig import simulate_run
+    from bearing_id.config.params import load_rig
+    from bearing_id.simulation.rig import simulate_run
     rig = load_rig()
     rec = simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500, 2100], dwell=1.5, ramp=0.3)
     i0 = int(np.searchsorted(rec.t, 1.5 + 0.3 + 0.05))        # just after the ramp: ringing

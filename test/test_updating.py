@@ -6,8 +6,8 @@ under test); the paper's own Table 2 values are run and reported as they come ou
 """
 import dataclasses
 
-from bearing_id.params import load_rig
-from bearing_id.updating import apply_factors, free_free_hz, update_model
+from bearing_id.config.params import load_rig
+from bearing_id.rotor.updating import apply_factors, free_free_hz, update_model
 import numpy as np
 import pytest
 

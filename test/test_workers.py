@@ -101,8 +101,8 @@ def test_no_fork_with_another_thread_alive_or_workers_off(monkeypatch):
 
 def test_from_recordings_with_forked_workers_equals_the_plain_route():
     """The 1X extraction the commands run (windows fitted in a worker) equals from_recordings' own loop, bit for bit."""
-    from bearing_id.params import load_rig
-    from bearing_id.rig import simulate_run
+    from bearing_id.config.params import load_rig
+    from bearing_id.simulation.rig import simulate_run
     rig = load_rig()
     recs = [simulate_run(rig, run, speeds_rpm=[1200, 1800], dwell=1.2, ramp=0.3) for run in rig.simulation.runs[:2]]
     ref = harmonics.from_recordings(recs)

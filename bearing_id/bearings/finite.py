@@ -42,6 +42,8 @@ from functools import lru_cache
 import math
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .short import BearingSolution, check_inputs, short_attitude_angle, short_eccentricity, sommerfeld_number
 
@@ -86,7 +88,6 @@ class ReynoldsGrid:
     """
 
     def __init__(self, L_over_D: float, n_theta: int = DEFAULT_N_THETA, n_z: int = DEFAULT_N_Z, grooves=()):
-        import scipy.sparse as sp
         if n_theta < 16 or n_z < 2:
             raise ValueError(f'grid too coarse: n_theta={n_theta} (>= 16), n_z={n_z} (>= 2)')
         self.n, self.m = int(n_theta), int(n_z)
@@ -120,7 +121,6 @@ class ReynoldsGrid:
 
     def operator(self, a_half: np.ndarray, a_cell: np.ndarray):
         """Return div(a grad .) as a scipy.sparse CSR matrix: face coefficients ``a_half`` (i+1/2), axial ``a_cell``."""
-        import scipy.sparse as sp
         ap = a_half                               # face i+1/2
         am = np.roll(a_half, 1)                   # face i-1/2
         Dth = (sp.diags(-(ap + am)) + sp.diags(ap) @ self._Sp + sp.diags(am) @ self._Sp.T) / self.dth**2
@@ -144,7 +144,6 @@ class ReynoldsGrid:
 
         ``cavitation``: 'swift_stieber' (Reynolds conditions, default) or 'gumbel' (half-Sommerfeld).
         """
-        import scipy.sparse.linalg as spla
         if math.hypot(X, Y) >= 1.0:
             raise ValueError(f'journal position eps = {math.hypot(X, Y):.4f} is outside the clearance circle')
         H, Hh = self.film(X, Y)
@@ -202,7 +201,6 @@ class ReynoldsGrid:
 
     def _solve_gumbel(self, Lop, q, fixed, H, Hh, derivatives: bool) -> FilmState:
         """Full-film (Sommerfeld) pressure over every non-groove cell; the load integrates its positive part."""
-        import scipy.sparse.linalg as spla
         film = ~fixed
         P = np.zeros(self.n * self.m)
         P[film] = spla.spsolve(Lop[film][:, film].tocsc(), q[film])
@@ -223,7 +221,6 @@ class ReynoldsGrid:
         The equations are those of the full-film cells ``free``; ``loaded`` (Gumbel) maps a perturbation pressure
         to the perturbation of what the force integrates (default: the pressure itself).
         """
-        import scipy.sparse.linalg as spla
         cols = []
         for dh_cell, dh_half in ((-self.cos, -self.cos_h), (-self.sin, -self.sin_h)):
             dA = self.operator(3 * Hh**2 * dh_half, 3 * H**2 * dh_cell)

@@ -51,12 +51,19 @@ here); any other L/D is built on first use (161 solutions on the default grid, a
 """
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 import math
+from pathlib import Path
 import threading
+import time
 
 import numpy as np
+from scipy.interpolate import BSpline, make_lsq_spline
 
+from ._finite_tables import TABLES as SWIFT_STIEBER_TABLES
+from ._finite_tables_gumbel import TABLES as GUMBEL_TABLES
+from .finite import check_cavitation, reynolds
 from .short import BearingSolution, check_inputs, journal_position, sommerfeld_number
 
 TABLE_GRID = (192, 24)          # n_theta, n_z of the shipped tables
@@ -113,7 +120,6 @@ class FiniteTable:
     def _splines(self):
         sp = getattr(self, '_sp', None)
         if sp is None:
-            from scipy.interpolate import BSpline
             b = BSpline(np.asarray(self.knots, float), np.asarray(self.coef, float), 3, extrapolate=False)
             sp = (b, b.derivative())
             object.__setattr__(self, '_sp', sp)
@@ -146,7 +152,6 @@ def sample(L_over_D: float, n_theta: int, n_z: int, s_values, cavitation: str = 
     Dimensionless set-up D = c = mu = speed = 1 (so k = K / W, b = C / W), continuation from the largest S down
     (each start = the previous equilibrium), equilibrium to |F - W| / W <= 1e-12, with ``cavitation``.
     """
-    from .finite import reynolds
     D, L, c, mu, w = 1.0, float(L_over_D), 1.0, 1.0, 1.0
     order = np.argsort(-np.asarray(s_values, float))
     out = np.zeros((len(s_values), 10))
@@ -163,7 +168,6 @@ def sample(L_over_D: float, n_theta: int, n_z: int, s_values, cavitation: str = 
 def fit_table(L_over_D: float, s_values, rows, grid, knot_every: int = KNOT_EVERY,
               cavitation: str = 'swift_stieber') -> FiniteTable:
     """Least-squares cubic spline in ln S through sampled rows (see :func:`sample`)."""
-    from scipy.interpolate import make_lsq_spline
     s_values = np.asarray(s_values, float)
     o = np.argsort(s_values)
     x = np.log(s_values[o])
@@ -192,14 +196,7 @@ _LOCK = threading.Lock()
 
 
 def _shipped(cavitation: str = 'swift_stieber') -> dict:
-    try:
-        if cavitation == 'gumbel':
-            from ._finite_tables_gumbel import TABLES
-        else:
-            from ._finite_tables import TABLES
-    except ImportError:          # not generated yet
-        return {}
-    return TABLES
+    return GUMBEL_TABLES if cavitation == 'gumbel' else SWIFT_STIEBER_TABLES
 
 
 def table_for(L_over_D: float, *, build: bool = True, cavitation: str = 'swift_stieber') -> FiniteTable | None:
@@ -209,7 +206,6 @@ def table_for(L_over_D: float, *, build: bool = True, cavitation: str = 'swift_s
     A shipped one when L/D matches (relative 1e-9), else built on first use with the default grid (cached for the
     process), or None when ``build`` is False.
     """
-    from .finite import check_cavitation
     LD = float(L_over_D)
     check_cavitation(cavitation)
     with _LOCK:
@@ -245,7 +241,6 @@ def solution(D: float, L: float, c: float, mu: float, W: float, speed: float, *,
     S = sommerfeld_number(D, L, c, mu, W, speed)
     tab = table_for(L / D, cavitation=cavitation)
     if not tab.in_range(S):
-        from .finite import reynolds
         return reynolds(D, L, c, mu, W, speed, cavitation=cavitation)
     eps, phi, k, b = tab.evaluate(S)
     return BearingSolution(eccentricity=eps, attitude_angle=phi, sommerfeld=S, K=k * (W / c),
@@ -272,7 +267,6 @@ def _wrapped_list(prefix: str, values, suffix: str, width: int = 120) -> list[st
 
 def write_module(tables, path=None, cavitation: str = 'swift_stieber') -> str:
     """Write ``tables`` (list of FiniteTable) as the Python module :mod:`._finite_tables`; returns the path."""
-    from pathlib import Path
     gumbel = cavitation == 'gumbel'
     default = '_finite_tables_gumbel.py' if gumbel else '_finite_tables.py'
     path = Path(path) if path is not None else Path(__file__).with_name(default)
@@ -296,8 +290,6 @@ def write_module(tables, path=None, cavitation: str = 'swift_stieber') -> str:
 
 
 def main(argv=None) -> int:
-    import argparse
-    import time
     ap = argparse.ArgumentParser(description='build the shipped finite-bearing tables')
     ap.add_argument('--LD', type=float, nargs='+', default=[1.0, 0.5])
     ap.add_argument('--samples', type=int, default=N_SAMPLES)

@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import argparse
 
-from ..params import load_rig, ParamError
+from ..config.params import load_rig, ParamError, parse_probes
+from ..conventions import rpm_to_rad_s
+from ..identify.design import check_design
+from ..rotor.assembly import RotorModel
+from ..rotor.supports import bearing_fn
+from ..simulation import rig as rigmod
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -25,11 +30,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .simulate import parse_probes
-    from .. import rig as rigmod
-    from ..conventions import rpm_to_rad_s
-    from ..identify.design import check_design
-    from ..rotor.assembly import RotorModel
     rig = load_rig(args.params)
     probes = parse_probes(args.probes) if args.probes else rig.probes
     if not probes:
@@ -49,7 +49,7 @@ def run(args) -> int:
     if not 0 < args.noise < 1 or args.samples < 16:
         raise ParamError('--noise must be in (0, 1) and --samples >= 16')
     model = RotorModel.from_params(rig)
-    reports = check_design(model, probes, runs, [float(rpm_to_rad_s(s)) for s in rpm], rigmod.nominal_bearing_fn(rig),
+    reports = check_design(model, probes, runs, [float(rpm_to_rad_s(s)) for s in rpm], bearing_fn(rig),
                            sample_noise=args.noise, n_samples=args.samples)
     print(f"probes {', '.join(p.name for p in probes)}; runs {', '.join(r.id for r in runs)}; "
           f'noise {args.noise:g} x RMS over {args.samples} samples; linearised at the nominal bearing theory')

@@ -6,9 +6,18 @@ Exit codes: 0 a verdict was reached ('none' included), 2 bad input.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
+import json
 from pathlib import Path
 
-from ..params import load_rig, ParamError
+from .inputs import attach_excitation, check_probe_nodes, load_recordings
+from .report import report_for_diagnosis
+from .workers import in_background
+from ..config.params import load_rig, ParamError
+from ..diagnose import diagnose
+from ..diagnose.floor import identify_vectors
+from ..diagnose.reidentify import format_table, reidentify
+from ..diagnose.report import augmented_rig, write_json, write_params, write_summary
 
 EPILOG = """\
 what is printed:
@@ -76,7 +85,6 @@ def _load(paths) -> list:
 
     ParamError (exit 2) for any bad input.
     """
-    from .inputs import load_recordings
     return load_recordings(paths)
 
 
@@ -86,9 +94,6 @@ def _floor_vectors(recs):
 
     What a worker sends back (the 1X vectors, not the samples); :func:`_with_recordings` puts them back.
     """
-    from dataclasses import replace
-
-    from ..diagnose.floor import identify_vectors
     obs = identify_vectors(recs)
     if getattr(obs, 'harmonic_data', None) is not None:
         obs.harmonic_data = replace(obs.harmonic_data, recordings=[])
@@ -97,7 +102,6 @@ def _floor_vectors(recs):
 
 def _with_recordings(obs, recs):
     """Return ``obs`` from :func:`_floor_vectors` with the recordings back in its HarmonicData."""
-    from dataclasses import replace
     if getattr(obs, 'harmonic_data', None) is not None:
         obs.harmonic_data = replace(obs.harmonic_data, recordings=list(recs))
     return obs
@@ -106,13 +110,9 @@ def _with_recordings(obs, recs):
 def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
         raise ParamError('--rel-tol must be in [0, 1)')
-    from .inputs import attach_excitation, check_probe_nodes
     rig = load_rig(args.params)
     recs = attach_excitation(_load(args.recordings), rig, required=False)   # all checked before the heavy imports
     check_probe_nodes(recs, rig.shaft.n_nodes)
-    from ..diagnose import diagnose
-    from ..diagnose.report import write_json, write_params, write_report
-    from .workers import in_background
     # identify's 1X vectors for the noise-floor check, fitted in a worker while this process locates and selects
     floor = None if args.no_noise_floor else in_background(_floor_vectors, recs)
     try:
@@ -147,8 +147,6 @@ def run(args) -> int:
         print(f'wrote {args.json}')
     ri = None
     if args.identify:
-        from ..diagnose.reidentify import format_table, reidentify
-        from ..diagnose.report import augmented_rig
         try:
             ri = reidentify(recs, rig, augmented_rig(d, rig), args.identify, data=d.harmonic_data)
         except ValueError as exc:
@@ -158,13 +156,11 @@ def run(args) -> int:
         for line in table:
             print(line)
         if args.json:
-            import json
             j = json.loads(Path(args.json).read_text())
             j['identification'] = ri.as_json()
             Path(args.json).write_text(json.dumps(j, indent=2, default=float))
     if args.report:
-        files = write_report(d, args.report, plots=False)
-        from .report import report_for_diagnosis
+        files = [write_summary(d, args.report)]
         info = report_for_diagnosis(d, recs, rig, args.report, reidentification=ri,
                                     method=args.identify or 'physical', cli_text='\n'.join(out),
                                     command='bearing-id diagnose ' + ' '.join(args.recordings), write_png=True,

@@ -7,15 +7,23 @@ Exit codes: 0 every printed coefficient is determined by the data (or --allow-un
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 import sys
 
 import numpy as np
 
-from ..params import load_rig, ParamError
-
-UNITS = {'K': 'N/m', 'C': 'N s/m'}
+from .inputs import attach_excitation, check_probe_nodes, InputError, load_recordings
+from .report import build_report
+from .workers import forked_map
+from ..config.params import load_rig, ParamError
+from ..identify import harmonics, identify
+from ..identify.paper import bearing_dofs, forces_at
+from ..identify.result import format_results
+from ..plots import plot_bearing_vectors, plot_coefficients
+from ..rotor.assembly import harmonic_response, RotorModel
+from ..rotor.supports import bearing_fn
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -61,46 +69,13 @@ def load_data(inputs, rig=None):
     windows' 1X fits run in forked workers when there is a spare core (:func:`bearing_id.commands.workers.forked_map`;
     the same vectors).
     """
-    from .inputs import attach_excitation, load_recordings
     recs = load_recordings(inputs, one_bag_only=True)
     if rig is not None:
         recs = attach_excitation(recs, rig, required=True)
-    from .inputs import InputError
-    from ..identify import harmonics
-    from .workers import forked_map
     try:
         return harmonics.from_recordings(recs, window_map=forked_map)
     except ValueError as exc:
         raise InputError(f"{', '.join(map(str, inputs))}: {exc}") from None
-
-
-def _fmt(v):
-    return 'nan' if not math.isfinite(v) else f'{v:.4g}'
-
-
-def format_results(results, allow_undetermined: bool) -> str:
-    """Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged."""
-    lines = []
-    for r in results:
-        lines.append(f'speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  '
-                     f'condition {_fmt(r.condition)}  residual {_fmt(r.residual)}')
-        lines.append(f"  {'bearing':10s} {'coeff':5s} {'value':>12s} {'1-sigma':>12s}  unit")
-        for b, name in enumerate(r.bearings):
-            for sym in ('K', 'C'):
-                val, std, det = getattr(r, sym), getattr(r, sym + '_std'), getattr(r, sym + '_determined')
-                for k, lab in enumerate(('xx', 'xy', 'yx', 'yy')):
-                    i, j = divmod(k, 2)
-                    if det[b, i, j]:
-                        lines.append(f'  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} '
-                                     f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}')
-                    elif allow_undetermined:
-                        lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
-                                     f'{UNITS[sym]} (prior)')
-                    else:
-                        lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
-        for n in r.notes:
-            lines.append(f'  note: {n}')
-    return '\n'.join(lines)
 
 
 def _add_honesty(d: dict, r) -> None:
@@ -120,9 +95,6 @@ def _add_honesty(d: dict, r) -> None:
 
 def bearing_vectors_plot(model, data, results, plot_path):
     """Plot the paper's Figs 5-6: KF bearing-node 1X vectors per run vs speed, the truth's when known -> PNG path."""
-    from ..identify.paper import bearing_dofs, forces_at
-    from ..plots import plot_bearing_vectors
-    from ..rotor.assembly import harmonic_response
     if not results or any('z_B' not in r.extra for r in results):
         return None
     est = np.stack([np.asarray(r.extra['z_B']) for r in results], axis=1)          # (nr, ns, nb, 2)
@@ -141,11 +113,8 @@ def bearing_vectors_plot(model, data, results, plot_path):
 
 
 def run(args) -> int:
-    from .inputs import check_probe_nodes
     rig = load_rig(args.params)
     data = load_data(args.inputs, rig)      # every input checked before the heavy imports
-    from ..identify import identify
-    from ..rotor.assembly import RotorModel
     model = RotorModel.from_params(rig)
     check_probe_nodes(data.recordings, model.n_nodes)
     opts = {}
@@ -189,11 +158,8 @@ def run(args) -> int:
                                   for row, okr in zip(b[sym], b['determined'][sym])]
             _add_honesty(d, r)
             out.append(d)
-        import json
         Path(args.json).write_text(json.dumps({'method': args.method, 'results': out}, indent=1))
     if args.plot:
-        from ..bearings import bearing_fn
-        from ..plots import plot_coefficients
         plot_coefficients(results, args.plot, truth_fn=data.truth or None, theory_fn=bearing_fn(rig),
                           title=f'method {args.method}')
         if args.method == 'paper':
@@ -201,7 +167,6 @@ def run(args) -> int:
             if p is not None:
                 print(f'bearing-node vectors plot: {p}')
     if args.report:
-        from .report import build_report
         info = build_report(rig, data.recordings, args.report, data=data, results=results,
                             allow_undetermined=args.allow_undetermined,
                             command='bearing-id identify ' + ' '.join(args.inputs) + f' --method {args.method}')

@@ -3,7 +3,7 @@
 
 Reads the TOML written by ROSS's ``Rotor.save`` (ROSS itself is not needed) and writes a params file with the
 shaft elements, materials, discs, bearings and seals as tables vs speed, pedestals as supports (see
-:mod:`bearing_id.ross_import` for every mapping).  Prints what was imported and the mappings it made, then loads
+:mod:`bearing_id.io.ross_import` for every mapping).  Prints what was imported and the mappings it made, then loads
 the file it wrote (exit 1 with a warning if this params version cannot load it).
 """
 from __future__ import annotations
@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..params import load_rig, ParamError
-from ..ross_import import import_ross, LAYERS, TABLE_VALUES, to_yaml
+from ..config.params import load_rig, ParamError
+from ..io.ross_import import import_ross, LAYERS, TABLE_VALUES, to_yaml
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:

@@ -1,19 +1,24 @@
 """
 The recordings the offline commands read (``identify``, ``diagnose``): files or a rosbag2 bag.
 
-``.npz`` files (``bearing-id simulate``, :meth:`bearing_id.rig.Recording.save_npz`), ``.csv`` DAQ exports
-(:mod:`bearing_id.daq`) or a rosbag2 bag.
+``.npz`` files (``bearing-id simulate``, :meth:`bearing_id.signals.recording.Recording.save_npz`), ``.csv`` DAQ exports
+(:mod:`bearing_id.io.daq`) or a rosbag2 bag.
 
 Every way a file can be wrong -- missing, unreadable, truncated, corrupt, hostile (a zip bomb, a crafted header),
 inconsistent (array sizes that disagree), unusable (NaN samples, no excitation) -- is a :class:`ParamError` (exit 2)
 naming the file and the problem; nothing large is read before the sizes have been checked against each other
-(:func:`bearing_id.rig.load_npz`, :func:`bearing_id.io.bags.read_bag`).
+(:func:`bearing_id.io.recordings.load_npz`, :func:`bearing_id.io.bags.read_bag`).
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-from ..params import ParamError
+from ..config.params import ParamError
+from ..io.bags import bag_topics, BagError
+from ..io.daq import read_csv
+from ..io.recordings import load_npz, recordings_from_bag
+from ..signals.recording import check_recording
 
 RECORDING_SUFFIXES = ('.npz', '.csv', '.txt')
 BAG_SUFFIXES = ('.mcap', '.db3')
@@ -28,14 +33,12 @@ def is_bag(path: Path) -> bool:
 
 
 def load_recording_file(path: Path):
-    """One ``.npz`` or ``.csv`` recording -> :class:`bearing_id.rig.Recording` (checked); ParamError if unusable."""
-    from ..rig import check_recording, load_npz
+    """One ``.npz`` or ``.csv`` recording -> a checked Recording; ParamError if unusable."""
     suffix = path.suffix.lower()
     try:
         if suffix == '.npz':
             return load_npz(path)
         if suffix in ('.csv', '.txt'):
-            from ..daq import read_csv
             return check_recording(read_csv(path), str(path))
     except ValueError as exc:           # rig / daq errors (DaqError, UnicodeDecodeError are ValueErrors)
         msg = str(exc)
@@ -51,7 +54,6 @@ def precheck_bag(path: Path) -> dict:
 
     Done before the (slower) full read and the import of the signal-processing modules.
     """
-    from ..io.bags import bag_topics, BagError
     try:
         topics = bag_topics(path)
     except BagError as exc:
@@ -65,9 +67,6 @@ def precheck_bag(path: Path) -> dict:
 
 def load_bag_recordings(path: Path) -> list:
     """One checked Recording per excitation run of a bag; ParamError if the bag cannot be used."""
-    from ..identify.harmonics import recordings_from_bag
-    from ..io.bags import BagError
-    from ..rig import check_recording
     try:
         recs = recordings_from_bag(path)
         return [check_recording(r, f'{path}: run {r.run.id}') for r in recs]
@@ -125,7 +124,6 @@ def attach_excitation(recordings, rig, *, required: bool) -> list:
     with the same id (``simulation.runs[].id``).  ``required``: otherwise refuse it (identification needs the known
     excitation); else leave it as it is.
     """
-    import dataclasses
     runs = {r.id: r for r in (rig.simulation.runs if rig.simulation is not None else ())}
     out = []
     for rec in recordings:

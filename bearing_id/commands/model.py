@@ -18,8 +18,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.params import load_rig, ParamError
 from ..conventions import COEFF_ORDER, rpm_to_rad_s
-from ..params import load_rig, ParamError
+from ..plots.campbell import campbell_figure, mode_shapes_figure
+from ..plots.coefficients import theory_coefficients_figure
+from ..plots.common import save_png
+from ..plots.data import campbell_data, CampbellData, critical_mode_index, mode_shapes
+from ..rotor import supports
+from ..rotor.assembly import RotorModel, static_bearing_loads
+from ..rotor.modal import damped_modes, free_free_frequencies
+from ..rotor.updating import update_model
 
 TWO_PI = 2.0 * math.pi
 
@@ -61,13 +69,8 @@ def _speeds(args, rig):
 
 def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     """Everything the command prints, as a dict (SI, with rpm/Hz copies)."""
-    from .. import bearings
-    from ..plots.data import campbell_data
-    from ..rotor.assembly import RotorModel, static_bearing_loads
-    from ..rotor.modal import damped_modes, free_free_frequencies
-
     model = RotorModel.from_params(rig)
-    bfn = bearings.bearing_fn(rig)
+    bfn = supports.bearing_fn(rig)
     out: dict = {'rig': rig.name, 'mass_kg': model.mass, 'n_nodes': model.n_nodes, 'n_elements': len(model.elements),
                  'ndof': model.ndof,
                  'static_loads_N': {str(k): v for k, v in static_bearing_loads(model).items()},
@@ -95,7 +98,6 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     out['stability_whirl_ratio'] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
     out['notes'] = list(cd.notes)
     if update and rig.modal_test is not None and rig.modal_test.measured_hz:
-        from ..updating import update_model
         res = update_model(rig, rig.modal_test.measured_hz, maxiter=1500)
         out['updating'] = {'table': res.table(), 'factors': res.factors, 'initial_hz': res.initial_hz.tolist(),
                            'measured_hz': res.measured_hz.tolist(), 'updated_hz': res.updated_hz.tolist(),
@@ -147,7 +149,6 @@ def _print_report(r: dict) -> None:
 
 def campbell_from_report(r: dict):
     """Return the :class:`bearing_id.plots.data.CampbellData` of an :func:`analyse` dict (what campbell.png draws)."""
-    from ..plots.data import CampbellData
     cb = r['campbell']
     rpm = np.array(cb['speeds_rpm'], float)
     thr = r['stability_threshold_rpm']
@@ -163,9 +164,6 @@ def campbell_from_report(r: dict):
 
 def _plots(r: dict, out: Path, rig=None) -> list[Path]:
     """campbell.png, coefficients.png and (with ``rig``) mode_shapes.png at the critical speeds."""
-    from ..plots.campbell import campbell_figure, mode_shapes_figure
-    from ..plots.coefficients import theory_coefficients_figure
-    from ..plots.common import save_png
     cd = campbell_from_report(r)
     rows = r['speeds']
     paths = [save_png(campbell_figure(cd, measured_rpm=[row['speed_rpm'] for row in rows],
@@ -179,11 +177,8 @@ def _plots(r: dict, out: Path, rig=None) -> list[Path]:
     paths.append(save_png(theory_coefficients_figure([row['speed_rpm'] for row in rows], coeffs, names),
                           out / 'coefficients.png', dpi=110))
     if rig is not None and cd.critical.size:
-        from .. import bearings
-        from ..plots.data import critical_mode_index, mode_shapes
-        from ..rotor.assembly import RotorModel
         model = RotorModel.from_params(rig)
-        bfn = bearings.bearing_fn(rig)
+        bfn = supports.bearing_fn(rig)
         sh = []
         for w in cd.critical[:3]:
             m = mode_shapes(model, bfn, w, 4)

@@ -16,6 +16,9 @@ from pathlib import Path
 import sys
 import time
 
+from ..io.bags import bag_topics, BagError, offered_qos, read_bag
+from ..nodes.common import qos_latched, qos_stream, StopFlag
+
 LATCHED = ('/rotor/excitation', '/bearing_id/coefficients')
 
 
@@ -56,8 +59,6 @@ def run(args) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from ..io.bags import bag_topics, BagError, offered_qos, read_bag
-    from ..nodes.common import qos_latched, qos_stream, StopFlag
     if not args.rate > 0:
         print('bearing-id play: --rate must be > 0', file=sys.stderr)
         return 2

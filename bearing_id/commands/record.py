@@ -21,9 +21,14 @@ from __future__ import annotations
 
 import argparse
 import collections
+import hashlib
 from pathlib import Path
 import sys
 import time
+
+from .play import LATCHED, msg_class
+from ..io.bags import BagError, BagWriter, default_qos, qos_from_rclpy, recover_bag, typestore
+from ..nodes.common import qos_stream, StopFlag, subscribe_latched
 
 DEFAULT_TOPICS = {
     '/rotor/displacement': 'bearing_id_msgs/msg/DisplacementBlock',
@@ -70,7 +75,6 @@ def parse_topics(items) -> dict:
 
 
 def recover(path: Path) -> int:
-    from ..io.bags import BagError, recover_bag
     try:
         out, sv, backup = recover_bag(path)
     except BagError as exc:
@@ -85,7 +89,6 @@ def recover(path: Path) -> int:
 
 def publisher_qos(node, topic: str) -> list:
     """Return the QoS every publisher of ``topic`` offers, as rosbags ``Qos`` (empty when none is known)."""
-    from ..io.bags import qos_from_rclpy
     try:
         return [qos_from_rclpy(i.qos_profile) for i in node.get_publishers_info_by_topic(topic)]
     except Exception:  # pragma: no cover - graph query failed; the caller falls back to the nodes' QoS
@@ -99,9 +102,6 @@ def run(args) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from .play import LATCHED, msg_class
-    from ..io.bags import BagError, BagWriter, default_qos, typestore
-    from ..nodes.common import qos_stream, StopFlag, subscribe_latched
     try:
         topics = parse_topics(args.topics)
     except ValueError as exc:
@@ -135,7 +135,6 @@ def run(args) -> int:
     last = [None]
     failure = []
 
-    import hashlib
     seen = {t: collections.deque(maxlen=64) for t in topics if t in LATCHED}   # latched: heard twice (below)
 
     def cb_for(topic, typ):

@@ -14,14 +14,40 @@ already computed.  Exit codes: 0 page written, 2 bad input.
 from __future__ import annotations
 
 import argparse
+from concurrent.futures import ProcessPoolExecutor
+import dataclasses
 from dataclasses import dataclass, field
 import math
+import multiprocessing
+import os
 from pathlib import Path
+import pickle
 import time
 
 import numpy as np
 
-from ..params import load_rig, ParamError
+from .inputs import attach_excitation, check_probe_nodes, load_recordings
+from .workers import worker_setup
+from ..config.params import load_rig, ParamError
+from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
+from ..diagnose.reidentify import format_table
+from ..excitation import harmonic_forces
+from ..identify import harmonics, identify
+from ..identify.harmonics import recording_vectors
+from ..identify.result import format_results
+from ..plots import data as fd
+from ..plots.campbell import campbell_figure, mode_shapes_figure
+from ..plots.centreline import centreline_figure
+from ..plots.coefficients import coefficients_figure
+from ..plots.common import png_bytes, probe_text, warm_up
+from ..plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
+from ..plots.html import esc, Page
+from ..plots.orbits import orbits_figure
+from ..plots.response import bode_figure, Curve, polar_figure
+from ..plots.spectrum import waterfall_figure
+from ..rotor import supports
+from ..rotor.assembly import RotorModel
+from ..rotor.modal import modes_solver
 
 REPORT_NAME = 'report.html'
 METHOD_CHOICES = ('physical', 'direct', 'paper', 'conventional', 'none')
@@ -46,7 +72,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .inputs import attach_excitation, check_probe_nodes, load_recordings
     rig = load_rig(args.params)
     if args.max_rpm is not None and not args.max_rpm > 0:
         raise ParamError('--max-rpm must be > 0')
@@ -81,7 +106,6 @@ class ReportInfo:
 
 
 def _rpm(w):
-    from ..conventions import RPM_PER_RAD_S
     return np.asarray(w, float) * RPM_PER_RAD_S
 
 
@@ -101,7 +125,6 @@ def _fmt(v, digits=4) -> str:
 
 
 def _has_forcing(run, n_nodes) -> bool:
-    from ..excitation import harmonic_forces
     try:
         return 1.0 in harmonic_forces(run.excitation, 100.0, n_nodes)
     except ValueError:
@@ -130,7 +153,6 @@ def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, l
 
     A coefficient the data do not determine is shown as 'undetermined' (never as a plain number).
     """
-    from ..conventions import COEFF_ORDER
     header = ['rpm', 'bearing'] + [f'K{c} [N/m]' for c in COEFF_ORDER] + [f'C{c} [N s/m]' for c in COEFF_ORDER] \
         + ['rank', 'condition', 'flags']
     rows = []
@@ -159,7 +181,6 @@ def modes_rows(model, bearing_fn, speeds, n_modes: int = 6, method: str = 'auto'
 
     This is the table ``bearing-id model`` prints; ``method`` as :func:`bearing_id.rotor.modal.modes_solver`.
     """
-    from ..rotor.modal import modes_solver
     rows = []
     speeds = np.asarray(speeds, float)
     modes = modes_solver(model, float(np.max(speeds)), method, bearing_fn, n_modes) if speeds.size else None
@@ -174,13 +195,11 @@ def modes_rows(model, bearing_fn, speeds, n_modes: int = 6, method: str = 'auto'
 # ------------------------------------------------------------------------------------------------ rendering
 def _png_of(fn, args, kw) -> bytes:
     """Build a figure and render it to PNG bytes (runs in a worker process)."""
-    from ..plots.common import png_bytes
     return png_bytes(fn(*args, **kw))
 
 
 def _run_pickled(payload: bytes):
     """Return fn(*args, **kw) of ``payload`` = pickle of (fn, args, kw) (runs in a worker process)."""
-    import pickle
     fn, args, kw = pickle.loads(payload)
     return fn(*args, **kw)
 
@@ -202,9 +221,6 @@ def _run_vectors(i: int) -> list:
 
     Runs in a worker.
     """
-    import dataclasses
-
-    from ..identify.harmonics import recording_vectors
     return [dataclasses.replace(v, window=None) for v in recording_vectors(_SHARED[i])]
 
 
@@ -223,12 +239,8 @@ class _Renderer:
         if workers > 0 and not keep:
             _SHARED[:] = list(shared)
             try:
-                from ..plots.common import warm_up
                 warm_up()                   # matplotlib loaded once, inherited by the forked workers
-                from concurrent.futures import ProcessPoolExecutor
-                import multiprocessing
 
-                from .workers import worker_setup       # they ignore Ctrl-C and die with this process
                 self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context('fork'),
                                                 initializer=worker_setup)
             except (ValueError, OSError, ImportError):     # no fork on this platform: render here
@@ -238,7 +250,6 @@ class _Renderer:
         """PNG of ``fn(*args, **kw)`` (a future); ``here``: render in this process now (it would idle otherwise)."""
         if self.pool is not None and not here:
             return self._submit(_png_of, (fn, args, kw), {})
-        from ..plots.common import png_bytes
         fig = fn(*args, **kw)
         if self.keep:
             self.figures[name] = fig
@@ -261,7 +272,6 @@ class _Renderer:
         The pool pickles its call items later, in a feeder thread: arguments this thread goes on changing (a result's
         dict, a list being filled) would be pickled half-changed ("dictionary changed size during iteration").
         """
-        import pickle
         return self.pool.submit(_run_pickled, pickle.dumps((fn, args, kw), protocol=pickle.HIGHEST_PROTOCOL))
 
     def start_vectors(self, recordings):
@@ -286,7 +296,6 @@ class _Renderer:
         ``from_recordings`` does (:func:`harmonics.recording_vectors` per run, :func:`harmonics.stack_vectors`;
         test/test_report.py checks that the two are equal).
         """
-        from ..identify import harmonics
         recs = list(recordings)
         if futures is None:
             return harmonics.from_recordings(recs)          # the one route, with its own error messages
@@ -301,7 +310,6 @@ class _Renderer:
 
 def default_workers() -> int:
     """Worker processes for figures: ``BEARING_ID_REPORT_WORKERS`` (0 = none), else 2 on a machine with 2+ cores."""
-    import os
     v = os.environ.get('BEARING_ID_REPORT_WORKERS')
     if v is not None and v.strip().isdigit():
         return int(v)
@@ -369,17 +377,6 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
 
 def _build(R, rig, recordings, outdir, *, data, results, method, options, diagnosis, reidentification, cli_text,
            command, max_rpm, write_png, allow_undetermined) -> ReportInfo:
-    from .. import bearings as bmod
-    from ..conventions import rpm_to_rad_s
-    from ..plots import data as fd
-    from ..plots.campbell import campbell_figure, mode_shapes_figure
-    from ..plots.centreline import centreline_figure
-    from ..plots.coefficients import coefficients_figure
-    from ..plots.html import esc, Page
-    from ..plots.orbits import orbits_figure
-    from ..plots.response import bode_figure, Curve, polar_figure
-    from ..plots.spectrum import waterfall_figure
-    from ..rotor.assembly import RotorModel
     tm = _Timer()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -387,7 +384,7 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     fdata: dict = {}
     figs: list = []                       # (name, future, caption), in page order within each section
     model = RotorModel.from_params(rig)
-    theory = bmod.bearing_fn(rig)
+    theory = supports.bearing_fn(rig)
     recordings = list(recordings or [])
     if rig.extra and rig.extra.get('effects'):
         notes.append('the params carry extra.effects (an augmented model): the model curves here use the rotor and '
@@ -441,7 +438,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     # ---------------------------------------------------------------- spectra
     sec_spectra = []
     if data is not None and data.windows:
-        from ..plots.common import probe_text
         fmax = 2.6 * float(test_speeds.max()) / (2 * math.pi)
         spec = {c: [fd.waterfall_data(data, r, c, fmax) for r in range(len(data.recordings))]
                 for c in range(len(probes))}
@@ -465,7 +461,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
                                 head + '. ' + CAPTIONS['spectrum']))
     forced = [_has_forcing(r, model.n_nodes) for r in runs]
     if results is None and data is not None and method not in (None, 'none'):
-        from ..identify import identify
         if not all(forced):
             notes.append(f'identification ({method}) skipped: run(s) '
                          f"{', '.join(str(r.id) for r, f in zip(runs, forced) if not f)} carry no known excitation")
@@ -527,7 +522,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     # ---------------------------------------------------------------- diagnosis
     sec_diag, dc = [], None
     if diagnosis is not None:
-        from ..plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
         try:
             dc = fd.diagnosis_curves(diagnosis)
         except (AttributeError, IndexError, KeyError, TypeError, ValueError) as exc:
@@ -671,7 +665,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         h, rws = coefficient_rows(results, allow_undetermined)
         page.table(h, rws, left_cols=2)
         if cli_text is None:
-            from .identify import format_results
             cli_text = 'units: speed rpm, K N/m, C N s/m\n' + format_results(results, allow_undetermined)
     if diagnosis is not None:
         page.section('Diagnosis: before / after', 'diagnosis')
@@ -691,7 +684,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
                        left_cols=2)
         if reidentification is not None:
             try:
-                from ..diagnose.reidentify import format_table
                 page.pre('\n'.join(format_table(reidentification)))
             except Exception as exc:   # noqa: BLE001 - a table we cannot format is left out, not fatal
                 page.paragraph(f're-identification table not available: {exc}', cls='muted')

@@ -4,37 +4,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..params import load_rig, ParamError, Probe
-
-
-def parse_probes(text: str) -> tuple[Probe, ...]:
-    """
-    Parse '6x,6y,3x' -> probes p6x, p6y, p3x (node numbers 1-based, direction x or y).
-
-    'NODE@ANGLE' is a probe at ANGLE degrees from +x towards +y: '17@45,17@135' is an API 670 pair at +-45 deg from
-    vertical at node 17 (probes p17a45, p17a135).
-    """
-    from ..conventions import probe_direction
-    out = []
-    for tok in filter(None, (s.strip() for s in text.split(','))):
-        if '@' in tok:
-            node, _, angle = tok.partition('@')
-            try:
-                a = float(angle)
-                ok = node.isdigit() and -360.0 <= a <= 360.0
-            except ValueError:
-                ok = False
-            if not ok:
-                raise ParamError(f"--probes: '{tok}' is not NODE@ANGLE (e.g. 17@45: node 17, 45 deg from +x to +y)")
-            out.append(Probe(f'p{node}a{angle}', int(node), probe_direction(a)))
-            continue
-        node, direction = tok[:-1], tok[-1]
-        if direction not in ('x', 'y') or not node.isdigit():
-            raise ParamError(f"--probes: '{tok}' is not NODE followed by x or y (e.g. 6x) or NODE@ANGLE (17@45)")
-        out.append(Probe(f'p{node}{direction}', int(node), direction))
-    if not out:
-        raise ParamError('--probes: no probe given')
-    return tuple(out)
+from ..config.params import load_rig, ParamError, parse_probes
+from ..io.recordings import save_npz
+from ..simulation import rig as rigmod
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -55,7 +27,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from .. import rig as rigmod
     rig = load_rig(args.params)
     if rig.simulation is None:
         raise ParamError('the params file has no simulation section')
@@ -79,7 +50,7 @@ def run(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     for r in runs:
         rec = rigmod.simulate_run(rig, r, speeds_rpm=speeds, dwell=args.dwell, noise=args.noise, probes=probes)
-        path = rec.save_npz(out / f'run_{r.id}.npz')
+        path = save_npz(rec, out / f'run_{r.id}.npz')
         print(f'wrote {path}  ({rec.samples.shape[0]} samples x {rec.samples.shape[1]} channels at '
               f'{rec.sample_rate:.0f} Hz, run {r.id})')
     return 0

@@ -22,7 +22,9 @@ ignore Ctrl-C (this process stops them) and are killed by the kernel when this p
 """
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 import math
+import multiprocessing
 import os
 import signal
 import threading
@@ -131,8 +133,6 @@ def forked_map(fn, items, workers: int | None = None) -> list:
     if n < 1 or not _may_fork():
         return [fn(x) for x in items]
     try:
-        from concurrent.futures import ProcessPoolExecutor
-        import multiprocessing
         ctx = multiprocessing.get_context('fork')
         counter = ctx.Value('q', 0)
     except (ImportError, ValueError, OSError):        # no fork on this platform
@@ -202,7 +202,6 @@ class Background:
         self.forked = False                             # True when the work runs (or ran) in a forked worker
         if fork:
             try:
-                import multiprocessing
                 ctx = multiprocessing.get_context('fork')
                 self._conn, child = ctx.Pipe(duplex=False)
                 _PARENT = os.getpid()

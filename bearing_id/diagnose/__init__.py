@@ -36,9 +36,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .effects import candidates, EFFECT_NAMES
+from .floor import adopt, chi2_dof, floor_problem, form_row, noise_floor_check, refine
 from .locate import locate, Mismatch, Observations, observe
 from .predict import Problem
-from .select import run_folds, select, Selection, speed_folds
+from .select import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
 
 
 @dataclass
@@ -126,7 +127,6 @@ def _nuisance_words(prob, theta) -> list:
     Sentences flagging refitted bearing factors far from nominal (beyond 2 prior sigma) or at the nuisance bound:
     there the nuisance may be standing in for missing physics.
     """
-    from .select import NUIS_BOUND
     if not prob.n_nuis:
         return []
     th = np.asarray(theta, float)
@@ -153,7 +153,6 @@ def _settle_form(prob, fprob, s, cands, dbic_min):
     selection's final fit is re-made with it when it is another one) and the tolerance-level ambiguity between forms
     is dropped when the noise floor resolves it (BIC difference above ``dbic_min``).
     """
-    from .select import conflicts, fit
     i = next(n for n, e in enumerate(s.final.effects) if e.name == 'bearing_model_form')
     chosen = s.final.effects[i]
     rest = [e for e in s.final.effects if e is not chosen]
@@ -183,7 +182,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     Diagnose what physics the nominal model ``rig`` (RigParams) misses in ``recordings``.
 
     recordings : list of recordings (``samples`` (N, nch) m, ``angle`` rad, ``speed`` rad/s, ``t`` s, ``probes``,
-        ``run.excitation`` the known excitation), e.g. :class:`bearing_id.rig.Recording` or from ``rig.load_npz``.
+        ``run.excitation`` the known excitation), e.g. :class:`bearing_id.signals.recording.Recording` or from
+        ``rig.load_npz``.
     held_out : 'speeds' (fit on every other recorded speed, predict the rest, both ways) or 'runs' (alternate
         recordings; needs >= 2).
     rel_tol : model tolerance added to the noise floor (fraction of the measured amplitude).
@@ -195,8 +195,6 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         e.g. fitted meanwhile in another process: :mod:`bearing_id.commands.diagnose`); default: computed here when
         the noise-floor check needs them.
     """
-    from .floor import adopt, chi2_dof, floor_problem, form_row, noise_floor_check, refine
-    from .select import fit
     recordings = list(recordings)
     obs = observe(recordings)
     if not obs.windows:

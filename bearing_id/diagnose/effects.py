@@ -3,7 +3,7 @@ Candidate physics the nominal model may have left out, as parametric augmentatio
 
 Each class is one small piece of physics with its parameters.  Linear parameters (``n_lin``, real) enter the
 prediction as columns (y = y0 + A p); nonlinear ones (``nl_*``) change the dynamic stiffness.  The simulator-side
-versions used to make concealed-effect recordings live in :mod:`bearing_id.truth_effects` and are written along a
+versions used to make concealed-effect recordings live in :mod:`bearing_id.simulation.effects` and are written along a
 different route.  Units SI; node numbers 1-based; phasors as in :mod:`bearing_id.conventions`.
 
 Any effect may apply at any location the data allow (another bearing, plane, probe, disc, coupling end); variants
@@ -21,10 +21,12 @@ import math
 
 import numpy as np
 
+from .effect import Effect
 from .predict import form_label, forward_force, model_forms
+from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
-from ..params import ExcitationEntry
+from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel
 
 SLOW_ROLL_RPM = 400.0     # windows below this speed are slow roll (as locate.locate)
 
@@ -34,65 +36,6 @@ EFFECT_NAMES = ('support_flexibility', 'residual_unbalance', 'shaft_bow', 'probe
 
 def _dir_word(d: str) -> str:
     return 'horizontal (x)' if d == 'x' else 'vertical (y)'
-
-
-class Effect:
-    """Base: a no-op augmentation.  Subclasses set ``name``, ``where`` and override the hooks they need."""
-
-    name = 'none'
-    n_lin = 0
-    acts_on_1x = True        # False for effects seen only off 1X (2X forcing, a sub-synchronous whirl)
-    nl_names: tuple = ()
-    nl_lo: tuple = ()
-    nl_hi: tuple = ()
-    key = ''
-
-    def __init__(self):
-        self.where = ''
-
-    @property
-    def starts(self) -> list:
-        """Return the starting points for the nonlinear parameters (several for multi-start)."""
-        return [np.zeros(0)]
-
-    # hooks (see predict.Problem) ------------------------------------------------------------------
-    def bearing_impedance(self, prob, node, Zb, speed, omega, nl):
-        return Zb
-
-    def bearing_factors(self, nl):
-        """(viscosity factors, clearance factors) per bearing applied to the bearing theory, or None."""
-        return None
-
-    def add_dZ(self, prob, Z, speed, omega, nl):
-        return None
-
-    def force_columns(self, prob, k, ratio, nl):
-        return None
-
-    def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
-        return None
-
-    # reporting --------------------------------------------------------------------------------------
-    def physical(self, nl, lin) -> dict:
-        return {}
-
-    def sentence(self, phys: dict, std: dict) -> str:
-        return self.name
-
-    def to_extra(self, phys: dict) -> dict:
-        return {'effect': self.name, **{k: float(v) for k, v in phys.items()}}
-
-    def conflicts(self, other) -> bool:
-        """Return True when this variant cannot be fitted together with ``other`` (besides being the same variant)."""
-        return False
-
-    def undetermined(self, phys: dict, std: dict) -> list:
-        """Names of the physical parameters the data do not determine (reported as such, not as numbers)."""
-        return []
-
-    @property
-    def label(self) -> str:
-        return f'{self.name} [{self.where}]' if self.where else self.name
 
 
 DETERMINED_REL = 0.075    # a parameter is reported as a number when its 1-sigma is <= 7.5 % (2 sigma <= 15 %)
@@ -330,7 +273,6 @@ class DiscMassError(Effect):
 
     @classmethod
     def from_extra(cls, d, rig):
-        from ..rotor.assembly import RotorModel
         node = int(d['node'])
         disc = RotorModel.from_params(rig).discs[node]
         return cls(node, disc), np.array([float(d['mass_factor'])]), np.zeros(0)
@@ -432,7 +374,6 @@ class ShaftBow(Effect):
 
     @classmethod
     def from_extra(cls, d, rig):
-        from ..rotor.assembly import RotorModel
         B = d['bow'] * np.exp(1j * math.radians(d.get('phase_deg', 0.0)))
         return cls(RotorModel.from_params(rig)), np.zeros(0), np.array([B.real, B.imag])
 
@@ -772,7 +713,6 @@ def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: 
     condensed onto the journal DOFs, disc mass corrections) at spin ``speed`` and frequency ``omega`` [rad/s].
     ``effects`` : the :func:`effects_from_extra` list, when already built.
     """
-    from ..rotor.assembly import add_film_impedance, dynamic_stiffness
 
     class _P:  # the minimal context the hooks read
         pass

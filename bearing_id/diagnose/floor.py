@@ -48,9 +48,9 @@ import numpy as np
 
 from .locate import Observations, Window
 from .predict import Problem
-from .select import evaluate, fit, speed_folds, validate
-
-MISFIT_CHI2 = 3.0       # fallback chi2/dof limit when identify's test is not importable
+from .select import evaluate, fit, NUIS_BOUND, speed_folds, validate
+from ..identify.determined import misfit_threshold as thr
+from ..identify.harmonics import from_recordings
 
 
 def misfit_threshold(dof: int) -> float:
@@ -61,10 +61,6 @@ def misfit_threshold(dof: int) -> float:
     owns the test (:func:`bearing_id.identify.determined.misfit_threshold`, the 99.9 % point of chi-square(dof)/dof);
     the diagnosis applies the same one, so the two never disagree on the same vectors.
     """
-    try:
-        from ..identify.determined import misfit_threshold as thr
-    except ImportError:  # pragma: no cover - an identify side without it
-        return MISFIT_CHI2
     return float(thr(max(int(dof), 1)))
 
 
@@ -114,7 +110,6 @@ def identify_vectors(recordings) -> Observations:
     Observations holding the 1X vectors of :func:`identify.harmonics.from_recordings` (one window per run and
     speed, 1-sigma per real/imaginary part); runs whose speeds differ are taken one by one.
     """
-    from ..identify.harmonics import from_recordings
     recordings = list(recordings)
     try:
         datas = [from_recordings(recordings)]
@@ -239,7 +234,6 @@ def refine(prob, fprob, final, threshold: float):
     it lacks (e.g. a bow of another shape than the fitted one); the tolerance-level values stand, and the misfit is
     reported.
     """
-    from .select import NUIS_BOUND
     use = [getattr(e, 'acts_on_1x', True) for e in final.effects]
     ff = fit(fprob, final.effects, theta0=final.theta, nl0=final.nls if final.effects else None)
     if not any(use):

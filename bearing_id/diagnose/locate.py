@@ -2,17 +2,17 @@
 Locate where recordings and the model disagree: measured harmonic vectors per window, residuals, significance.
 
 Measured side (:func:`observe`)
-    Each recording is cut into steady-speed windows (:func:`bearing_id.signals.steady_windows`); the first
+    Each recording is cut into steady-speed windows (:func:`bearing_id.signals.harmonics.steady_windows`); the first
     ``settle`` seconds + 20 % of each window are dropped (the transient after a speed step: this rig has a lightly
     damped mode near 33 Hz, zeta < 1 %, whose free vibration lasts seconds), the rest is fitted with
-    :func:`bearing_id.signals.harmonic_vectors` for the orders 1X, 2X, 3X.  The strongest sub-synchronous component
-    (:func:`bearing_id.signals.subsynchronous`) is searched in every window and, when above ``sub_snr``, fitted in
-    the same regression as the nX vectors (so that it does not leak into them).  It counts as a *whirl* only when its
-    ratio lies in ``whirl_band`` (0.3-0.6X), it whirls forward and it does not decay within the window; otherwise it
-    is the free vibration left by a speed change (a lightly damped mode at a fixed frequency) and is noted.  When any
-    window holds a whirl, every other window gets a sub-synchronous vector at the median whirl ratio of the windows
-    a fit may learn from (:meth:`Observations.assign_sub`: all windows in-sample, the training windows for held-out
-    validation), so that nothing about a whirl is learnt from a held-out window.
+    :func:`bearing_id.signals.harmonics.harmonic_vectors` for the orders 1X, 2X, 3X.  The strongest sub-synchronous
+    component (:func:`bearing_id.signals.harmonics.subsynchronous`) is searched in every window and, when above
+    ``sub_snr``, fitted in the same regression as the nX vectors (so that it does not leak into them).  It counts as a
+    *whirl* only when its ratio lies in ``whirl_band`` (0.3-0.6X), it whirls forward and it does not decay within the
+    window; otherwise it is the free vibration left by a speed change (a lightly damped mode at a fixed frequency) and
+    is noted.  When any window holds a whirl, every other window gets a sub-synchronous vector at the median whirl ratio
+    of the windows a fit may learn from (:meth:`Observations.assign_sub`: all windows in-sample, the training windows
+    for held-out validation), so that nothing about a whirl is learnt from a held-out window.
 
 Noise floor
     The 1-sigma std of each harmonic vector comes from the fit residual (white-noise least squares).  The
@@ -28,13 +28,14 @@ Located mismatch (:func:`locate`)
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 import math
 
 import numpy as np
 
-from .. import signals
 from ..conventions import orbit_semi_axes, rad_s_to_rpm, whirl_direction
+from ..signals import harmonics as signals
 
 DEFAULT_ORDERS = (1, 2, 3)
 
@@ -132,7 +133,6 @@ class Observations:
         ``train`` no window has sub-synchronous data (``sub_present`` False): nothing about a whirl is learnt from
         held-out windows.
         """
-        import copy
         train = set(range(len(self.windows)) if train is None else train)
         own = [k for k in self.whirl_windows() if k in train]
         out = copy.copy(self)
@@ -192,7 +192,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
     Harmonic vectors of every steady window of every recording (see module docstring).
 
     recordings : sequence of objects with ``t`` (N,) s, ``speed`` (N,) rad/s, ``angle`` (N,) rad, ``samples``
-    (N, nch) m, ``sample_rate`` Hz and ``probes`` (as :class:`bearing_id.rig.Recording`).
+    (N, nch) m, ``sample_rate`` Hz and ``probes`` (as :class:`bearing_id.signals.recording.Recording`).
     """
     windows = []
     notes = []

@@ -20,15 +20,18 @@ Bearing uncertainty (nuisance)
 """
 from __future__ import annotations
 
+import copy
 import inspect
 import math
 
 import numpy as np
 
+from .effect import Effect
 from .locate import FLOOR_TOL, Observations, sigma
 from .. import bearings as bearings_mod
 from ..conventions import dof_index, parse_probe_direction, probe_direction
 from ..excitation import harmonic_forces
+from ..rotor import supports
 from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_row, RotorModel
 
 
@@ -224,7 +227,6 @@ class Problem:
         This problem with its sub-synchronous data assigned from the windows ``train`` only
         (:meth:`locate.Observations.assign_sub`): all that a fit on ``train`` may know about a whirl.
         """
-        import copy
         p = copy.copy(self)
         p.obs = self.obs.assign_sub(train)
         p.has_sub = bool(p.obs.sub_present)
@@ -282,7 +284,7 @@ class Problem:
         c = self._coeff_cache.get(key)
         if c is None:
             if self._loads is None:
-                self._loads = bearings_mod.static_loads(self.rig)
+                self._loads = supports.static_loads(self.rig)
             if len(self._coeff_cache) > 20000:
                 self._coeff_cache.clear()
                 self._bearing_cache.clear()
@@ -349,7 +351,6 @@ class Problem:
         effects' bearing hooks added at its film DOFs in the same order, then the effects' dZ), vectorised over the
         entries: the same bits (test/test_diagnose_speed.py).
         """
-        from .effects import Effect
         n = len(keys)
         Z = self._Z0_stack(keys).copy()
         if not n:

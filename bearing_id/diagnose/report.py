@@ -7,22 +7,24 @@ nominal, augmented), 1X polar plot, 1X orbits per speed (measured vs predicted, 
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from ..config.params import rig_to_dict as params_rig_to_dict
+
 
 # ------------------------------------------------------------------------------------------------ params YAML
 def rig_to_dict(rig) -> dict:
     """
-    Return a RigParams as the YAML mapping that :func:`bearing_id.params.parse_rig` reads (SI units).
+    Return a RigParams as the YAML mapping that :func:`bearing_id.config.params.parse_rig` reads (SI units).
 
-    :func:`bearing_id.params.rig_to_dict` (every schema-v2 key: sections, tables, pedestals, seals, angled probes),
-    with ``extra`` (the diagnosis' effects) converted to plain Python numbers for YAML.
+    :func:`bearing_id.config.params.rig_to_dict` (every schema-v2 key: sections, tables, pedestals, seals, angled
+    probes), with ``extra`` (the diagnosis' effects) converted to plain Python numbers for YAML.
     """
-    from ..params import rig_to_dict as params_rig_to_dict
     d = params_rig_to_dict(rig)
     if rig.extra:
         d['extra'] = _plain(rig.extra)
@@ -41,7 +43,6 @@ def _plain(x):
 
 def augmented_rig(diag, rig):
     """``rig`` with ``extra.effects`` = the selected effects (final joint fit) and the refitted bearing factors."""
-    import dataclasses
     effs = []
     final = diag.selection.final
     bearings = rig.bearings
@@ -58,7 +59,7 @@ def augmented_rig(diag, rig):
 
 
 def write_params(diag, rig, path) -> Path:
-    """Write the augmented model as a params YAML (loads with :func:`bearing_id.params.load_rig`)."""
+    """Write the augmented model as a params YAML (loads with :func:`bearing_id.config.params.load_rig`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = ('# Augmented model written by `bearing-id diagnose`: the nominal params plus the effects found\n'
@@ -76,117 +77,10 @@ def write_json(diag, path) -> Path:
     return path
 
 
-# ------------------------------------------------------------------------------------------------ plots
-def write_report(diag, outdir, plots: bool = True) -> list[Path]:
-    """
-    Write the plots and summary.txt into ``outdir``; return the files written.
-
-    ``plots=False``: summary.txt only (``bearing-id diagnose --report`` draws the before / after on the report page,
-    :func:`bearing_id.commands.report.report_for_diagnosis`).
-    """
+def write_summary(diag, outdir) -> Path:
+    """Write ``outdir/summary.txt`` (verdict, sentences, residuals, noise floor, located mismatch, notes)."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    if not plots:
-        return [_write_summary(diag, out)]
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    prob = diag.problem
-    sel = diag.selection
-    base, final = sel.base, sel.final
-    nom = prob.prediction_by_window(np.zeros(prob.n_nuis), [], [], np.zeros(0))
-    bef = prob.prediction_by_window(base.theta, [], [], np.zeros(0))
-    aft = prob.prediction_by_window(final.theta, final.effects, final.nls, final.lin)
-    files = []
-    for r, rec in enumerate(prob.obs.recordings):
-        ks = [k for k, w in enumerate(prob.windows) if w.rec == r]
-        ks.sort(key=lambda k: prob.windows[k].speed)
-        rpm = np.array([prob.windows[k].rpm for k in ks])
-        for c, p in enumerate(rec.probes):
-            meas = np.array([prob.windows[k].X[0, c] for k in ks])
-            curves = [('measured', meas, 'ko'), ('nominal', np.array([nom[k][0, c] for k in ks]), 'C7--'),
-                      ('none (bearings refitted)', np.array([bef[k][0, c] for k in ks]), 'C0-'),
-                      ('augmented', np.array([aft[k][0, c] for k in ks]), 'C3-')]
-            fig, ax = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-            for lab, y, st in curves:
-                ax[0].plot(rpm, np.abs(y) * 1e6, st, label=lab)
-                ax[1].plot(rpm, np.degrees(np.unwrap(np.angle(y))), st)
-            ax[0].set_ylabel('1X amplitude [µm]')
-            ax[1].set_ylabel('1X phase [deg]')
-            ax[1].set_xlabel('speed [rpm]')
-            ax[0].legend(fontsize=8)
-            ax[0].set_title(f'run {rec.run.id}, probe {p.name} (node {p.node}, {p.direction}): before/after')
-            f = out / f'bode_run{r}_{p.name}.png'
-            fig.tight_layout()
-            fig.savefig(f, dpi=90)
-            plt.close(fig)
-            files.append(f)
-            fig = plt.figure(figsize=(5, 5))
-            axp = fig.add_subplot(111, projection='polar')
-            for lab, y, st in curves:
-                axp.plot(np.angle(y), np.abs(y) * 1e6, st, label=lab)
-            axp.set_title(f'1X polar [µm], {p.name}')
-            axp.legend(fontsize=7, loc='lower left')
-            f = out / f'polar_run{r}_{p.name}.png'
-            fig.savefig(f, dpi=90)
-            plt.close(fig)
-            files.append(f)
-        # orbits of the first x/y pair
-        from .locate import _xy_pair
-        pair = _xy_pair(rec.probes)
-        if pair is not None:
-            i, j = pair
-            n = len(ks)
-            fig, axs = plt.subplots(1, n, figsize=(2.4 * n, 2.6))
-            axs = np.atleast_1d(axs)
-            ph = np.linspace(0, 2 * np.pi, 100)
-            for a, k in zip(axs, ks):
-                for lab, X, st in (('measured', prob.windows[k].X, 'k-'), ('none', bef[k], 'C0--'),
-                                   ('augmented', aft[k], 'C3:')):
-                    a.plot(np.real(X[0, i] * np.exp(1j * ph)) * 1e6, np.real(X[0, j] * np.exp(1j * ph)) * 1e6, st,
-                           label=lab)
-                a.set_title(f'{prob.windows[k].rpm:.0f} rpm', fontsize=8)
-                a.set_aspect('equal')
-                a.tick_params(labelsize=6)
-            axs[0].legend(fontsize=6)
-            fig.suptitle(f'1X orbits [µm] at node {rec.probes[i].node}, run {rec.run.id}', fontsize=9)
-            f = out / f'orbits_run{r}.png'
-            fig.tight_layout()
-            fig.savefig(f, dpi=90)
-            plt.close(fig)
-            files.append(f)
-    # residual "spectra": |measured - predicted| per harmonic order, before and after (all windows, all probes)
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    orders = list(prob.obs.orders)
-    for lab, pr, st in (('before (none)', bef, 'C0'), ('after (augmented)', aft, 'C3')):
-        rms = [np.sqrt(np.mean([np.mean(np.abs(w.X[o] - pr[k][o]) ** 2) for k, w in enumerate(prob.windows)]))
-               for o in range(len(orders))]
-        off = -0.1 if st == 'C0' else 0.1
-        ax.bar(np.array(orders, float) + off, np.array(rms) * 1e6, width=0.2, color=st, label=lab)
-    if prob.has_sub:
-        sub_b = np.sqrt(np.mean([np.mean(np.abs(w.X_sub) ** 2) for w in prob.windows if w.X_sub is not None]))
-        sub_a = np.sqrt(np.mean([np.mean(np.abs(np.abs(w.X_sub) - np.abs(final.sub_pred.get(k, 0 * w.X_sub))) ** 2)
-                                 for k, w in enumerate(prob.windows) if w.X_sub is not None]))
-        r0 = float(np.median([w.sub_ratio for w in prob.windows if w.X_sub is not None]))
-        ax.bar([r0 - 0.05], [sub_b * 1e6], width=0.1, color='C0')
-        ax.bar([r0 + 0.05], [sub_a * 1e6], width=0.1, color='C3')
-    ax.set_xlabel('frequency / running speed (order)')
-    ax.set_ylabel('RMS residual [µm]')
-    ax.set_yscale('log')
-    ax.legend(fontsize=8)
-    ax.set_title('residual spectrum by order')
-    f = out / 'residual_spectrum.png'
-    fig.tight_layout()
-    fig.savefig(f, dpi=90)
-    plt.close(fig)
-    files.append(f)
-    files.append(_write_summary(diag, out))
-    return files
-
-
-def _write_summary(diag, out: Path) -> Path:
-    """Write ``out/summary.txt`` (verdict, sentences, residuals, noise floor, located mismatch, notes)."""
     lines = [f'verdict: {diag.verdict}', *diag.sentences,
              f'residual RMS before: {diag.residual_before:.4g} sigma ({diag.residual_before_m * 1e6:.4g} um)',
              f'residual RMS after:  {diag.residual_after:.4g} sigma ({diag.residual_after_m * 1e6:.4g} um)',
@@ -203,4 +97,4 @@ def _write_summary(diag, out: Path) -> Path:
     return f
 
 
-__all__ = ['rig_to_dict', 'augmented_rig', 'write_params', 'write_json', 'write_report']
+__all__ = ['rig_to_dict', 'augmented_rig', 'write_params', 'write_json', 'write_summary']

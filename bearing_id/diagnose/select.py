@@ -7,8 +7,7 @@ Fit (:func:`fit`)
     model tolerance, :func:`locate.sigma`), real and imaginary parts stacked, plus the sub-synchronous vectors, plus
     the Gaussian prior of the bearing nuisance factors.  Linear effect parameters are profiled out by weighted least
     squares inside the residual (variable projection); nonlinear ones (and the nuisance) go to
-    ``scipy.optimize.least_squares`` (trf, bounds, several starts; run by :func:`trf.least_squares`, the same
-    iterates without importing scipy.optimize).  Parameter covariance = (J^T J)^-1 of the full
+    ``scipy.optimize.least_squares`` (trf, bounds, several starts).  Parameter covariance = (J^T J)^-1 of the full
     residual (linear parameters explicit) scaled by max(1, chi2 / dof).
 
 Compare
@@ -42,10 +41,10 @@ import itertools
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from .effects import OilWhirl
 from .predict import Problem
-from .. import trf
 from ..conventions import rpm_to_rad_s
 
 AMBIGUOUS_DBIC = 6.0  # screening BIC difference below which two variants of one effect are not told apart
@@ -177,37 +176,8 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
     return f
 
 
-LSQ_METHOD = 'fast'     # 'fast': bearing_id.trf (scipy's trf step for step, no scipy.optimize); 'scipy': the reference
-# the thin SVD of trf's augmented Jacobian: 'numpy' (numpy.linalg.svd: LAPACK's gesdd in numpy's OpenBLAS, no scipy
-# import at all, ~0.25 s of CPU per process) or 'scipy' (scipy.linalg.svd, the reference: the same routine in scipy's
-# build; the two are tied by test/test_diagnose_speed.py)
-LSQ_SVD = 'numpy'
-
-
-def _svd(a, full_matrices=False):
-    """
-    Return scipy.linalg.svd's (U, s, Vh) of ``a`` (m, n) computed by numpy.linalg.svd.
-
-    The factors come back in Fortran order, as scipy's gesdd wrapper returns them: trf's products with U and V then
-    run the same BLAS kernels on the same memory layout, so the steps keep their bits (C-ordered factors with equal
-    values change the rounding of ``U.T @ f``).
-    """
-    U, s, Vh = np.linalg.svd(a, full_matrices=full_matrices)
-    return np.asfortranarray(U), s, np.asfortranarray(Vh)
-
-
 def _least_squares(fun, z0, lo, hi, max_nfev):
-    """
-    Minimise 0.5 ||fun(z)||^2 on [lo, hi] by scipy's trf with x_scale='jac' (returns .x and .cost).
-
-    :func:`trf.least_squares` (the same iterates without importing scipy.optimize; its SVD per ``LSQ_SVD``) when a
-    bound is finite and ``LSQ_METHOD`` is 'fast'; otherwise ``scipy.optimize.least_squares``, the reference
-    (test/test_diagnose_trf.py).
-    """
-    lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
-    if LSQ_METHOD == 'fast' and not np.all((lo_ == -np.inf) & (hi_ == np.inf)):
-        return trf.least_squares(fun, z0, lo_, hi_, max_nfev=max_nfev, svd=_svd if LSQ_SVD == 'numpy' else None)
-    from scipy.optimize import least_squares
+    """Minimise 0.5 ||fun(z)||^2 on [lo, hi] by scipy's trf with x_scale='jac' (returns .x and .cost)."""
     return least_squares(fun, z0, bounds=(lo, hi), x_scale='jac', max_nfev=max_nfev, method='trf')
 
 

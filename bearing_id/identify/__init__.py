@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import importlib
 
+from .plausibility import gate
 from .result import eq38_error, IdentResult
 
 METHODS = ('paper', 'conventional', 'direct', 'physical')
@@ -49,7 +50,6 @@ def identify(method: str, model, rig, data, probes=None, runs=None, options=None
     Probes and runs default to the data's own.  The gates (:mod:`bearing_id.identify.plausibility`: stability threshold,
     orbit vs clearance, live channels): a speed that fails one is returned not determined, with the reason in its notes.
     """
-    from .plausibility import gate
     fn = get_method(method)
     probes = tuple(probes if probes is not None else data.probes)
     runs = tuple(runs if runs is not None else data.runs)

@@ -35,6 +35,8 @@ from .lsq import (bearing_dofs, bearing_force_map, build_result, coefficient_lab
                   coeffs_to_theta, DEFAULT_MAX_REL_STD, DEFAULT_RTOL, forces_at, noise_rel_of, probe_pairs,
                   solve_coefficients, theta_to_KC)
 from .result import IdentResult
+from ..rotor.assembly import dynamic_stiffness, probe_matrix
+from ..rotor.supports import bearing_fn
 
 CONSISTENCY_FLAG = 3.0      # historical (see the module docstring); the misfit test replaces it
 
@@ -63,10 +65,8 @@ def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=
     theta = [K; Omega C] as in :func:`bearing_id.identify.paper.coeffs_to_theta`; z_B error = ||z_interp - z_B|| /
     ||z_B|| of the interpolated bearing displacements.  forces complex (nr, ndof) [N].
     """
-    from ..rotor.assembly import probe_matrix
     nodes = tuple(model.bearing_nodes)
     S = probe_matrix(model, probes)
-    from ..rotor.assembly import dynamic_stiffness
     forces = np.asarray(forces, dtype=complex)
     q = np.linalg.solve(dynamic_stiffness(model, speed, speed, theory), forces.T).T      # every run, one solve
     z_true = q[:, bearing_dofs(model)].reshape(len(q), len(nodes), 2)
@@ -90,8 +90,7 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
         raise ValueError(f'identify_conventional: unknown option(s) {sorted(bad)}')
     bfn = opts.get('bearing_fn')
     if bfn is None:
-        from ..rig import nominal_bearing_fn
-        bfn = nominal_bearing_fn(rig)
+        bfn = bearing_fn(rig)
     pp = probe_pairs(model, probes, opts.get('pairs'))
     used = sorted({probes[c].node for v in pp.values() for c, _ in v})
     zB_all, zs_all = interpolate(model, probes, data.X, data.X_std, opts.get('pairs'))

@@ -35,22 +35,13 @@ import math
 import numpy as np
 
 from .determined import judge
-from .lsq import (  # noqa: F401
-    analyse,
-    coefficient_jacobian,
-    coefficient_labels,
-    coefficient_scales,
-    coeffs_to_theta,
-    DEFAULT_MAX_REL_STD,
-    Identifiability,
-    ls_system,
-    NULL_FRACTION,
-    probe_pairs,
-    STRUCTURAL_RTOL,
-    whitened_jacobian,
-)
+from .lsq import (analyse, coefficient_jacobian, coefficient_labels, coefficient_scales, coeffs_to_theta,
+                  DEFAULT_MAX_REL_STD, Identifiability, ls_system, NULL_FRACTION, probe_pairs, STRUCTURAL_RTOL,
+                  whitened_jacobian)
+from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm
-from ..params import ExcitationEntry, Probe, Run
+from ..excitation import harmonic_forces
+from ..rotor.assembly import film_dofs, harmonic_response
 
 
 def harmonic_noise_rel(sample_noise: float = 0.01, n_samples: int = 20480) -> float:
@@ -100,14 +91,12 @@ class DesignReport:
 
 def _film_deflection(model, q, node) -> list:
     """Return [x, y] of the film deflection at a bearing: the shaft node, minus its pedestal when it has one."""
-    from ..rotor.assembly import film_dofs
     i, j = film_dofs(model, node)
     d = q[i:i + 2] if j is None else q[i:i + 2] - q[j:j + 2]
     return [d[0], d[1]]
 
 
 def _forces(runs, speed, n_nodes, ndof=None):
-    from ..excitation import harmonic_forces
     out = []
     for r in runs:
         F = harmonic_forces(r.excitation, speed, n_nodes, ndof).get(1.0)
@@ -195,7 +184,6 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
         data = analyse(Jw, labels, max_rel_std=max_rel_std)
         methods = {'direct': data}
         # the eqs 33-37 system itself, on the model's bearing displacements (its own algebraic rank)
-        from ..rotor.assembly import harmonic_response
         zb = []
         for F in forces:
             q = harmonic_response(model, w, w, F, coeffs)

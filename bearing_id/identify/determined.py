@@ -36,10 +36,7 @@ Misfit test (:func:`fit_quality`)
     error is a bias, not noise).  Misfit results stay determined-but-flagged (the identifier node reports them as
     WARN), never plainly determined.
 
-The quantile is computed in plain Python (:func:`bearing_id.stats.chi2_quantile`: the regularised incomplete gamma
-function by its series or continued fraction, then bracketed Newton steps), so judging a fit imports no scipy
-(``scipy.special`` alone costs about 0.3 s of process start); it equals ``scipy.special.chdtri`` to 1e-12 relative
-(test/test_chi2_quantile.py).
+The quantile is scipy's (``scipy.stats.chi2.ppf``).
 """
 from __future__ import annotations
 
@@ -47,8 +44,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-
-from ..stats import chi2_quantile  # noqa: F401  (part of this module's interface; lives in the no-scipy stats)
+from scipy.stats import chi2
 
 K_SIGMA = 3.0               # |value| >= K_SIGMA x sigma (data exclude zero at 3 sigma; relative 1-sigma <= 1/3)
 MAX_PRIOR_PULL = 0.1        # d(estimate)/d(prior mean) <= this (the data carry >= 90 % of the weight)
@@ -59,7 +55,7 @@ ESTIMABLE_LEAK = 1e-6       # default: a coefficient is estimable when its null-
 
 def misfit_threshold(dof: float, level: float = MISFIT_LEVEL) -> float:
     """chi2 / dof above which a fit with ``dof`` degrees of freedom is a misfit (``level`` quantile / dof)."""
-    return chi2_quantile(level, dof) / float(dof)
+    return float(chi2.ppf(level, dof)) / float(dof)
 
 
 @dataclass(frozen=True)
@@ -216,5 +212,5 @@ def prior_pull(var_post, var_data) -> np.ndarray:
     return np.clip(out, 0.0, np.inf)
 
 
-__all__ = ['K_SIGMA', 'MAX_PRIOR_PULL', 'MAX_BIAS_SIGMA', 'MISFIT_LEVEL', 'chi2_quantile', 'misfit_threshold',
+__all__ = ['K_SIGMA', 'MAX_PRIOR_PULL', 'MAX_BIAS_SIGMA', 'MISFIT_LEVEL', 'misfit_threshold',
            'FitQuality', 'fit_quality', 'Verdict', 'judge', 'prior_pull']

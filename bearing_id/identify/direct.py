@@ -11,7 +11,7 @@ entry (1 for a K entry, j Omega for a C entry) at the bearing's (x, y) DOFs; ``F
 exact and cheap:  dq/dbeta_k = -Z^-1 dZ_k q.
 
 Fit: weighted least squares on Re and Im of (P q - X) / sigma (sigma = 1-sigma of the measured Re/Im), solved by
-Levenberg-Marquardt (MINPACK's lmder, :mod:`bearing_id.lm`; scipy's trf when there are fewer equations than unknowns)
+Levenberg-Marquardt (scipy's MINPACK lmder; scipy's trf when there are fewer equations than unknowns)
 from the theory, in scaled unknowns theta = beta / s (s = the largest |entry| of the
 theory block: the problem is then well conditioned in the parameters).  Optional Gaussian prior toward the theory:
 ``prior_weight`` w adds rows sqrt(w) (theta - theta_theory), i.e. a prior 1-sigma of s / sqrt(w) per coefficient
@@ -51,11 +51,15 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
 
 from .determined import fit_quality, judge, prior_pull
 from .result import empty_result, IdentResult
 from ..conventions import COEFF_ORDER, dof_index
 from ..excitation import harmonic_forces
+from ..rotor import supports
 from ..rotor.assembly import dynamic_stiffness, film_dofs, probe_matrix
 
 RANK_RTOL = 1e-8          # singular values of the weighted Jacobian below this x the largest count as zero
@@ -63,25 +67,6 @@ LEAK_TOL = 1e-6           # a coefficient is estimable when |projection of e_k o
 MAX_REL_STD = None        # optional extra bound: 1-sigma < this x the block scale (None = only the one rule)
 K_SCALE_DEFAULT = 1e5     # N/m, scale of the K unknowns when no theory is given
 C_SCALE_DEFAULT = 1e2     # N s/m
-
-
-LSQ_METHOD = 'fast'        # 'fast': method 'lm' by bearing_id.lm (MINPACK's lmder in numpy); 'scipy': the reference
-
-
-def least_squares(fun, x0, *, jac, method: str, **kwargs):
-    """
-    Minimise the squared norm of the residual as scipy.optimize's ``least_squares`` does with ``method``.
-
-    ``method='lm'`` runs :func:`bearing_id.lm.least_squares` (MINPACK's lmder step for step, without importing
-    scipy.optimize: ~0.55 s of CPU per process here); ``LSQ_METHOD = 'scipy'``, or ``method='trf'`` (fewer equations
-    than unknowns, unbounded), calls scipy (test/test_identify_direct.py ties the two to 1e-9).  ``kwargs``: x_scale,
-    xtol, ftol, gtol, max_nfev.
-    """
-    if LSQ_METHOD == 'fast' and method == 'lm':
-        from ..lm import least_squares as lm_least_squares
-        return lm_least_squares(fun, x0, jac, **kwargs)
-    from scipy.optimize import least_squares as _least_squares
-    return _least_squares(fun, x0, jac=jac, method=method, **kwargs)
 
 
 @dataclass
@@ -319,8 +304,6 @@ class SpeedResponse:
         rhs[:, :nr] = self.F
         rhs[S, nr + np.arange(m)] = 1.0
         if self.sparse:
-            import scipy.sparse as sp
-            from scipy.sparse.linalg import splu
             try:
                 W = splu(sp.csc_matrix(Z)).solve(rhs)
             except RuntimeError as e:                        # 'Factor is exactly singular': as the dense solve
@@ -798,8 +781,7 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
     runs = tuple(runs if runs is not None else data.runs)
     theory_fn = opts['theory']
     if theory_fn is None:
-        from .. import bearings
-        theory_fn = bearings.bearing_fn(rig, model=opts['bearing_model'])
+        theory_fn = supports.bearing_fn(rig, model=opts['bearing_model'])
     nodes = tuple(b.node for b in rig.bearings)
     names = tuple(b.name for b in rig.bearings)
     out = []

@@ -2,12 +2,12 @@
 Collect the measured 1X harmonic vectors per excitation run and per steady speed, from recordings or a bag.
 
 Rule for each run
-    The speed record is split into steady windows (:func:`bearing_id.signals.steady_windows`, speed constant within
-    ``tol_rel``); the first ``settle`` fraction of each window is discarded and the 1X vectors of the rest are
-    fitted over whole revolutions (:func:`bearing_id.signals.harmonic_vectors`) jointly with up to ``transients``
-    exponentially decaying sinusoids (default 3: the rotor's lightly damped modes ring for seconds after every speed
-    change, and a mode near running speed biases a plain 1X fit by percent).  The 1X std is the joint fit's.  A
-    window-halves check on the signal minus the fitted transients adds a bias bound for anything left unmodelled
+    The speed record is split into steady windows (:func:`bearing_id.signals.harmonics.steady_windows`, speed constant
+    within ``tol_rel``); the first ``settle`` fraction of each window is discarded and the 1X vectors of the rest are
+    fitted over whole revolutions (:func:`bearing_id.signals.harmonics.harmonic_vectors`) jointly with up to
+    ``transients`` exponentially decaying sinusoids (default 3: the rotor's lightly damped modes ring for seconds after
+    every speed change, and a mode near running speed biases a plain 1X fit by percent).  The 1X std is the joint fit's.
+     A window-halves check on the signal minus the fitted transients adds a bias bound for anything left unmodelled
     (:func:`stationarity_excess`).
     Speeds from different runs are matched when they agree within ``tol_rel``; only speeds present in every run are
     kept (identification stacks the runs at one speed).
@@ -26,8 +26,8 @@ import uuid
 
 import numpy as np
 
-from ..params import Run
-from ..signals import harmonic_vectors, speed_from_angle, SteadyWindowTracker
+from ..config.params import Run
+from ..signals.harmonics import harmonic_vectors, SteadyWindowTracker
 
 DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
@@ -100,7 +100,7 @@ class PlainFit:
 
     @classmethod
     def of(cls, fit) -> 'PlainFit':
-        """From a :class:`bearing_id.signals.HarmonicFit` of order 1."""
+        """From a :class:`bearing_id.signals.harmonics.HarmonicFit` of order 1."""
         return cls(np.asarray(fit.X[0], dtype=complex), np.asarray(fit.std_re[0]) ** 2,
                    np.asarray(fit.std_im[0]) ** 2, np.asarray(fit.residual_rms) ** 2)
 
@@ -193,13 +193,13 @@ class RunStream:
 
     ``feed(samples (n, nch), angle (n,), contiguous=True)`` appends a chunk (a whole recording, or one
     DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window.
-    The per-sample speed is :func:`bearing_id.signals.speed_from_angle` of the concatenated angle (each chunk's last
-    sample waits for the next chunk's first); windows follow :class:`bearing_id.signals.SteadyWindowTracker`, so any
-    chunking gives the windows of the whole record.  ``contiguous=False`` (data were lost before this chunk) ends the
-    open window at the gap.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory; the next
-    window is then marked ``continued``).  Only the open window's samples are buffered.  ``peek()`` returns the
-    windows ``close()`` would return now without closing anything (a live consumer's provisional look at the open
-    window while its data pause; the stream goes on as if not asked).
+    The per-sample speed is :func:`bearing_id.signals.harmonics.speed_from_angle` of the concatenated angle (each
+    chunk's last sample waits for the next chunk's first); windows follow
+    :class:`bearing_id.signals.harmonics.SteadyWindowTracker`, so any chunking gives the windows of the whole record.
+    ``contiguous=False`` (data were lost before this chunk) ends the open window at the gap.  A window is also closed
+    once it reaches ``max_duration`` [s] (bounds memory; the next window is then marked ``continued``).  Only the open
+    window's samples are buffered.  ``peek()`` returns the windows ``close()`` would return now without closing anything
+    (a live consumer's provisional look at the open window while its data pause; the stream goes on as if not asked).
     """
 
     def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
@@ -321,7 +321,7 @@ def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_dura
 
     The rule: windows shorter than ``min_duration`` [s] are not used; the first ``settle`` fraction is discarded
     (the transient after the speed change); the rest (at least 16 samples) is fitted over whole revolutions jointly
-    with up to ``transients`` decaying components (:func:`bearing_id.signals.harmonic_vectors`; the decaying
+    with up to ``transients`` decaying components (:func:`bearing_id.signals.harmonics.harmonic_vectors`; the decaying
     components' time base is the sample index / sample rate, so every route fits the same numbers); the 1-sigma is
     the joint fit's, plus the :func:`stationarity_excess` bias bound.
     """
@@ -521,101 +521,8 @@ def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
                         float(recordings[0].sample_rate))
 
 
-def from_npz(paths, **kw) -> HarmonicData:
-    """Load .npz recordings (``rig.load_npz``; one file per run) and collect their 1X vectors."""
-    from ..rig import load_npz
-    return from_recordings([load_npz(p) for p in paths], **kw)
-
-
-def recordings_from_bag(path) -> list:
-    """
-    One rig.Recording per excitation run from a bag (topics /rotor/displacement and /rotor/excitation).
-
-    A block belongs to the run its ``run_id`` names, or (no run_id) to the run of the last /rotor/excitation before
-    it; re-sent copies of an excitation are ignored.  The angle of every sample is the block's ``sample_angles``
-    (a block without them: first-sample angle + speed * k / sample_rate, which assumes constant speed over the
-    block).  A break in the blocks' sequence numbers is recorded in ``Recording.gaps``.  A block whose channels
-    differ from the run's first block is refused (ValueError).
-    """
-    from ..io.bags import read_bag
-    from ..io.messages import block_from_msg, excitation_from_msg
-    from ..rig import Recording
-    runs: dict = {}
-    order: list = []
-    cur = None
-    for topic, _, _, msg in read_bag(path, topics=['/rotor/displacement', '/rotor/excitation']):
-        if topic == '/rotor/excitation':
-            run = excitation_from_msg(msg)
-            if run.id not in runs:
-                runs[run.id] = {'run': run, 'blocks': []}
-                order.append(run.id)
-            cur = run.id
-            continue
-        b = block_from_msg(msg)
-        rid = b.run_id or cur
-        if rid is None or rid not in runs:
-            continue            # no excitation known for it: not usable for identification
-        runs[rid]['blocks'].append(b)
-    recs = []
-    for rid in order:
-        bl = runs[rid]['blocks']
-        if not bl:
-            continue
-        chans = bl[0].probes
-        fs = bl[0].sample_rate
-        gaps, n = [], 0
-        for i, b in enumerate(bl):
-            if b.probes != chans:
-                raise ValueError(f'{path}: run {rid}: channels change from {chans} to {b.probes}')
-            if i and (b.sequence - bl[i - 1].sequence) % 2**32 != 1:
-                gaps.append(n)
-            n += b.n_samples
-        x = np.vstack([b.samples for b in bl])
-        angle = np.concatenate([b.angles() for b in bl])
-        recs.append(Recording(sample_rate=fs, t=np.arange(x.shape[0]) / fs, speed=speed_from_angle(angle, fs),
-                              angle=angle, probes=chans, samples=x, run=runs[rid]['run'], gaps=tuple(gaps)))
-    if not recs:
-        raise ValueError(f'{path}: no displacement blocks after an excitation message')
-    return recs
-
-
-def from_bag(path, **kw) -> HarmonicData:
-    """Read a bag into one Recording per excitation run (:func:`recordings_from_bag`) and collect their 1X vectors."""
-    return from_recordings(recordings_from_bag(path), **kw)
-
-
-def simulate_data(rig, runs, speeds_rpm, *, probes=None, noise=0.0, bearing_fn=None, model=None) -> HarmonicData:
-    """
-    Noise-free (or analytic-noise) 1X phasors straight from the truth system -- no time series (tests, design).
-
-    X[r, s] = S q with q = Z(speed)^-1 F_r the steady response of the truth bearings ``bearing_fn`` (default the rig's
-    truth); with ``noise`` > 0 a complex Gaussian error of std ``noise * |X| / sqrt(2)`` per Re/Im is NOT added here
-    (the caller adds it with its own seed) but recorded in X_std.
-    """
-    from ..conventions import rpm_to_rad_s
-    from ..excitation import harmonic_forces
-    from ..rig import truth_bearing_fn
-    from ..rotor.assembly import harmonic_response, probe_matrix, RotorModel
-    model = model or RotorModel.from_params(rig)
-    probes = tuple(probes if probes is not None else rig.probes)
-    bearing_fn = bearing_fn or truth_bearing_fn(rig)
-    speeds = np.array([float(rpm_to_rad_s(s)) for s in speeds_rpm])
-    S = probe_matrix(model, probes)
-    X = np.zeros((len(runs), len(speeds), len(probes)), dtype=complex)
-    truth = {}
-    for j, w in enumerate(speeds):
-        co = bearing_fn(w)
-        truth[float(w)] = co
-        for i, run in enumerate(runs):
-            F = harmonic_forces(run.excitation, w, model.n_nodes, model.ndof).get(1.0)
-            if F is not None:
-                X[i, j] = S @ harmonic_response(model, w, w, F, co)
-    Xs = noise * np.abs(X) / math.sqrt(2)
-    return HarmonicData(speeds, probes, tuple(runs), X, Xs, [], [], truth)
-
-
 __all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
            'stationarity_excess', 'combine_vectors', 'recording_windows', 'detached_window_vector', 'window_vectors',
            'recording_vectors', 'common_speeds', 'stack_vectors',
-           'from_recordings', 'from_npz', 'from_bag', 'recordings_from_bag', 'simulate_data', 'DEFAULT_SETTLE',
+           'from_recordings', 'DEFAULT_SETTLE',
            'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']

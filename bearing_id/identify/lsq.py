@@ -34,7 +34,9 @@ import numpy as np
 
 from .determined import fit_quality, judge
 from .result import eq38_error, IdentResult
-from ..conventions import COEFF_ORDER, dof_index
+from ..conventions import COEFF_ORDER, dof_index, probe_row
+from ..excitation import harmonic_forces
+from ..rotor.assembly import dynamic_stiffness, film_dofs, probe_matrix
 
 DEFAULT_RTOL = 1e-8
 STRUCTURAL_RTOL = 1e-9
@@ -57,7 +59,6 @@ def bearing_forces(model, speed: float, z_B, forces) -> np.ndarray:
     Bearings on pedestals are refused: from shaft displacements these equations give the impedance the shaft sees
     (film in series with the pedestal), not the film's coefficients -- ``direct`` and ``physical`` fit the film.
     """
-    from ..rotor.assembly import dynamic_stiffness
     on = sorted(k for k in getattr(model, 'pedestals', {}) if not isinstance(k, tuple))   # ('known', i): in H_R
     if on:
         raise ValueError(f'the paper and conventional methods need bearings fixed to ground: bearing(s) at node(s) '
@@ -335,7 +336,6 @@ def noise_rel_of(data, s: int) -> float:
 
 def forces_at(model, runs, speed: float) -> np.ndarray:
     """Complex (n_runs, ndof) 1X excitation phasors [N] of ``runs`` at ``speed`` [rad/s]."""
-    from ..excitation import harmonic_forces
     out = []
     for r in runs:
         F = harmonic_forces(r.excitation, speed, model.n_nodes, model.ndof).get(1.0)
@@ -364,7 +364,6 @@ def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> t
     forces : list of complex (ndof,) 1X force phasors [N], one per run; probes : params.Probe list.
     beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.
     """
-    from ..rotor.assembly import dynamic_stiffness, film_dofs, probe_matrix
     nodes = list(model.bearing_nodes)
     nb = len(nodes)
     Z = dynamic_stiffness(model, speed, speed, coeffs)
@@ -466,7 +465,6 @@ def node_xy_channels(probes) -> dict:
     (e.g. an API 670 pair at +-45 deg) give x and y by inverting their 2x2 measurement rows
     (:func:`bearing_id.conventions.probe_row`).
     """
-    from ..conventions import probe_row
     out: dict = {}
     nodes = []
     for p in probes:

@@ -1,7 +1,7 @@
 """
 The paper's method (Kang et al., Sensors 2020, sections 3.1-3.2, eqs 5-37), done faithfully, reported honestly.
 
-1. Kalman filter (:mod:`bearing_id.kalman`, eqs 5-18) on the FE state space with the THEORETICAL bearing
+1. Kalman filter (:mod:`bearing_id.estimation.kalman`, eqs 5-18) on the FE state space with the THEORETICAL bearing
    coefficients at each speed and the known excitation as input estimates the bearing-node displacements from the
    measured probe(s).  Start rule: the KF's own (steady state of the model at the first sample); the window already
    had its first ``settle`` fraction removed (:mod:`.harmonics`).  R = the probe's residual variance around its 1X
@@ -54,13 +54,20 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from scipy.linalg import matrix_balance
 
 from .harmonics import PlainFit
 from .lsq import _svd_solve  # noqa: F401  (old private name, kept for callers)
-from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result, coeffs_to_theta, DEFAULT_RTOL,
-                  forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients, solve_derivatives, svd_solve,
-                  theta_to_KC)
+from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result, coefficient_labels, coefficient_scales,
+                  coeffs_to_theta, DEFAULT_RTOL, forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients,
+                  solve_derivatives, svd_solve, theta_to_KC)
 from .result import IdentResult
+from ..estimation.kalman import fast_filter, innovations, rotor_kalman_model, rts_smoother
+from ..excitation import harmonic_forces
+from ..rotor.assembly import bearing_matrices, harmonic_response
+from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
+from ..rotor.supports import bearing_fn
+from ..signals.harmonics import harmonic_vectors
 
 DEFAULT_Q = 1e-16
 
@@ -78,30 +85,27 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
     R default: each probe's residual variance around its plain 1X fit, per run [m^2] (the rig's and a real probe's
     noise differ between runs; one R for all runs put the NIS of the louder run outside its band).
 
-    route : 'time' (default here, the reference): the time-domain steady-state filter (:func:`bearing_id.kalman.
-    fast_filter`, or the RTS smoother) over the window, then the 1X fit of its estimates; 'transfer': the filter's
-    closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the plain 1X fit X of the same window
-    (``data.plain``, :class:`bearing_id.identify.harmonics.PlainFit`), its std propagated from the fit's (var Re/Im z
-    = sum |T|^2 var X), and the NIS from the time-domain innovations alone (:func:`bearing_id.kalman.innovations`).
-    The two are equal on a steady window once the filter's start transient has died out (test/test_kf_transfer.py);
-    the transfer route has no start transient (the filter's steady state) and needs no time series: the live
-    identifier runs it on the plain fits its window vectors carry.
+    route : 'time' (default here, the reference): the time-domain steady-state filter
+    (:func:`bearing_id.estimation.kalman. fast_filter`, or the RTS smoother) over the window, then the 1X fit of its
+    estimates; 'transfer': the filter's closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the
+    plain 1X fit X of the same window (``data.plain``, :class:`bearing_id.identify.harmonics.PlainFit`), its std
+    propagated from the fit's (var Re/Im z = sum |T|^2 var X), and the NIS from the time-domain innovations alone
+    (:func:`bearing_id.estimation.kalman.innovations`). The two are equal on a steady window once the filter's start
+    transient has died out (test/test_kf_transfer.py); the transfer route has no start transient (the filter's steady
+    state) and needs no time series: the live identifier runs it on the plain fits its window vectors carry.
 
     Static offset: a displacement probe reads gap + vibration; the gap (DC) is no state of the rotor model, so a
     filter fed it sees a constant innovation the size of the gap (NIS 1e5 instead of ~m).  With ``remove_dc`` (default)
     each window's DC is estimated by the 1X-plus-offset least-squares fit over whole revolutions
-    (:func:`bearing_id.signals.harmonic_vectors`, unbiased by the 1X) and subtracted from the samples before filtering.
-    ``details`` (a dict, optional) receives 'dc' (nr, nch) [m] removed, 'nis_band' and 'R' (m, m) per run, and
-    'X' (nr, nch) the probes' 1X fit, 'kms' the per-run KalmanModels (the transfer route).
+    (:func:`bearing_id.signals.harmonics.harmonic_vectors`, unbiased by the 1X) and subtracted from the samples before
+    filtering. ``details`` (a dict, optional) receives 'dc' (nr, nch) [m] removed, 'nis_band' and 'R' (m, m) per run,
+    and 'X' (nr, nch) the probes' 1X fit, 'kms' the per-run KalmanModels (the transfer route).
     """
     if route not in KF_ROUTES:
         raise ValueError(f'route must be one of {KF_ROUTES}, got {route!r}')
     if route == 'transfer':
         return _kf_vectors_transfer(model, theory, probes, data, s, Q=Q, R=R, smoother=smoother,
                                     remove_dc=remove_dc, details=details, kf_rotor=kf_rotor)
-    from ..excitation import harmonic_forces
-    from ..kalman import fast_filter, rotor_kalman_model, rts_smoother
-    from ..signals import harmonic_vectors
     if not data.recordings:
         raise ValueError("the paper method's Kalman filter needs the time series (recordings), not only 1X vectors")
     w = float(data.speeds[s])
@@ -150,7 +154,6 @@ def _kf_models(model, speed: float, theory, probes, sample_rate: float, Q, Rs, k
     Runs with equal R share the model object, so each distinct R's Riccati equation is solved once.  ``kf_rotor``: a
     :class:`bearing_id.rotor.reduction.ReducedRotor` of ``model`` to filter on (default the full model).
     """
-    from ..kalman import rotor_kalman_model
     km0 = rotor_kalman_model(model if kf_rotor is None else kf_rotor, speed, theory, probes, sample_rate,
                              forces=None, Q=Q, R=Rs[0])
     seen, out = {}, []
@@ -180,8 +183,6 @@ def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remo
     give the same z_B.  The NIS needs the time series: computed when the data carry their recordings (offline; each
     window's static offset removed with ``remove_dc``), else None.
     """
-    from ..kalman import innovations
-    from ..signals import harmonic_vectors
     w = float(data.speeds[s])
     nb = len(model.bearing_nodes)
     nr = len(data.runs)
@@ -347,12 +348,11 @@ def _eig_balanced(A):
     Eigendecomposition A = U diag(lam) U^-1 through the diagonally balanced matrix (lam, U, U^-1, cond).
 
     The rotor's state matrix mixes m, rad, m/s and rad/s (entries from 1 to 1e11): balancing T^-1 A T
-    (:func:`bearing_id.linalg.balance`, powers of 2, no permutation) first makes the eigenvector basis well
+    (``scipy.linalg.matrix_balance``, powers of 2, no permutation) first makes the eigenvector basis well
     conditioned (~1e3 instead of ~1e7 here); U = T U_b and U^-1 = U_b^-1 T^-1 are then formed exactly, ``cond`` is
     that of U_b (1-norm).
     """
-    from ..linalg import balance
-    Ab, t = balance(A)
+    Ab, (t, _) = matrix_balance(A, permute=False, separate=True)
     lam, Ub = np.linalg.eig(Ab)
     Ubi = np.linalg.inv(Ub)
     cond = float(np.linalg.norm(Ub, 1) * np.linalg.norm(Ubi, 1))
@@ -464,7 +464,6 @@ def _bearing_directions(model, speed: float, nodes, red=None):
     coefficient at a time (K and C are linear in the coefficients).  With a ReducedRotor ``red`` the pieces are in
     its coordinates (the bearing DOFs are kept, so T^T e_i = e_(kept index of i)).
     """
-    from ..rotor.assembly import bearing_matrices
     nb = len(nodes)
     nd = model.ndof if red is None else red.nr
     Minv = model.Minv if red is None else red.Minv
@@ -532,7 +531,6 @@ def theory_sensitivity(model, speed: float, theory: dict, z_B_of, forces, *, rto
     differences, or central with ``central=True``: truncation error O(step) and O(step^2) respectively).
     G = 0: the data alone fix the result; G = I: the method hands back the theory it was given.
     """
-    from .lsq import coefficient_scales
     nodes = tuple(model.bearing_nodes)
     nb = len(nodes)
     th0 = coeffs_to_theta(theory, speed, nodes)
@@ -568,7 +566,6 @@ def theory_sensitivity_analytic(model, speed: float, theory: dict, probes, X, fo
     :func:`kf_phasor_jacobian` (the KF route of :func:`kf_bearing_phasors`, filter only).  Returns (G, z_B) or
     None when an eigenvector basis is too ill-conditioned (use the finite-difference reference then).
     """
-    from .lsq import coefficient_scales
     nodes = tuple(model.bearing_nodes)
     jac = kf_phasor_jacobian(model, theory, probes, speed, X, forces, sample_rate, Q=Q, R=R)
     if jac is None:
@@ -635,8 +632,7 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     rtol = opts.get('rtol', DEFAULT_RTOL)
     bfn = opts.get('bearing_fn')
     if bfn is None:
-        from ..rig import nominal_bearing_fn
-        bfn = nominal_bearing_fn(rig)
+        bfn = bearing_fn(rig)
     red, red2 = _reduction(model, data, probes, runs, opts.get('reduce'))
     out = []
     for s, w in enumerate(data.speeds):
@@ -647,7 +643,6 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
         not_det, extra = None, {}
         red_info = None
         if red is not None:
-            from ..rotor.reduction import receptance_error
             err = receptance_error(red, w, theory)
             red_info = {'states': 2 * red.nr, 'full_states': 2 * model.ndof, 'kept_dofs': int(red.kept.size),
                         'modes': red.n_modes, 'cutoff_hz': red.cutoff_hz, 'receptance_error': err}
@@ -705,7 +700,6 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
             if route == 'transfer':
                 zth = (km.E @ det_kf['Xp']).T.reshape(zB.shape)
             else:
-                from ..rotor.assembly import harmonic_response
                 zth = np.array([harmonic_response(model, w, w, f, theory)[_bdofs(model)].reshape(-1, 2) for f in F])
             dz = np.linalg.norm(zB - zth) / max(np.linalg.norm(zth), 1e-300)
             notes.append(f"KF bearing displacements differ from the theory model's prediction by {100 * dz:.1f} %")
@@ -742,7 +736,6 @@ def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoothe
     X (nr, nch) the probe phasors the transfer is applied to; ``dz`` d z_B / d theta_th already computed with z_B
     (the transfer route); ``transfer``: zB_kf is the transfer's own output (no fitted-vs-transfer mismatch to report).
     """
-    from .lsq import coefficient_labels, coefficient_scales
 
     def zb_of(co):
         return kf_bearing_phasors(model, co, probes, speed, X, F, sample_rate, Q=Q, R=R, smoother=smoother,
@@ -798,7 +791,6 @@ def _reduction(model, data, probes, runs, spec):
     """Build the ReducedRotors (the filter's, the check's or None) from the 'reduce' option (None: full model)."""
     if spec is None or spec is False:
         return None, None
-    from ..rotor.reduction import craig_bampton, kf_kept_dofs
     if spec is True:
         spec = {}
     elif isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):

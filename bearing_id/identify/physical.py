@@ -50,32 +50,17 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from .determined import fit_quality, FitQuality, judge
 from .direct import (cases_from_data, information_analysis, response_and_jacobian, SpeedResponse, weighted_stack,
                      WeightedStack)
 from .result import empty_result, IdentResult
+from .. import bearings as bearing_models
+from ..bearings.finite_table import stated_tolerance
+from ..bearings.short import ocvirk_batch
 from ..conventions import COEFF_ORDER
 from ..rotor.assembly import dynamic_stiffness, probe_matrix, static_bearing_loads
-
-
-LSQ_METHOD = 'trf'           # 'scipy': scipy.optimize.least_squares, the reference of bearing_id.trf (test/test_trf.py)
-
-
-def least_squares(fun, x0, *, jac, bounds, method: str, x_scale, **tols):
-    """
-    Minimise the residual's squared norm within the bounds, as scipy.optimize's least_squares does.
-
-    ``method='trf'`` runs :func:`bearing_id.trf.least_squares`, scipy's trf transcribed step for step, with numpy's
-    SVD, so a physical fit imports neither scipy.optimize nor scipy.linalg (~0.25 + 0.3 s of a process's CPU, issue
-    13); ``LSQ_METHOD = 'scipy'`` (or another method) calls scipy.  ``tols``: ftol, xtol, gtol, max_nfev.
-    """
-    if LSQ_METHOD == 'scipy' or method != 'trf':
-        from scipy.optimize import least_squares as _least_squares
-        return _least_squares(fun, x0, jac=jac, bounds=bounds, method=method, x_scale=x_scale, **tols)
-    from ..trf import least_squares as trf_least_squares
-    return trf_least_squares(fun, x0, bounds[0], bounds[1], jac=jac, x_scale=x_scale, svd=np.linalg.svd, **tols)
-
 
 PARAM_NAMES = ('viscosity', 'clearance', 'load')
 FD_STEP = 1e-4               # central-difference step in log-parameter
@@ -160,7 +145,6 @@ class _Parametrisation:
     """log-parameters p <-> per-bearing (viscosity, clearance, load), and the coefficients they give."""
 
     def __init__(self, model, rig, params, load, bearing_model):
-        from .. import bearings as bearing_models
         self._bm = bearing_models
         for p in params:
             if p not in ('viscosity', 'clearance'):
@@ -277,7 +261,6 @@ class _Parametrisation:
                 for s, w in enumerate(speeds):
                     out[e, s] = self.bearing_beta(pp, i, w)
             return out
-        from ..bearings.short import ocvirk_batch
         mus, cs, Ws, ws = [], [], [], []
         for pp in pts:
             v = self.bearing_values(pp, i)
@@ -298,7 +281,6 @@ class _Parametrisation:
         The table's stated tolerance against the direct Reynolds solver on its default grid
         (:func:`bearing_id.bearings.finite_table.stated_tolerance`) times the largest |entry| of each K and C block.
         """
-        from ..bearings.finite_table import stated_tolerance
         out = []
         for i, b in enumerate(self.bearings):
             if self.table[i]:

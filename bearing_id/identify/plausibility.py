@@ -7,12 +7,12 @@ A result from data the model cannot describe is not "determined", whatever its r
 Per speed:
 
 * **Stability**: above the nominal model's stability threshold (onset of oil whip,
-  :func:`bearing_id.bearings.stability.threshold_speed`) a steady 1X response does not exist in the model; a speed
+  :func:`bearing_id.rotor.stability.threshold_speed`) a steady 1X response does not exist in the model; a speed
   there means a wrong speed signal (e.g. doubled) or a machine the model does not describe.
 * **Orbit vs clearance**: the journal orbit at each bearing, from the model with the identified coefficients under
   the known excitation, scaled to the measured probe amplitudes, must stay within ``ORBIT_LIMIT`` of the radial
-  clearance (the linearised coefficients' range, the rule of :func:`bearing_id.rig.check_validity`).  Data in the
-  wrong unit (micrometres sent as metres) fail this by orders of magnitude.
+  clearance (the linearised coefficients' range, the rule of :func:`bearing_id.simulation.rig.check_validity`).  Data in
+  the wrong unit (micrometres sent as metres) fail this by orders of magnitude.
 * **Live channels**: every probe must carry a 1X signal above its noise in at least one run; a dead, constant or
   all-zero channel cannot constrain anything.
 
@@ -23,6 +23,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .direct import SPARSE_NDOF
+from ..bearings.short import brentq
+from ..conventions import dof_index
+from ..excitation import harmonic_forces
+from ..rotor.assembly import dynamic_stiffness, harmonic_response, probe_matrix, state_space
+from ..rotor.stability import FAST_NDOF, max_real_part_fn, threshold_speed
+from ..rotor.supports import bearing_fn
 
 ORBIT_LIMIT = 0.30      # fraction of the radial clearance (same rule as rig.check_validity and kf_estimator)
 SIGNAL_SIGMA = 3.0      # a channel's 1X amplitude must exceed this many of its 1-sigma in some run
@@ -32,14 +42,12 @@ def stability_threshold(model, rig, speed_max: float, method: str = 'auto') -> f
     """
     Return the nominal model's stability threshold [rad/s].
 
-    ``method``: as :func:`bearing_id.bearings.stability.threshold_speed` ('auto': the reduced-screen, full-refine fast
+    ``method``: as :func:`bearing_id.rotor.stability.threshold_speed` ('auto': the reduced-screen, full-refine fast
     path above ``FAST_NDOF`` DOFs, the dense eigenvalues below).
 
     Searched up to at least 2 x ``speed_max`` (inf when stable there).  Kept on the model object for this rig: a later
     call within the range searched reuses it (the live identifier solves again at every new speed).
     """
-    from ..bearings import bearing_fn
-    from ..bearings.stability import threshold_speed
     cached = getattr(model, '_plausibility_threshold', None)       # (rig, top of the range searched, threshold)
     if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
         return cached[2]
@@ -55,7 +63,7 @@ def stability_threshold(model, rig, speed_max: float, method: str = 'auto') -> f
     return thr
 
 
-THRESHOLD_GRID = 40        # the geometric grid of :func:`bearing_id.bearings.stability.threshold_speed` (its default)
+THRESHOLD_GRID = 40        # the geometric grid of :func:`bearing_id.rotor.stability.threshold_speed` (its default)
 
 
 CAYLEY_STEP = 0.3          # the stability certificate's Cayley step h = CAYLEY_STEP / speed [s]
@@ -96,7 +104,7 @@ def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certi
     Return what the gate needs of the stability threshold [rad/s] for speeds up to ``speed_max``, scanning less.
 
     The same search as :func:`stability_threshold` (the geometric grid of
-    :func:`bearing_id.bearings.stability.threshold_speed` from 0.2 to 4 x ``speed_max``, the first unstable grid point
+    :func:`bearing_id.rotor.stability.threshold_speed` from 0.2 to 4 x ``speed_max``, the first unstable grid point
     refined with brentq), stopped at the first stable grid point at or above ``speed_max``: when the crossing lies
     before it the value is the one :func:`stability_threshold` returns (same grid, same bracket, same brentq); else
     ``math.inf``, and :func:`stability_threshold` gives a threshold above that grid point, so no speed up to
@@ -112,8 +120,6 @@ def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certi
     cached = getattr(model, '_plausibility_threshold', None)       # (rig, top of the range searched, threshold)
     if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
         return cached[2]
-    from ..bearings import bearing_fn
-    from ..bearings.stability import max_real_part_fn
     bfn = bearing_fn(rig)
     top = 4.0 * float(speed_max)
     grid = np.geomspace(top / 20, top, THRESHOLD_GRID)
@@ -122,7 +128,6 @@ def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certi
 
     def unstable(w):
         if certify and dense:
-            from ..rotor.assembly import state_space
             if certified_stable(state_space(model, w, bfn(w))[0], CAYLEY_STEP / w):
                 return False
         return f(w) > 0
@@ -131,7 +136,6 @@ def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certi
         return 0.0
     for prev_w, w in zip(grid[:-1], grid[1:]):
         if unstable(w):
-            from ..bearings.short import brentq     # scipy's brentq steps, bit for bit, without scipy.optimize
             return float(brentq(f, prev_w, w, xtol=1e-3, rtol=4 * np.finfo(float).eps))
         if w >= speed_max:
             return math.inf
@@ -139,7 +143,6 @@ def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certi
 
 
 def _fast_ndof() -> int:
-    from ..bearings.stability import FAST_NDOF
     return FAST_NDOF
 
 
@@ -152,10 +155,6 @@ def bearing_orbits(result, model, data, s: int, runs, probes, fast: bool = True)
     ``direct.SPARSE_NDOF`` DOFs, the FE dynamic stiffness being banded); False: a dense
     :func:`bearing_id.rotor.assembly.harmonic_response` per run (the reference; test/test_direct_fast.py).
     """
-    from ..conventions import dof_index
-    from ..excitation import harmonic_forces
-    from ..rotor.assembly import dynamic_stiffness, harmonic_response, probe_matrix
-    from .direct import SPARSE_NDOF
     w = float(data.speeds[s])
     co = result.coeffs()
     S = probe_matrix(model, probes)
@@ -172,8 +171,6 @@ def bearing_orbits(result, model, data, s: int, runs, probes, fast: bool = True)
             Z = dynamic_stiffness(model, w, w, co)
             Fs = np.stack([np.asarray(F, dtype=complex) for _, F in forced], axis=1)
             if Z.shape[0] > SPARSE_NDOF:
-                import scipy.sparse as sp
-                from scipy.sparse.linalg import splu
                 lu = splu(sp.csc_matrix(Z))
                 if not np.all(np.isfinite(lu.U.diagonal())) or np.any(lu.U.diagonal() == 0):
                     raise np.linalg.LinAlgError('singular dynamic stiffness')

@@ -225,4 +225,36 @@ def eq38_error(identified, truth) -> dict:
     return out
 
 
-__all__ = ['IdentResult', 'empty_result', 'eq38_error']
+UNITS = {'K': 'N/m', 'C': 'N s/m'}
+
+
+def _fmt(v):
+    return 'nan' if not math.isfinite(v) else f'{v:.4g}'
+
+
+def format_results(results, allow_undetermined: bool) -> str:
+    """Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged."""
+    lines = []
+    for r in results:
+        lines.append(f'speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  '
+                     f'condition {_fmt(r.condition)}  residual {_fmt(r.residual)}')
+        lines.append(f"  {'bearing':10s} {'coeff':5s} {'value':>12s} {'1-sigma':>12s}  unit")
+        for b, name in enumerate(r.bearings):
+            for sym in ('K', 'C'):
+                val, std, det = getattr(r, sym), getattr(r, sym + '_std'), getattr(r, sym + '_determined')
+                for k, lab in enumerate(('xx', 'xy', 'yx', 'yy')):
+                    i, j = divmod(k, 2)
+                    if det[b, i, j]:
+                        lines.append(f'  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} '
+                                     f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}')
+                    elif allow_undetermined:
+                        lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
+                                     f'{UNITS[sym]} (prior)')
+                    else:
+                        lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
+        for n in r.notes:
+            lines.append(f'  note: {n}')
+    return '\n'.join(lines)
+
+
+__all__ = ['format_results', 'IdentResult', 'empty_result', 'eq38_error']

@@ -25,7 +25,7 @@ string; ``ros2 bag play`` then offers a transient-local topic as transient-local
 
 Every failure (missing/truncated/corrupt bag, missing topic, unknown type, hostile metadata.yaml, a message whose
 arrays disagree) raises :class:`BagError` naming the file; nothing is read before metadata.yaml has passed a bounded
-parse (size, nesting, alias expansion: :func:`bearing_id.params.check_yaml_events`).
+parse (size, nesting, alias expansion: :func:`bearing_id.config.params.check_yaml_events`).
 """
 from __future__ import annotations
 
@@ -36,10 +36,17 @@ import importlib.util
 import math
 import os
 from pathlib import Path
+import shutil
+import sqlite3
 import struct
 import sys
+import tempfile
 import time
 import zlib
+
+import yaml
+
+from ..config.params import check_yaml_events, ParamError
 
 PACKAGE = 'bearing_id_msgs'
 STORAGES = ('mcap', 'sqlite3')
@@ -252,7 +259,6 @@ class BagWriter:
         if self.path.exists():
             if not overwrite:
                 raise BagError(f'{self.path}: exists already (pass overwrite=True to replace it)')
-            import shutil
             shutil.rmtree(self.path)
         self._w = Writer(self.path, version=BAG_VERSION, storage_plugin=plugin)
         try:
@@ -406,10 +412,6 @@ def unfinished(path) -> Path | None:
 
 def _check_metadata(path: Path) -> None:
     """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it."""
-    import yaml
-
-    from ..params import check_yaml_events, ParamError
-
     meta = path / 'metadata.yaml'
     try:
         size = meta.stat().st_size
@@ -653,7 +655,6 @@ class Salvage:
                     if want is None or topic in want:
                         yield topic, msgtype, stamp, data
         else:
-            import sqlite3
             con = sqlite3.connect(str(self.storage_file))
             try:
                 names = {tid: (name, typ) for tid, name, typ in con.execute('SELECT id, name, type FROM topics')}
@@ -812,7 +813,6 @@ def salvage_bag(path) -> Salvage:
         if sv.valid_bytes < 8:
             raise BagError(f'{path}: {part.name} is not a readable mcap file ({sv.stopped})')
         return sv
-    import sqlite3
 
     from rosbags.rosbag2.metadata import parse_qos
     try:
@@ -881,9 +881,6 @@ def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
     Returns ``(path, salvage, backup)``.  ``BagError`` if ``path`` is not an unfinished recording or nothing in it
     can be read; the original is left untouched on any failure.
     """
-    import shutil
-    import tempfile
-
     path = Path(path)
     sv = salvage_bag(path)
     ts = _salvage_typestore(sv, types)

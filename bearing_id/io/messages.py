@@ -15,7 +15,7 @@ Message layouts (see ``msg_defs/msg/*.msg``):
   A direction is 'x', 'y' or a probe at any angle in the x-y plane as '<angle>deg' (e.g. '45.0deg'), optionally with
   a gain '*<g>' (:func:`bearing_id.conventions.probe_direction`): channels carry their probe angle in the existing
   string field, so the message layout and every recorded bag stay as they were.
-* Excitation: parallel arrays, one index per :class:`bearing_id.params.ExcitationEntry`.
+* Excitation: parallel arrays, one index per :class:`bearing_id.config.params.ExcitationEntry`.
 * BearingCoefficients: 4 entries per bearing in :data:`bearing_id.conventions.COEFF_ORDER` (xx, xy, yx, yy).
 """
 from __future__ import annotations
@@ -28,14 +28,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import COEFF_ORDER, parse_probe_direction
-from ..params import ExcitationEntry, Probe, Run
+from ..signals.recording import MAX_PLAUSIBLE_DISPLACEMENT
 
 PACKAGE = 'bearing_id_msgs'
 MESSAGE_NAMES = ('DisplacementBlock', 'RotorSpeed', 'Excitation', 'BearingCoefficients')
-
-#: |displacement| above this [m] is not a plausible shaft vibration in metres (mm or µm sent by mistake?)
-MAX_PLAUSIBLE_DISPLACEMENT = 1e-2
 
 
 # ------------------------------------------------------------------------------------------------ message classes
@@ -212,7 +210,7 @@ class Block:
 
     @property
     def probes(self) -> tuple:
-        """Return the channels as :class:`bearing_id.params.Probe` (name, node, direction)."""
+        """Return the channels as :class:`bearing_id.config.params.Probe` (name, node, direction)."""
         return tuple(Probe(c, int(n), d) for c, n, d in zip(self.channels, self.nodes, self.directions))
 
     @property
@@ -426,7 +424,7 @@ def speed_from_msg(msg) -> tuple[int, float, float]:
 # ------------------------------------------------------------------------------------------------------ Excitation
 def excitation_to_msg(run, run_id: str | None = None, *, stamp=0, frame_id: str = '', types=None):
     """
-    Build an Excitation message from a :class:`bearing_id.params.Run` or an iterable of ExcitationEntry.
+    Build an Excitation message from a :class:`bearing_id.config.params.Run` or an iterable of ExcitationEntry.
 
     Give ``run_id`` with the iterable.
     """
@@ -495,7 +493,7 @@ def check_excitation(run_id: str, entries, n_nodes: int | None = None) -> list[s
 
 def excitation_from_msg(msg, n_nodes: int | None = None) -> Run:
     """
-    Return an Excitation message as :class:`bearing_id.params.Run` (``id``, ``excitation`` tuple of entries).
+    Return an Excitation message as :class:`bearing_id.config.params.Run` (``id``, ``excitation`` tuple of entries).
 
     ``ValueError`` naming every problem (:func:`check_excitation`) when it cannot be used.
     """

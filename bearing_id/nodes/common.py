@@ -37,19 +37,23 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass, field
 import faulthandler
+import importlib
 import math
 import os
 from pathlib import Path
 import signal
 import sys
+import textwrap
 import threading
 import time
+import traceback
 from typing import Any, Callable
 
 import numpy as np
+import yaml
 
+from ..config.params import ParamError
 from ..io.messages import SAMPLE_RATE_RANGE
-from ..params import ParamError
 
 # ------------------------------------------------------------------------------------------------ topics
 # Names in the root namespace (bags, play/record, diagnostics texts); nodes create them as relative(TOPIC_...).
@@ -256,7 +260,6 @@ def yaml_block(node_name: str, specs: list[ParamSpec]) -> str:
     file keyed by the node name is silently ignored when the node runs under a namespace (``/rig1/kf_estimator`` does
     not match ``kf_estimator:``).  ``node_name`` only names the node in a comment.
     """
-    import yaml
     out = [f'{PARAMS_KEY}:  # the {node_name} node, under any namespace', '  ros__parameters:']
     for s in specs:
         out.append('')
@@ -293,7 +296,6 @@ def write_params_file(path, node_name: str, specs: list[ParamSpec]) -> str:
 
 
 def _wrap(text: str, width: int) -> list[str]:
-    import textwrap
     return textwrap.wrap(text, width) or ['']
 
 
@@ -862,7 +864,6 @@ def callback_failure_text(exc: BaseException, count: int) -> str:
     The node keeps spinning (its other callbacks, its records and the data already accumulated are not lost), so the
     text carries the full traceback for the bug report and the running count of such failures.
     """
-    import traceback
     tb = ''.join(traceback.format_exception(type(exc), exc, exc.__traceback__)).rstrip()
     return (f'callback failed ({count} so far; the node goes on, please report this): '
             f'{type(exc).__name__}: {exc}\n{tb}')
@@ -914,8 +915,6 @@ class ExcitationTimeline:
 
 
 if __name__ == '__main__':  # python -m bearing_id.nodes.common [PARAMS_DIR]: regenerate params/<node>.yaml
-    import importlib
-
     from bearing_id.nodes import common as _common  # the module the nodes' specs refer to, not this __main__ copy
     _dir = Path(sys.argv[1]) if len(sys.argv) > 1 else _common.FASTDDS_PROFILE.parent
     for _node in ('sensor_driver', 'kf_estimator', 'identifier'):

@@ -25,7 +25,7 @@ Data path (the offline route, call for call)
 
 Record and resume
     Every excitation, accumulated vector and result is appended to ``<record_dir>/record.jsonl``
-    (:class:`bearing_id.record.Record`); on start-up the node replays it, so a restart loses nothing already
+    (:class:`bearing_id.io.record.Record`); on start-up the node replays it, so a restart loses nothing already
     accumulated and re-publishes the results; the runs announced before the restart (with their start stamps) are
     known again at once.  A malformed record line is skipped with a note.
 """
@@ -41,10 +41,19 @@ import time
 
 import numpy as np
 
-from .common import (DiagItem, diagnostics_msg, ERROR, OK, ParamSpec, qos_latched, run_node, STALE, StreamMonitor,
+from .common import (declare_parameters, DiagItem, diagnostics_msg, ERROR, flag_publishers, OK, ParamSpec, qos_input,
+                     qos_latched, relative, run_node, STALE, StreamMonitor, subscribe_latched,
                      TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, WARN)
-from ..conventions import rad_s_to_rpm
-from ..params import ExcitationEntry, Probe, Run
+from .runs import excitation_of, MALFORMED, RunResolver
+from ..config.params import ExcitationEntry, load_rig, Probe, Run
+from ..conventions import rad_s_to_rpm, rpm_to_rad_s
+from ..identify import get_method, harmonics, identify
+from ..identify.harmonics import (combine_vectors, common_speeds, DEFAULT_MAX_WINDOW, HarmonicData, PlainFit, RunStream,
+                                  WindowVector)
+from ..identify.plausibility import stability_threshold
+from ..io import messages as M
+from ..io.record import Record
+from ..rotor.assembly import RotorModel
 
 NAME = 'identifier'
 
@@ -124,15 +133,12 @@ class IdentifierCore:
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = 0.005,
                  settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float | None = None,
                  warm_start: bool = True):
-        from ..record import Record
-        from ..rotor.assembly import RotorModel
         self.rig = rig
         self.model = RotorModel.from_params(rig)
         self.method = method
         self.options = options
         self.required = list(required_runs) if required_runs else None
         self.tol_rel, self.settle, self.min_window = float(tol_rel), float(settle), float(min_window)
-        from ..identify.harmonics import DEFAULT_MAX_WINDOW
         self.max_window = float(DEFAULT_MAX_WINDOW if max_window is None else max_window)
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
@@ -151,14 +157,12 @@ class IdentifierCore:
         self.warm_start = bool(warm_start)
         self._warm = None                      # (parameter names, values [SI]) of the last physical fit
         self.lock = threading.Lock()
-        from ..identify import get_method, harmonics  # noqa: F401  (import now, not on the first window)
         get_method(method)
         self.record = Record(record_dir)
         self.resumed = self._resume()
 
     # ---- record
     def _resume(self) -> dict:
-        from ..identify.harmonics import PlainFit
         n_vec = n_res = n_bad = 0
         for e in self.record.entries():
             try:
@@ -253,7 +257,6 @@ class IdentifierCore:
     @staticmethod
     def _combined(parts, probes):
         """Return the vector (speed, X, X_std, probes, plain) of a dwell's parts, combined in window order."""
-        from ..identify.harmonics import combine_vectors, WindowVector
         v = None
         for _, part in parts:
             if part is None:
@@ -281,7 +284,6 @@ class IdentifierCore:
         The block has ``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``, ``stamp``,
         ``seq``.
         """
-        from ..identify.harmonics import RunStream
         out = []
         cur = self.stream
         probes = tuple(block.probes)
@@ -326,7 +328,6 @@ class IdentifierCore:
     # ---- accumulation (worker thread)
     def add_window(self, win) -> list[tuple]:
         """Fit one closed window (the offline rule) and store its vector; returns [(speed, X)] newly usable."""
-        from ..identify import harmonics
         what = (f'window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
                 f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'window of run {win.run.id}')
         try:
@@ -377,7 +378,6 @@ class IdentifierCore:
 
         In the first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline.
         """
-        from ..identify.harmonics import common_speeds, HarmonicData, PlainFit
         with self.lock:
             req = self.required_runs()
             if not req or any(r not in self.runs for r in req) or self.probe_set is None:
@@ -424,7 +424,6 @@ class IdentifierCore:
         ``data``: an :meth:`assemble` result, default a new one.  ``record``: append the results to the record now
         (False: the caller does it with :meth:`record_results`, e.g. after publishing them).
         """
-        from ..identify import identify
         data = self.assemble() if data is None else data
         if data is None:
             return [], None
@@ -451,8 +450,6 @@ class IdentifierCore:
         The plausibility gate's stability threshold for the rig's planned speed range (``simulation.speeds_rpm``):
         without it the first solve at each new top speed searches for it (~0.4 s).
         """
-        from ..conventions import rpm_to_rad_s
-        from ..identify.plausibility import stability_threshold
         sim = self.rig.simulation
         if sim is not None and sim.speeds_rpm:          # every method's results pass the same gate
             stability_threshold(self.model, self.rig, float(rpm_to_rad_s(max(sim.speeds_rpm))))
@@ -479,11 +476,6 @@ SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this lo
 def _make_node():
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
-
-    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
-    from .runs import excitation_of, MALFORMED, RunResolver
-    from ..io import messages as M
-    from ..params import load_rig
 
     class Identifier(Node):
         def __init__(self):

@@ -8,7 +8,7 @@ input block) and ``/bearing_id/innovation`` (DisplacementBlock, probe channels, 
 the clearance, speed against the stability threshold).
 
 Model cache
-    The discretised FE model (theoretical bearing coefficients at the speed, :func:`bearing_id.kalman.
+    The discretised FE model (theoretical bearing coefficients at the speed, :func:`bearing_id.estimation.kalman.
     rotor_kalman_model`) is cached per speed band (relative width ``speed_band``) and built by a worker thread.  A block
     whose band has no model yet waits in an ordered queue (at most ``max_pending_blocks``) while the callback returns at
     once: rebuilds never stall the data path.  Expected speeds (``prebuild_speeds_rpm``) are built at start-up.
@@ -26,12 +26,18 @@ import time
 
 import numpy as np
 
-from .common import (DiagItem, diagnostics_msg, ERROR, OK, ParamSpec, qos_stream, run_node, sec_to_stamp, STALE,
-                     StreamMonitor, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_INNOVATION,
-                     TOPIC_SPEED, WARN)
+from .common import (declare_parameters, DiagItem, diagnostics_msg, ERROR, flag_publishers, OK, ParamSpec, qos_input,
+                     qos_stream, relative, run_node, sec_to_stamp, STALE, StreamMonitor, subscribe_latched,
+                     TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_INNOVATION, TOPIC_SPEED,
+                     WARN)
 from .runs import excitation_of, MALFORMED, RunResolver
+from ..config.params import load_rig, Probe
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
-from ..params import Probe
+from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
+from ..excitation import harmonic_forces
+from ..io import messages as M
+from ..rotor import stability, supports
+from ..rotor.assembly import RotorModel
 
 NAME = 'kf_estimator'
 ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_validity)
@@ -130,11 +136,9 @@ class EstimatorCore:
     """
 
     def __init__(self, rig, Q: float, R_std: float, band: float, max_pending: int = 400, nis_window: int = 50):
-        from .. import bearings
-        from ..rotor.assembly import RotorModel
         self.rig = rig
         self.rotor = RotorModel.from_params(rig)
-        self.bearing_fn = bearings.bearing_fn(rig)
+        self.bearing_fn = supports.bearing_fn(rig)
         self.Q = float(Q)
         self.R = float(R_std) ** 2
         self.band = float(band)
@@ -168,10 +172,8 @@ class EstimatorCore:
             t0 = time.perf_counter()
             try:
                 if key == 'threshold':
-                    from ..bearings import stability
                     self.threshold = float(stability.threshold_speed(self.rotor, self.bearing_fn, speed))
                     continue
-                from ..kalman import rotor_kalman_model, StreamingKF
                 km = rotor_kalman_model(self.rotor, speed, self.bearing_fn(speed), probes, fs, Q=self.Q, R=self.R,
                                         outputs=[(p.node, p.direction) for p in self.outputs_probes])
                 StreamingKF(km)          # builds and caches the steady-state gain and the chunked operator
@@ -224,8 +226,6 @@ class EstimatorCore:
 
     def drain(self) -> list[Output]:
         out = []
-        from ..excitation import harmonic_forces
-        from ..kalman import StreamingKF
         while self._pending:
             block, run, speed, contiguous, key = self._pending[0]
             with self._lock:
@@ -257,7 +257,6 @@ class EstimatorCore:
 
     # ---- health
     def nis_status(self) -> DiagItem:
-        from ..kalman import nis_band
         name = f'{NAME}: filter consistency (NIS)'
         if not self.nis_hist or not self.n_meas:
             return DiagItem(name, OK, 'no filtered data yet', {})
@@ -332,10 +331,6 @@ class EstimatorCore:
 def _make_node():
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
-
-    from .common import declare_parameters, flag_publishers, qos_input, relative, subscribe_latched
-    from ..io import messages as M
-    from ..params import load_rig
 
     class KFEstimator(Node):
         def __init__(self):

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections import deque
 
 from .common import ExcitationTimeline, stamp_to_sec
+from ..io.messages import excitation_from_msg
 
 #: what converting a hostile message can raise (reported and dropped by the callbacks, never raised out of them)
 MALFORMED = (ValueError, TypeError, AttributeError, OverflowError, IndexError)
@@ -25,7 +26,6 @@ def excitation_of(msg, n_nodes: int | None = None):
     Validated by :func:`bearing_id.io.messages.check_excitation` with the model's ``n_nodes``; raises one of
     :data:`MALFORMED` saying what is wrong.
     """
-    from ..io.messages import excitation_from_msg
     run = excitation_from_msg(msg, n_nodes)
     return stamp_to_sec(msg.header.stamp), run
 

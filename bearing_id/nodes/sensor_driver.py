@@ -2,9 +2,9 @@
 ``sensor_driver``: publishes what a DAQ on the rig would: displacement blocks, rotor speed, the known excitation.
 
 Sources
-    ``sim`` (default): the simulated rig of ``rig_params`` (:func:`bearing_id.rig.simulate_run`, truth bearings !=
-    theory), one recording per excitation run of the chosen scenario, paced in real time times ``rate_factor``.
-    ``file``: DAQ exports (CSV or NPZ, :mod:`bearing_id.daq`), one per run, same pacing.
+    ``sim`` (default): the simulated rig of ``rig_params`` (:func:`bearing_id.simulation.rig.simulate_run`, truth
+    bearings != theory), one recording per excitation run of the chosen scenario, paced in real time times
+    ``rate_factor``. ``file``: DAQ exports (CSV or NPZ, :mod:`bearing_id.io.daq`), one per run, same pacing.
 
 Topics
     ``/rotor/displacement`` (DisplacementBlock, ``block_size`` samples; sequence +1 per block across runs; stamps
@@ -19,9 +19,12 @@ import sys
 import threading
 import time
 
-from .common import (DiagItem, diagnostics_msg, OK, ParamSpec, qos_latched, qos_stream, run_node, TOPIC_DISPLACEMENT,
-                     TOPIC_EXCITATION, TOPIC_SPEED, WARN)
-from ..params import ParamError
+from .common import (declare_parameters, DiagItem, diagnostics_msg, OK, ParamSpec, qos_latched, qos_stream, relative,
+                     run_node, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED, WARN)
+from ..config.params import load_rig, ParamError, parse_probes
+from ..io import messages as M
+from ..io.daq import read_daq
+from ..simulation import rig as rigmod
 
 NAME = 'sensor_driver'
 
@@ -67,10 +70,7 @@ class BlockSpan:
 
 def load_recordings(values: dict):
     """Load the source's recordings (one per run) from validated parameter ``values``; raises ParamError/ValueError."""
-    from .. import rig as rigmod
-    from ..params import load_rig
     if values['source'] == 'file':
-        from ..daq import read_daq
         files = values['files'] or []
         if not files:
             raise ParamError("parameter 'files' must list at least one DAQ export when source is 'file'")
@@ -82,7 +82,6 @@ def load_recordings(values: dict):
     runs = rig.simulation.runs if values['scenario'] == 'default' else rigmod.scenario(values['scenario'])
     probes = None
     if values['probes']:
-        from ..commands.simulate import parse_probes
         try:
             probes = parse_probes(','.join(values['probes']))
         except ParamError as exc:
@@ -111,7 +110,6 @@ def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, type
     angle of every sample in ``sample_angles``; the run in ``run_id``).  ``types``:
     None for rclpy messages, a rosbags typestore for bag writing.
     """
-    from ..io import messages as M
     fs = recordings[0].sample_rate
     prev = None
     for seq, sp in enumerate(block_spans([r.samples.shape[0] for r in recordings], fs, block_size)):
@@ -133,9 +131,6 @@ def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, type
 # ------------------------------------------------------------------------------------------------ node
 def _make_node():
     from rclpy.node import Node
-
-    from .common import declare_parameters, relative
-    from ..io import messages as M
 
     class SensorDriver(Node):
         def __init__(self):

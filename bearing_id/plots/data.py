@@ -2,7 +2,7 @@
 The numbers behind the report's figures -- plain numpy/scipy, no matplotlib (so they can be tested on their own).
 
 Every figure module in :mod:`bearing_id.plots` draws what these functions return; every number comes from the same
-physics modules the CLI prints from (:mod:`bearing_id.rotor.modal`, :mod:`bearing_id.bearings.stability`,
+physics modules the CLI prints from (:mod:`bearing_id.rotor.modal`, :mod:`bearing_id.rotor.stability`,
 :func:`bearing_id.rotor.assembly.harmonic_response`, the identification results), never from a second copy.
 SI units inside (rad/s, m, N/m, N s/m); the ``*_rpm`` / ``*_hz`` / ``*_um`` properties are for people.
 
@@ -26,8 +26,13 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
-from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, RPM_PER_RAD_S, whirl_direction
+from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, probe_row, RPM_PER_RAD_S, whirl_direction
+from ..excitation import harmonic_forces
+from ..rotor import stability, supports
+from ..rotor.assembly import dynamic_stiffness, probe_matrix
+from ..rotor.modal import campbell, critical_speeds, damped_modes, modes_solver
 
 TWO_PI = 2.0 * math.pi
 ORDERS = (0.5, 1.0, 2.0)          # the order lines of the Campbell diagram and the spectra
@@ -83,13 +88,11 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
     Campbell data of ``model`` on ``bearing_fn`` over (min_speed, max_speed] [rad/s].
 
     Critical speeds: :func:`bearing_id.rotor.modal.critical_speeds` on (lo, max_speed) with 40 grid points and
-    ``n_modes`` modes (the ``bearing-id model`` call); stability threshold: :func:`bearings.stability.threshold_speed`
+    ``n_modes`` modes (the ``bearing-id model`` call); stability threshold: :func:`rotor.stability.threshold_speed`
     on (lo, max_speed), scanned on the Campbell grid (whose eigenvalues are computed anyway; the crossing refined by
-    brentq) and :func:`bearings.stability.whirl_ratio` at it.  ``method``: the modes' solver,
+    brentq) and :func:`rotor.stability.whirl_ratio` at it.  ``method``: the modes' solver,
     :func:`bearing_id.rotor.modal.modes_solver` ('auto': the reduced screen with full refinement on large models).
     """
-    from ..bearings import stability
-    from ..rotor.modal import campbell, critical_speeds, modes_solver
     hi = float(max_speed)
     lo = float(min_speed) if min_speed is not None else max(50.0 / RPM_PER_RAD_S, hi / 60.0)
     grid = np.linspace(lo, hi, int(n_grid))
@@ -173,7 +176,6 @@ class ModeShape:
 
 def mode_shapes(model, bearing_fn, speed: float, n: int = 4) -> list[ModeShape]:
     """Return the lowest ``n`` damped modes at ``speed`` [rad/s] as :class:`ModeShape` (ordered by frequency)."""
-    from ..rotor.modal import damped_modes
     m = damped_modes(model, speed, bearing_fn(speed), n)
     out = []
     for k in range(m.frequency.size):
@@ -209,7 +211,6 @@ class InterpolatedBearings:
     """
 
     def __init__(self, results):
-        from scipy.interpolate import PchipInterpolator
         rs = sorted(results, key=lambda r: r.speed)
         if len(rs) < 2:
             raise ValueError('interpolation needs results at two speeds at least')
@@ -262,7 +263,6 @@ def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
     if fit is not None and hasattr(fit, 'names') and hasattr(fit, 'values'):
         if not np.all(fit.determined):
             return None, 'the physical fit leaves some bearing parameters undetermined'
-        from .. import bearings as bmod
         vals = dict(zip(fit.names, np.asarray(fit.values, float)))
         vf, cf, loads = [], [], {}
         for b in rig.bearings:
@@ -272,7 +272,7 @@ def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
                 loads[b.node] = vals[f'{b.name}.load']
             else:
                 loads[b.node] = fit.loads[b.node]
-        fn = bmod.bearing_fn(rig, model=fit.bearing_model, viscosity_factor=vf, clearance_factor=cf, loads=loads)
+        fn = supports.bearing_fn(rig, model=fit.bearing_model, viscosity_factor=vf, clearance_factor=cf, loads=loads)
         return IdentifiedModel(fn, None, f'identified ({fit.bearing_model} bearing, fitted parameters)',
                                'physical'), ''
     if not all(r.fully_determined for r in results):
@@ -304,8 +304,6 @@ def curve_speeds(test_speeds, lo: float, hi: float, n: int = 160) -> np.ndarray:
 
 def response_curves(model, bearing_fn, runs, probes, speeds) -> np.ndarray:
     """Model 1X phasors at the probes, complex (n_runs, n_speeds, n_probes) [m]: q = Z(speed)^-1 F_1X(run)."""
-    from ..excitation import harmonic_forces
-    from ..rotor.assembly import dynamic_stiffness, probe_matrix
     S = probe_matrix(model, probes)
     speeds = np.asarray(speeds, float)
     out = np.zeros((len(runs), speeds.size, S.shape[0]), complex)
@@ -360,7 +358,7 @@ def journal_positions(bearing_fn, speeds) -> dict | None:
     """
     Return {node: {'xy' (ns, 2) m, 'clearance' m, 'eps' (ns,), 'attitude' (ns,) rad}} from a bearing model.
 
-    The model needs ``solutions(speed)`` (:class:`bearing_id.bearings.BearingFunction`); None for a model without one.
+    The model needs ``solutions(speed)`` (:class:`bearing_id.supports.BearingFunction`); None for a model without one.
     """
     sol = getattr(bearing_fn, 'solutions', None)
     if sol is None:
@@ -468,7 +466,6 @@ def probe_stations(probes) -> list[tuple[int, int, np.ndarray | None]]:
     probe_row`, gains included) are at least 30 deg from parallel, and ``to_xy`` (2, 2) the inverse of those rows:
     (x, y) = to_xy @ (reading_a, reading_b).
     """
-    from ..conventions import probe_row
     out = []
     for n in sorted({p.node for p in probes}):
         idx = [i for i, p in enumerate(probes) if p.node == n]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import probe_text
+from .common import new_figure, probe_text
 
 _CURVES = (('nominal', 'nominal model', {'color': '0.5', 'ls': ':', 'lw': 1.0, 'marker': 's', 'ms': 5,
                                          'mfc': 'none'}),
@@ -27,7 +27,6 @@ def diagnosis_bode_figure(panel, *, title=None):
     The diagnosis predicts at the test speeds only: its predictions are markers there, joined by thin lines that are not
     a model curve (the continuous curves are in the Bode section).
     """
-    from .common import new_figure
     fig, axs = new_figure((8.0, 5.8), 2, 1, sharex=True)
     a, p = axs[0, 0], axs[1, 0]
     rpm = panel['rpm']
@@ -58,7 +57,6 @@ def diagnosis_bode_figure(panel, *, title=None):
 
 def residual_orders_figure(curves, *, title=None):
     """RMS residual by harmonic order before (refitted bearings, no effect) and after (augmented) -> Figure."""
-    from .common import new_figure
     fig, axs = new_figure((6.5, 3.6))
     ax = axs[0, 0]
     o = np.asarray(curves['orders'], float)

@@ -9,9 +9,15 @@ the element ``#render-check``, how many images the browser decoded (``naturalWid
 """
 from __future__ import annotations
 
+import argparse
 import base64
 import html
+import os
 from pathlib import Path
+import re
+import shutil
+import subprocess
+import tempfile
 
 CSS = """
 body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:0;color:#1a1a1a;background:#fff}
@@ -173,8 +179,6 @@ CHROMIUM_FLAGS = ('--headless', '--no-sandbox', '--disable-gpu', '--disable-quic
 
 def find_chromium() -> str | None:
     """Path of a Chromium / Chrome executable (``CHROMIUM`` overrides), or None."""
-    import os
-    import shutil
     env = os.environ.get('CHROMIUM')
     if env:
         return env
@@ -195,9 +199,6 @@ def browser_check(path, *, chromium: str | None = None, screenshot=None, window=
     handler ran}.  With ``screenshot`` also writes a PNG of the first ``window`` = (width, height) pixels.
     Raises FileNotFoundError when no Chromium is installed, RuntimeError when it fails.
     """
-    import re
-    import subprocess
-    import tempfile
     exe = chromium or find_chromium()
     if exe is None:
         raise FileNotFoundError('no chromium executable (apt-get install chromium, or set CHROMIUM)')
@@ -226,7 +227,6 @@ def browser_check(path, *, chromium: str | None = None, screenshot=None, window=
 
 def _main(argv=None) -> int:
     """``python -m bearing_id.plots.html PAGE [--screenshot PNG]``: the browser check, printed."""
-    import argparse
     ap = argparse.ArgumentParser(prog='python -m bearing_id.plots.html', description=browser_check.__doc__)
     ap.add_argument('page')
     ap.add_argument('--screenshot')

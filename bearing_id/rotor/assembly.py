@@ -29,8 +29,9 @@ from functools import cached_property
 import numpy as np
 
 from .elements import DiscElement, ShaftElement
+from ..bearings import solution
+from ..config.params import RigParams
 from ..conventions import dof_index, DOF_PER_NODE, GRAVITY, LOCAL_DOF, node_index, probe_row
-from ..params import RigParams
 
 
 @dataclass(eq=False)
@@ -193,7 +194,6 @@ class RotorModel:
             return []
         fn = self.__dict__.get('_known_fn')
         if fn is None:
-            from ..bearings import known_fn   # lazy: bearings/ imports rotor/ lazily too
             fn = self.__dict__['_known_fn'] = known_fn(self)
         return [(b.node, self.pedestals.get(('known', i)), K, C) for i, (b, (K, C)) in enumerate(zip(self.known,
                                                                                                      fn(speed)))]
@@ -378,6 +378,36 @@ def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, flo
     return {int(b): float(v) for b, v in zip(nodes, r)}
 
 
+def known_fn(model):
+    """
+    Return ``fn(speed [rad/s]) -> [(K, C), ...]`` of ``model.known`` (seals, ``identify: false`` bearings), cached.
+
+    Short/finite known bearings carry their ``load`` or their share of the weight (statics with every support).
+    """
+    known = tuple(model.known)
+    loads = {}
+    if any(b.model != 'table' and b.load is None for b in known):
+        loads = static_bearing_loads(model)
+    cache: dict = {}
+
+    def fn(speed):
+        key = float(speed)
+        out = cache.get(key)
+        if out is None:
+            out = []
+            for b in known:
+                if b.model == 'table':
+                    s = solution(b, key, 0.0)
+                else:
+                    s = solution(b, key, b.load if b.load is not None else loads[b.node])
+                out.append((s.K, s.C))
+            if len(cache) > 4096:
+                cache.clear()
+            cache[key] = out
+        return out
+    return fn
+
+
 __all__ = ['RotorModel', 'film_dofs', 'add_film_impedance', 'add_bearings', 'add_known', 'bearing_matrices',
            'system_matrices', 'dynamic_stiffness', 'harmonic_response', 'state_space', 'measurement_row',
-           'probe_matrix', 'static_bearing_loads']
+           'probe_matrix', 'static_bearing_loads', 'known_fn']

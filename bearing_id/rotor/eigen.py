@@ -22,6 +22,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import eigs, splu
+
+from .assembly import system_matrices
+from .reduction import craig_bampton, film_and_known_dofs
 
 ITER_MAX = 30             # inverse iterations per refined eigenvalue before ARPACK takes over
 ITER_TOL = 1e-13          # relative change of the eigenvalue estimate at convergence
@@ -36,8 +41,6 @@ class ReducedEigen:
     """
 
     def __init__(self, model, cutoff_hz: float):
-        import scipy.sparse as sp
-        from .reduction import craig_bampton, film_and_known_dofs
         self.model = model
         self.cutoff = 2 * math.pi * float(cutoff_hz)          # rad/s
         self.red = craig_bampton(model, film_and_known_dofs(model), cutoff_hz=float(cutoff_hz))
@@ -52,8 +55,6 @@ class ReducedEigen:
 
     def pencil(self, speed: float, coeffs: dict):
         """Return the full pencil's A = [[0, I], [-K, -C]] (2 ndof, 2 ndof) sparse complex at ``speed`` [rad/s]."""
-        import scipy.sparse as sp
-        from .assembly import system_matrices
         _, C, K = system_matrices(self.model, speed, coeffs)
         n = self.model.ndof
         A = np.zeros((2 * n, 2 * n), dtype=complex)      # dense then compressed: ~10x cheaper than sparse bmat
@@ -76,7 +77,6 @@ class ReducedEigen:
         floors at 1e-12 ... 1e-10 on this badly scaled pencil; 2-6 iterations from the reduced eigenpair); otherwise
         ARPACK shift-invert (scipy ``eigs``) decides.
         """
-        from scipy.sparse.linalg import eigs, splu
         sig = complex(lam_r) + 1e-7 * max(abs(lam_r), 1.0) * (1 + 1j)
         B = self.B
         lu = splu((A - sig * B).tocsc())

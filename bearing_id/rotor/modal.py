@@ -11,8 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import eigh
+from scipy.optimize import brentq
 
 from .assembly import RotorModel, state_space
+from .eigen import ReducedEigen
 from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, whirl_direction
 
 
@@ -76,7 +79,7 @@ def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n
 
 
 FAST_NDOF = 100           # method='auto' takes :class:`FastModes` for models with more DOFs than this
-N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as bearings.stability.FastStability)
+N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as rotor.stability.FastStability)
 
 
 class FastModes:
@@ -94,7 +97,6 @@ class FastModes:
 
     def __init__(self, model: RotorModel, speed_top: float, coeffs_top: dict | None = None, n: int = 8,
                  cutoff_factor: float = 3.0):
-        from .eigen import ReducedEigen
         self.model = model
         top = float(speed_top)
         if coeffs_top is not None:
@@ -154,7 +156,6 @@ def free_free_frequencies(model: RotorModel, n: int = 4, return_shapes: bool = F
     Solved in the x-z plane (x, ty DOFs; the y-z plane gives the same frequencies); the two rigid-body modes
     (translation, tilt) are excluded.  With ``return_shapes`` also the (n_nodes,) lateral shapes (n_nodes, n).
     """
-    from scipy.linalg import eigh            # lazy: start-up of the commands that never need it
     idx = np.sort(np.concatenate([np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF['x'],
                                   np.arange(model.n_nodes) * DOF_PER_NODE + LOCAL_DOF['ty']]))
     K = model.K[np.ix_(idx, idx)]
@@ -174,7 +175,7 @@ class Campbell:
 
     ``speeds`` (ns,) [rad/s]; ``frequency``, ``log_dec``, ``damping_ratio`` (ns, n); ``whirl`` (ns, n) array of
     'forward'/'backward'; ``max_real`` (ns,) the largest real part of all the eigenvalues at each speed [1/s] (the
-    stability scan of :func:`bearing_id.bearings.stability.threshold_speed`, for free with the modes).
+    stability scan of :func:`bearing_id.rotor.stability.threshold_speed`, for free with the modes).
     """
 
     speeds: np.ndarray
@@ -233,7 +234,6 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
     lo, hi = map(float, speed_range)
     if not 0 < lo < hi:
         raise ValueError('speed_range must be (lo, hi) with 0 < lo < hi [rad/s]')
-    from scipy.optimize import brentq
     modes = solver or modes_solver(model, hi, method, bearing_fn, n_modes)
     grid = np.linspace(lo, hi, n_grid)
     if campbell_grid is not None and campbell_grid.speeds.shape == grid.shape \

@@ -29,7 +29,9 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+import scipy.linalg as sla
 
+from .assembly import add_known, bearing_matrices, dynamic_stiffness, first_order
 from ..conventions import dof_index
 
 
@@ -126,7 +128,6 @@ class ReducedRotor:
             C = self.C + key * self.G
             K = self.K.copy()
             if getattr(self.full, 'known', ()):
-                from .assembly import add_known
                 nd = self.full.ndof
                 Kk, Ck = np.zeros((nd, nd)), np.zeros((nd, nd))
                 add_known(self.full, Kk, Ck, key)
@@ -139,7 +140,6 @@ class ReducedRotor:
 
     def system_matrices(self, speed: float, coeffs: dict):
         """(M_r, C_r, K_r) of the reduced rotor on bearings ``coeffs`` {node: (K, C)} at ``speed`` [rad/s]."""
-        from .assembly import bearing_matrices
         C0, K0 = self._base_matrices(speed)
         Kb, Cb = bearing_matrices(self.full, coeffs)
         return self.M, C0 + self.project(Cb), K0 + self.project(Kb)
@@ -150,7 +150,6 @@ class ReducedRotor:
 
         B = [0; M_r^-1 T^T] (2 nr, ndof): forces are given on the full DOFs and projected.
         """
-        from .assembly import first_order
         _, C, K = self.system_matrices(speed, coeffs)
         B = np.zeros((2 * self.nr, self.full.ndof))
         B[self.nr:] = self.Minv @ self.T.T
@@ -164,13 +163,11 @@ class ReducedRotor:
 
 def film_and_known_dofs(model) -> list:
     """Full DOF indices where the identified bearings, their pedestals and the known elements act (x, y each)."""
-    from .assembly import bearing_matrices
     out = set()
     unit = {n: (np.ones((2, 2)), np.ones((2, 2))) for n in model.bearing_nodes}
     Kb, Cb = bearing_matrices(model, unit)
     out.update(np.flatnonzero(np.any((Kb != 0) | (Cb != 0), axis=1)).tolist())
     if getattr(model, 'known', ()):
-        from .assembly import add_known
         nd = model.ndof
         Kk, Ck = np.zeros((nd, nd)), np.zeros((nd, nd))
         add_known(model, Kk, Ck, 100.0)
@@ -210,7 +207,6 @@ def craig_bampton(model, kept, *, n_modes: int | None = None, cutoff_hz: float |
     a Guyan reduction).  Raises ValueError when the interior with the kept DOFs fixed is not restrained (K_ii not
     positive definite: keep the translations of at least two bearing nodes).
     """
-    import scipy.linalg as sla
     nd = model.ndof
     kept = np.array(sorted({int(k) for k in kept}), dtype=int)
     if kept.size == 0 or kept.min() < 0 or kept.max() >= nd:
@@ -263,7 +259,6 @@ def receptance_error(red: ReducedRotor, speed: float, coeffs: dict, dofs=None, o
     max |H_r - H| / max |H| over the (dofs x dofs) block, H = Z^-1 of the full model on bearings ``coeffs`` at
     ``speed`` [rad/s], H_r the reduced model's; ``dofs`` full DOF indices (default all kept DOFs).
     """
-    from .assembly import dynamic_stiffness
     w = float(speed if omega is None else omega)
     dofs = red.kept if dofs is None else np.asarray(dofs, dtype=int)
     Z = dynamic_stiffness(red.full, speed, w, coeffs)

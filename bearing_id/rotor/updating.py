@@ -25,10 +25,11 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
+from scipy.optimize import minimize
 
-from .params import RigParams
-from .rotor.assembly import RotorModel
-from .rotor.modal import free_free_frequencies
+from .assembly import RotorModel
+from .modal import free_free_frequencies
+from ..config.params import RigParams
 
 TWO_PI = 2.0 * math.pi
 
@@ -144,7 +145,6 @@ def update_model(rig: RigParams, measured_hz, *, parameters=None, stiffness: boo
         f = free_free_hz(rig, n, dict(zip(names, np.exp(logx))))
         return float(np.sum((f / meas - 1.0) ** 2))
 
-    from scipy.optimize import minimize      # lazy: scipy.optimize costs ~0.25 s of process start
     res = minimize(objective, start, method='Nelder-Mead',
                    options={'xatol': 1e-9, 'fatol': 1e-16, 'maxiter': maxiter, 'maxfev': 2 * maxiter,
                             'adaptive': len(names) > 3})

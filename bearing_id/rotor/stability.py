@@ -25,10 +25,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import brentq
+
+from .assembly import state_space
+from .eigen import ReducedEigen
 
 
 def _eigs(model, bearing_fn, speed: float) -> np.ndarray:
-    from ..rotor.assembly import state_space  # lazy: keeps bearings/ importable without the rotor package
     A, _ = state_space(model, speed, bearing_fn(speed))
     return np.linalg.eigvals(A)
 
@@ -59,7 +62,6 @@ class FastStability:
     """
 
     def __init__(self, model, bearing_fn, speed_top: float, *, cutoff_factor: float = 10.0, n_refine: int = 4):
-        from ..rotor.eigen import ReducedEigen
         self.model, self.bearing_fn = model, bearing_fn
         self.n_refine = int(n_refine)
         self.eig = ReducedEigen(model, cutoff_hz=float(cutoff_factor) * float(speed_top) / (2 * math.pi))
@@ -118,7 +120,6 @@ def threshold_speed(model, bearing_fn, speed_max: float, speed_min: float | None
         if not 0 < speed_min < speed_max:
             raise ValueError(f'need 0 < speed_min < speed_max, got {speed_min!r}, {speed_max!r} rad/s')
         grid, values = np.geomspace(speed_min, speed_max, int(n_grid)), None
-    from scipy.optimize import brentq      # lazy: identify's start-up does not need scipy.optimize
     f = max_real_part_fn(model, bearing_fn, speed_max, method)
 
     def at(i):

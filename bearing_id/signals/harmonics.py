@@ -64,9 +64,10 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
+from scipy.linalg import solve_triangular
+from scipy.optimize import least_squares
 
-from .conventions import whirl_direction
-from .linalg import solve_triangular
+from ..conventions import whirl_direction
 
 TWO_PI = 2.0 * math.pi
 
@@ -392,7 +393,6 @@ class _VarPro:
         return out
 
     def solve(self, p0, max_nfev=40, xtol=1e-8):
-        from scipy.optimize import least_squares
         sol = least_squares(lambda p: self.evaluate(p, False)[0], p0, jac=lambda p: self.evaluate(p)[1], method='lm',
                             x_scale='jac', xtol=xtol, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
         return sol.x
@@ -643,8 +643,7 @@ def _exp_outer(tt, lam, dt=None):
 
 def _qr_r(A, overwrite: bool = False):
     """Return R (k, k) of the thin QR of A (N, k), N >= k (LAPACK dgeqrf through numpy, Q not formed; A kept)."""
-    from .linalg import qr_r
-    return qr_r(A)
+    return np.linalg.qr(A, mode='r')
 
 
 class _VarProFast(_VarPro):
@@ -753,10 +752,8 @@ class _VarProFast(_VarPro):
         :func:`bearing_id.lm.lmder` is MINPACK's lmder (what ``least_squares(method='lm')`` runs) in numpy, so the
         fast fit takes the reference's steps without importing scipy.optimize (test/test_lm.py).
         """
-        from .lm import lmder
-        x, _ = lmder(lambda p: self.evaluate(p, False)[0], lambda p: self.evaluate(p)[1], p0, xtol=xtol, ftol=1e-10,
-                     gtol=1e-10, max_nfev=max_nfev)
-        return x
+        return least_squares(lambda p: self.evaluate(p, False)[0], p0, jac=lambda p: self.evaluate(p)[1], method='lm',
+                             xtol=xtol, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev).x
 
     def time_residual(self, p) -> np.ndarray:
         """Return the residual (N, nch) in the time domain at p (as :meth:`_VarPro.evaluate` gives it)."""

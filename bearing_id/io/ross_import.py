@@ -12,7 +12,7 @@ ROSS (ross-rotordynamics) is not needed: the TOML is read with :mod:`tomllib`.  
   mass-only ``added_mass`` layers (``layers='added_mass'``: no stiffness, the host's shape functions -- an
   approximation, 1e-3 off ROSS's eigenvalues on its compressor example).  The schema reads ``layers`` (with a
   material each, and a ``shear_coefficient`` where it is not the shaft-wide one: a layer without the key takes the
-  shaft's) and a per-element ``shear_coefficient`` (:mod:`bearing_id.params`); the compressor example then loads
+  shaft's) and a per-element ``shear_coefficient`` (:mod:`bearing_id.config.params`); the compressor example then loads
   through ``load_rig`` and ``RotorModel.from_params`` to ROSS's damped eigenvalues within 4e-10.
 * Shear coefficient: ROSS's 'cowper' is ours; ROSS's 'hutchinson' lacks the square on (1 + nu) of Hutchinson (2001)
   (see :mod:`bearing_id.rotor.elements`), so it is written as the number kappa ROSS computes -- one shaft-wide
@@ -39,11 +39,16 @@ or gyroscopics, bearing mass coefficients, per-element damping that differs, cou
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 import tomllib
+import warnings
 
-from .params import ParamError
+from scipy import interpolate
+import yaml
+
+from ..config.params import ParamError
 
 MAX_TOML_BYTES = 50_000_000
 TABLE_VALUES = ('ross', 'rows')
@@ -82,9 +87,6 @@ def ross_interpolant(frequency, values):
     ``UnivariateSpline(frequency, values)`` (cubic, smoothing s = number of rows); if that fails (2 or 3 rows),
     ``interp1d`` of order rows - 1 with extrapolation.
     """
-    import warnings
-
-    from scipy import interpolate
     values = [float(v) for v in values]
     if frequency is None or len(values) == 1:
         v0 = values[0]
@@ -107,7 +109,6 @@ def read_toml(path) -> dict:
     Size-bounded; a non-ROSS or broken file is a RossImportError.  ``Rotor.save`` writes the same structure to
     either format (chosen by the extension).
     """
-    import json
     p = Path(path)
     size = p.stat().st_size
     if size > MAX_TOML_BYTES:
@@ -410,7 +411,6 @@ def convert(data: dict, *, name: str | None = None, table_values: str = 'ross', 
 # ------------------------------------------------------------------------------------------------- YAML
 def to_yaml(params: dict, source: str = '') -> str:
     """YAML text of ``convert``'s dict: a header with the notes, lists of numbers on one line, floats exact."""
-    import yaml
 
     class Dumper(yaml.SafeDumper):
         pass

@@ -1,7 +1,8 @@
 """
-Read a DAQ export (CSV or NPZ) into a :class:`bearing_id.rig.Recording` for the sensor_driver's ``file`` source.
+Read a DAQ export (CSV or NPZ) into a Recording for the sensor_driver's ``file`` source.
 
-NPZ: the self-describing format of :meth:`bearing_id.rig.Recording.save_npz` (``bearing-id simulate`` writes it).
+The Recording is :class:`bearing_id.signals.recording.Recording`.  NPZ: the self-describing format of
+:func:`bearing_id.io.recordings.save_npz` (``bearing-id simulate`` writes it).
 
 CSV (one row per sample, comma separated, ``#`` lines are metadata)::
 
@@ -12,9 +13,9 @@ CSV (one row per sample, comma separated, ``#`` lines are metadata)::
     t,angle,speed,p6x,p6y         or t,keyphasor,p6x,p6y   or t,speed_rpm,angle,...
 
 The rotor angle comes from an ``angle`` column [rad, keyphasor angle] or is rebuilt from a ``keyphasor`` column (a
-once-per-revolution pulse train) by :mod:`bearing_id.keyphasor`: angle = 0 (mod 2 pi) where the rising edge crosses
-half its swing (a square pulse is high while the angle mod 2 pi is in [0, width)), sub-sample key marks (sharp or
-finite-rise edges, whole or fractional samples per revolution), linear between marks.  Speed: ``speed`` [rad/s],
+once-per-revolution pulse train) by :mod:`bearing_id.signals.keyphasor`: angle = 0 (mod 2 pi) where the rising edge
+crosses half its swing (a square pulse is high while the angle mod 2 pi is in [0, width)), sub-sample key marks (sharp
+or finite-rise edges, whole or fractional samples per revolution), linear between marks.  Speed: ``speed`` [rad/s],
 ``speed_rpm`` [rpm], the keyphasor's revolution durations, or the derivative of the angle.
 """
 from __future__ import annotations
@@ -24,8 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import keyphasor as _kp
-from .params import Probe, Run
+from .recordings import load_npz
+from ..config.params import Probe, Run
+from ..signals import keyphasor as _kp
+from ..signals.recording import Recording
 
 UNIT_SCALE = {'m': 1.0, 'mm': 1e-3, 'um': 1e-6, 'µm': 1e-6}
 
@@ -42,7 +45,8 @@ def angle_from_keyphasor(pulses: np.ndarray, sample_rate: float, **kw) -> tuple[
     """
     Return rotor angle [rad] and speed [rad/s] per sample (N,) from a once-per-revolution pulse train (N,).
 
-    Computed by :func:`bearing_id.keyphasor.angle_from_keyphasor` (same keywords), raising :class:`KeyphasorDaqError`.
+    Computed by :func:`bearing_id.signals.keyphasor.angle_from_keyphasor` (same keywords), raising
+    :class:`KeyphasorDaqError`.
     """
     try:
         return _kp.angle_from_keyphasor(pulses, sample_rate, **kw)
@@ -65,7 +69,6 @@ def _parse_channels(text: str) -> tuple[Probe, ...]:
 
 def read_csv(path: str | Path):
     """Read a CSV DAQ export (format in the module docstring) -> Recording (samples in metres)."""
-    from .rig import Recording
     path = Path(path)
     meta = {}
     header = None
@@ -147,7 +150,7 @@ def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, 
     Write a Recording as a CSV DAQ export (the format :func:`read_csv` reads).
 
     ``keyphasor``: write a once-per-revolution pulse column (0..1) instead of the angle, by the key-mark convention
-    (:func:`bearing_id.keyphasor.pulse_from_angle`): high while angle mod 2 pi is in [0, ``pulse_width``) [rad],
+    (:func:`bearing_id.signals.keyphasor.pulse_from_angle`): high while angle mod 2 pi is in [0, ``pulse_width``) [rad],
     with linear edges of ``rise_time`` [s] centred on the mark when > 0 (a sampled analog keyphasor).
     """
     path = Path(path)
@@ -176,7 +179,6 @@ def read_daq(path: str | Path):
     if not path.exists():
         raise FileNotFoundError(f'DAQ file {path} does not exist')
     if path.suffix.lower() == '.npz':
-        from .rig import load_npz
         try:
             return load_npz(path)
         except ValueError as exc:

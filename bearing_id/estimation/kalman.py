@@ -34,18 +34,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
-import math
 
+from filterpy.kalman import KalmanFilter
 import numpy as np
+import scipy.linalg as sla
+from scipy.stats import chi2
 
-from .conventions import dof_index
-from .linalg import expm
-from .stats import chi2_quantile, solve_chi2_quantile
+from ..conventions import dof_index
+from ..rotor.assembly import probe_matrix, state_space
 
 CHUNK = 64          # samples per chunk of the vectorised LTI evaluation
 
 
 # ------------------------------------------------------------------------------------------------ discretisation
+def expm(A) -> np.ndarray:
+    """
+    Return exp(A) of a square matrix computed on its balanced form T^-1 A T (``scipy.linalg.matrix_balance``).
+
+    T is diagonal with powers of 2 (an exact similarity), exp(A) = T exp(T^-1 A T) T^-1: the rotor's state matrix
+    mixes units (entries from 1 to 1e11 s^-2) and its unbalanced 1-norm overstates the scaling the eigenvalues need.
+    """
+    Ab, (t, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return t[:, None] * sla.expm(Ab) / t[None, :]
+
+
 def discretise(A, B, dt: float):
     """
     Exact discretisation: (Phi, Gamma) with Phi = expm(A dt) and Gamma = int_0^dt expm(A s) ds B.
@@ -155,7 +167,6 @@ def _dare_sda(Phi, H, Q, R, max_iter=80):
 
 def _dare_scipy(Phi, H, Q, R, newton_steps=3):
     """scipy.linalg.solve_discrete_are on the dual (Phi^T, H^T), then Newton (Hewer) refinement steps."""
-    import scipy.linalg as sla          # the reference route only: the doubling route needs no scipy
     P = sla.solve_discrete_are(Phi.T, H.T, Q, R)
     P = 0.5 * (P + P.T)
     n = Phi.shape[0]
@@ -317,8 +328,6 @@ def rotor_kalman_model(rotor, speed: float, coeffs: dict, measured, sample_rate:
     [q_r; q_r'] (H and E are the full rows times its T, forces stay full (ndof,) vectors, Q is given on the full
     states and mapped by its left inverse, :meth:`~bearing_id.rotor.reduction.ReducedRotor.reduce_covariance`).
     """
-    from .rotor.assembly import probe_matrix, state_space
-
     reduced = hasattr(rotor, 'full') and hasattr(rotor, 'T')
     full = rotor.full if reduced else rotor
     A, B = rotor.state_space(speed, coeffs) if reduced else state_space(rotor, speed, coeffs)
@@ -393,50 +402,7 @@ def nis_band(n_steps: int, m: int, level: float = 0.95) -> tuple:
 def _nis_band(n_steps: int, m: int, level: float) -> tuple:
     a = (1.0 - level) / 2
     dof = float(n_steps * m)
-    return chi2_quantile_fast(a, dof) / n_steps, chi2_quantile_fast(1.0 - a, dof) / n_steps
-
-
-LARGE_DOF = 2000.0      # chi2_quantile_fast sums the gamma series with numpy from this many degrees of freedom
-
-
-def _gamma_p_series(a: float, x: float) -> float | None:
-    """
-    Return the regularised lower incomplete gamma P(a, x) by its series, summed with numpy (None: series too short).
-
-    The series of :func:`bearing_id.stats.chi2_quantile` (x^a e^-x / Gamma(a) sum_k x^k / (a (a+1) ... (a+k))), its
-    terms formed at once by a cumulative product, enough of them for x up to a + 12 sqrt(x) past the peak; the
-    prefactor is computed by the same expression.  For a >~ 1000 and x near a.
-    """
-    log_pre = a * math.log(x) - x - math.lgamma(a)
-    k = int(max(x - a, 0.0) + 12.0 * math.sqrt(x) + 64.0)
-    t = np.cumprod(x / (a + np.arange(1.0, k + 1.0)))
-    total = 1.0 + float(np.sum(t))
-    if not t[-1] < 1e-17 * total:
-        return None
-    return total / a * math.exp(log_pre)
-
-
-def chi2_quantile_fast(p: float, dof: float) -> float:
-    """
-    Get the ``p`` quantile of chi-square with ``dof`` degrees of freedom; fast for the NIS band's large dof.
-
-    From :data:`LARGE_DOF` degrees of freedom and 1e-4 <= p <= 0.5 (the lower tail, where the reference sums the
-    series term by term in Python: ~1 ms per evaluation at 30,000 dof, ~10 per quantile): bracketed Newton steps on
-    P(dof / 2, x / 2) = p with the series of :func:`_gamma_p_series` (~20 us an evaluation), from the same
-    Wilson-Hilferty start; otherwise (the upper tail, already fast there by its continued fraction, and if the series
-    falls short) :func:`bearing_id.stats.chi2_quantile`, the reference, which it equals to 1e-12 relative
-    (test/test_kalman_fast.py).
-    """
-    p, dof = float(p), float(dof)
-    if not (dof >= LARGE_DOF and 1e-4 <= p <= 0.5):
-        return chi2_quantile(p, dof)
-
-    def lower_only(a, y):                # the solve reads P only (p <= 0.5)
-        P = _gamma_p_series(a, y)
-        return None if P is None else (P, None)
-
-    x = solve_chi2_quantile(p, dof, lower_only)
-    return chi2_quantile(p, dof) if x is None else x
+    return float(chi2.ppf(a, dof)) / n_steps, float(chi2.ppf(1.0 - a, dof)) / n_steps
 
 
 def _result(est, nu, S, nis, states=None, out_names=()):
@@ -647,8 +613,6 @@ def reference_filter(km: KalmanModel, samples, angle, *, x0=None, P0=None) -> KF
     Prior at the first sample: x_hat(0|-1) = x0 (default x_p(t0)), P(0|-1) = P0 (default the steady-state P_ss).
     Input per step u_k = d_k = x_p(t_{k+1}) - Phi x_p(t_k) through filterpy's B = I.  Slow (reference only).
     """
-    from filterpy.kalman import KalmanFilter
-
     z, a = _check_inputs(km, samples, angle)
     n, m, N = km.n, km.m, z.shape[0]
     xp = particular_state(km.Xp, a) if km.Xp else np.zeros((N, n))

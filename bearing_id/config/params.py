@@ -13,19 +13,22 @@ naming the field, never an AttributeError/TypeError/KeyError.
 """
 from __future__ import annotations
 
+import csv
 import dataclasses
 from dataclasses import dataclass, field
+import difflib
 import math
 from pathlib import Path
 import re
 import reprlib
 from typing import Any
 
+import pint
 import yaml
 
-from .conventions import GRAVITY
+from ..conventions import GRAVITY, parse_probe_direction, probe_direction
 
-PACKAGE_PARAMS = Path(__file__).resolve().parent.parent / 'params'
+PACKAGE_PARAMS = Path(__file__).resolve().parents[2] / 'params'
 
 
 class ParamError(ValueError):
@@ -240,12 +243,10 @@ class Probe:
     @property
     def angle_deg(self) -> float:
         """Probe axis [deg] from +x towards +y."""
-        from .conventions import parse_probe_direction
         return parse_probe_direction(self.direction)[0]
 
     @property
     def gain(self) -> float:
-        from .conventions import parse_probe_direction
         return parse_probe_direction(self.direction)[1]
 
 
@@ -454,7 +455,6 @@ def _unit_registry():
     """Return the shared pint registry (imported on first use: plain numbers never load pint)."""
     global _UREG
     if _UREG is None:
-        import pint
         _UREG = pint.UnitRegistry()
     return _UREG
 
@@ -510,7 +510,6 @@ def _num(d: dict, key: str, where: str, lo=None, hi=None, unit='', default: Any 
 
 def _keys(d: dict, allowed, where: str) -> None:
     """Refuse a key of ``d`` that is not in ``allowed`` (a typo or an unsupported entry), suggesting the nearest."""
-    import difflib
     for k in d:
         if not isinstance(k, str) or k not in allowed:
             near = difflib.get_close_matches(str(k), [str(a) for a in allowed], n=1, cutoff=0.6)
@@ -807,7 +806,6 @@ TABLE_CSV_MAX_BYTES = 1 << 20
 
 def _read_table_csv(path_text, where: str, base_dir) -> dict:
     """Read a coefficient table CSV (header row naming the columns) into {column: [values]}."""
-    import csv
     if not isinstance(path_text, str):
         raise ParamError(f'{where}.csv must be a file name, got {_kind(path_text)} {_short(path_text)}')
     p = Path(path_text)
@@ -934,7 +932,6 @@ def parse_bearing(bd: dict, w: str, nn: int, default_name: str, gravity: tuple, 
 
 
 def parse_probe(pd: dict, w: str, nn: int, default_name: str) -> Probe:
-    from .conventions import parse_probe_direction, probe_direction
     _map(pd, w)
     _keys(pd, ('name', 'node', 'direction', 'angle_deg', 'gain'), w)
     if 'direction' in pd and 'angle_deg' in pd:
@@ -1123,6 +1120,35 @@ def load_rig(path: str | Path | None = None) -> RigParams:
         raise ParamError(f'{path}: {exc}') from exc
 
 
+def parse_probes(text: str) -> tuple[Probe, ...]:
+    """
+    Parse '6x,6y,3x' -> probes p6x, p6y, p3x (node numbers 1-based, direction x or y).
+
+    'NODE@ANGLE' is a probe at ANGLE degrees from +x towards +y: '17@45,17@135' is an API 670 pair at +-45 deg from
+    vertical at node 17 (probes p17a45, p17a135).
+    """
+    out = []
+    for tok in filter(None, (s.strip() for s in text.split(','))):
+        if '@' in tok:
+            node, _, angle = tok.partition('@')
+            try:
+                a = float(angle)
+                ok = node.isdigit() and -360.0 <= a <= 360.0
+            except ValueError:
+                ok = False
+            if not ok:
+                raise ParamError(f"--probes: '{tok}' is not NODE@ANGLE (e.g. 17@45: node 17, 45 deg from +x to +y)")
+            out.append(Probe(f'p{node}a{angle}', int(node), probe_direction(a)))
+            continue
+        node, direction = tok[:-1], tok[-1]
+        if direction not in ('x', 'y') or not node.isdigit():
+            raise ParamError(f"--probes: '{tok}' is not NODE followed by x or y (e.g. 6x) or NODE@ANGLE (17@45)")
+        out.append(Probe(f'p{node}{direction}', int(node), direction))
+    if not out:
+        raise ParamError('--probes: no probe given')
+    return tuple(out)
+
+
 def rig_to_dict(rig: RigParams) -> dict:
     """
     Return ``rig`` as the YAML mapping :func:`parse_rig` reads back to an equal RigParams (SI numbers, schema v2).
@@ -1261,7 +1287,7 @@ def default_rig_path() -> Path:
     except Exception:  # no ament index (plain pip / source tree) or package not registered
         pass
     here = Path(__file__).resolve()
-    cand += [p / 'share' / 'bearing_id' / 'params' / 'rig.yaml' for p in here.parents[1:6]]
+    cand += [p / 'share' / 'bearing_id' / 'params' / 'rig.yaml' for p in here.parents[2:7]]
     for c in cand:
         if c.exists():
             return c

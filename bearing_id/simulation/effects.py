@@ -1,9 +1,10 @@
 """
 Simulator-side physics that the nominal model leaves out: concealed effects for the simulated rig.
 
-These objects are passed to :func:`bearing_id.rig.simulate` as ``effects=[...]`` (see docs/ARCHITECTURE.md, "rig.py
-truth effects").  They are written *independently* of the fitting-side models in :mod:`bearing_id.diagnose.effects`
-(different routes to the same physics), so that a diagnosis that recovers their parameters is evidence, not an echo:
+These objects are passed to :func:`bearing_id.simulation.rig.simulate` as ``effects=[...]`` (see docs/ARCHITECTURE.md,
+"rig.py truth effects").  They are written *independently* of the fitting-side models in
+:mod:`bearing_id.diagnose.effects` (different routes to the same physics), so that a diagnosis that recovers their
+parameters is evidence, not an echo:
 
 =====================  ==============================================  =============================================
 effect                 here (truth, simulator side)                    diagnose/effects.py (fitting side)
@@ -30,7 +31,8 @@ import math
 
 import numpy as np
 
-from .conventions import dof_index, parse_probe_direction, probe_row
+from ..conventions import dof_index, parse_probe_direction, probe_row
+from ..rotor.assembly import RotorModel
 
 
 def _node_xy(node: int, n_nodes: int) -> int:
@@ -162,7 +164,6 @@ class ShaftBow:
 
     def _force(self):
         if self._Kb is None:
-            from .rotor.assembly import RotorModel
             model = RotorModel.from_params(self.rig)
             z = np.asarray(model.node_z)
             L = z[-1]

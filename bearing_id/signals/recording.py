@@ -1,0 +1,112 @@
+"""
+A recording: what a DAQ gives for one excitation run (samples, keyphasor angle, speed, probes, the known excitation).
+
+The one in-memory form every route shares: the simulator makes it (:mod:`bearing_id.simulation.rig`), the readers
+of .npz, CSV and bag files return it (:mod:`bearing_id.io`), the 1X fits take it (:mod:`bearing_id.identify`).
+:func:`check_recording` refuses one the pipeline cannot use.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from ..config.params import Run
+from ..conventions import parse_probe_direction
+
+#: |displacement| above this [m] is not a plausible shaft vibration in metres (mm or µm sent by mistake?)
+MAX_PLAUSIBLE_DISPLACEMENT = 1e-2
+
+
+@dataclass
+class Recording:
+    """
+    A DAQ-like record of one excitation run.
+
+    Attributes
+    ----------
+    sample_rate : Hz.
+    t : (N,) s from the start of the run.
+    speed : (N,) rad/s.
+    angle : (N,) rad, keyphasor rotor angle (unwrapped; 0 at the key mark).
+    probes : tuple of params.Probe, one per channel.
+    samples : (N, nch) m.
+    run : params.Run (the known excitation).
+    segments : list of (i0, i1, speed [rad/s], steady) sample ranges of constant speed (truth bookkeeping).
+    truth : dict with 'coefficients': {speed_rad_s: {node: (K, C)}} of the truth bearings, and 'description'.
+    rig_name : str.
+    gaps : sample indices at which the record resumes after lost data (a bag with a missing block); no steady window
+        spans a gap.
+
+    """
+
+    sample_rate: float
+    t: np.ndarray
+    speed: np.ndarray
+    angle: np.ndarray
+    probes: tuple
+    samples: np.ndarray
+    run: Run
+    segments: list = field(default_factory=list)
+    truth: dict = field(default_factory=dict)
+    rig_name: str = 'rig'
+    gaps: tuple = ()
+
+    @property
+    def channels(self) -> list[str]:
+        return [p.name for p in self.probes]
+
+
+def _nonfinite(a) -> str:
+    bad = ~np.isfinite(a)
+    if not bad.any():
+        return ''
+    idx = np.argwhere(bad)[0]
+    return f'{int(bad.sum())} of {a.size} values are NaN/inf (first at index {tuple(int(i) for i in idx)})'
+
+
+def check_recording(rec: 'Recording', where: str = 'recording') -> 'Recording':
+    """
+    Refuse a Recording the offline pipeline cannot use (ValueError naming what); returns ``rec``.
+
+    Refused: sizes that disagree, a sample rate that is not > 0, NaN/inf in samples/angle/speed/t, a displacement beyond
+    :data:`MAX_PLAUSIBLE_DISPLACEMENT` (not metres, or damaged data), probe nodes < 1 or
+    directions other than x/y/'<angle>deg', excitation entries of unknown kind.
+    """
+    fs = rec.sample_rate
+    if not (isinstance(fs, (int, float, np.floating, np.integer)) and math.isfinite(float(fs)) and fs > 0):
+        raise ValueError(f'{where}: sample_rate must be a number > 0 Hz, got {fs!r}')
+    x = np.asarray(rec.samples)
+    if x.ndim != 2 or x.shape[0] < 2 or x.shape[1] < 1:
+        raise ValueError(f'{where}: samples must be (N >= 2, n_channels >= 1), has shape {x.shape}')
+    if x.shape[1] != len(rec.probes):
+        raise ValueError(f'{where}: {x.shape[1]} sample column(s) but {len(rec.probes)} channel(s)')
+    for name in ('angle', 'speed', 't'):
+        a = np.asarray(getattr(rec, name))
+        if a.shape != (x.shape[0],):
+            raise ValueError(f'{where}: {name} has shape {a.shape}, samples has {x.shape[0]} rows')
+    for name in ('samples', 'angle', 'speed', 't'):
+        problem = _nonfinite(np.asarray(getattr(rec, name), dtype=float))
+        if problem:
+            raise ValueError(f'{where}: {name}: {problem}; remove or repair those samples')
+    limit = MAX_PLAUSIBLE_DISPLACEMENT
+    peak = max(float(x.max()), -float(x.min()))        # = max |x| (finite: checked above), no (N, nch) temporary
+    if peak > limit:
+        i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
+        raise ValueError(f'{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m a shaft '
+                         f'displacement can be: not metres (mm or um?) or damaged data')
+    for p in rec.probes:
+        try:
+            parse_probe_direction(p.direction)
+            ok = int(p.node) >= 1
+        except (ValueError, TypeError):
+            ok = False
+        if not ok:
+            raise ValueError(f'{where}: channel {p.name!r}: node {p.node} direction {p.direction!r} (need a 1-based '
+                             f"node and x, y or an angle such as '45.0deg')")
+    for e in rec.run.excitation:
+        if e.kind not in ('unbalance', 'force') or e.direction not in ('forward', 'x', 'y') or e.node < 1 \
+                or not all(math.isfinite(v) for v in (e.magnitude, e.phase, e.frequency_ratio)):
+            raise ValueError(f'{where}: run {rec.run.id}: invalid excitation entry {e}')
+    return rec
