@@ -38,7 +38,7 @@ from functools import lru_cache
 from filterpy.kalman import KalmanFilter
 import numpy as np
 import scipy.linalg as sla
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from ..conventions import dof_index
 from ..rotor.assembly import probe_matrix, state_space
@@ -402,7 +402,7 @@ def nis_band(n_steps: int, m: int, level: float = 0.95) -> tuple:
 def _nis_band(n_steps: int, m: int, level: float) -> tuple:
     a = (1.0 - level) / 2
     dof = float(n_steps * m)
-    return float(chi2.ppf(a, dof)) / n_steps, float(chi2.ppf(1.0 - a, dof)) / n_steps
+    return float(chdtri(dof, 1.0 - a)) / n_steps, float(chdtri(dof, a)) / n_steps
 
 
 def _result(est, nu, S, nis, states=None, out_names=()):

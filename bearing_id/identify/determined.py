@@ -36,7 +36,7 @@ Misfit test (:func:`fit_quality`)
     error is a bias, not noise).  Misfit results stay determined-but-flagged (the identifier node reports them as
     WARN), never plainly determined.
 
-The quantile is scipy's (``scipy.stats.chi2.ppf``).
+The quantile is scipy's (``scipy.special.chdtri``, the inverse of the chi-square survival function).
 """
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 K_SIGMA = 3.0               # |value| >= K_SIGMA x sigma (data exclude zero at 3 sigma; relative 1-sigma <= 1/3)
 MAX_PRIOR_PULL = 0.1        # d(estimate)/d(prior mean) <= this (the data carry >= 90 % of the weight)
@@ -55,7 +55,7 @@ ESTIMABLE_LEAK = 1e-6       # default: a coefficient is estimable when its null-
 
 def misfit_threshold(dof: float, level: float = MISFIT_LEVEL) -> float:
     """chi2 / dof above which a fit with ``dof`` degrees of freedom is a misfit (``level`` quantile / dof)."""
-    return float(chi2.ppf(level, dof)) / float(dof)
+    return float(chdtri(dof, 1.0 - level)) / float(dof)
 
 
 @dataclass(frozen=True)
