@@ -38,7 +38,7 @@ Phasors and phase reference
     keyphasor is high while phi mod 2 pi is in [0, width), so a sample exactly on the mark is high
     (bearing_id.signals.keyphasor rebuilds phi from a sampled pulse; KEY_MARK_CONVENTION there).
     Streams carry phi of every sample (DisplacementBlock.sample_angles); the speed of a sample is the forward
-    difference of phi (bearing_id.signals.harmonics.speed_from_angle).
+    difference of phi (bearing_id.signals.windows.speed_from_angle).
 
 Probe directions (measurement rows)
     A displacement probe at angle a in the x-y plane (a measured from +x towards +y, i.e. in the spin direction;

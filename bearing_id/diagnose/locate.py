@@ -2,11 +2,11 @@
 Locate where recordings and the model disagree: measured harmonic vectors per window, residuals, significance.
 
 Measured side (:func:`observe`)
-    Each recording is cut into steady-speed windows (:func:`bearing_id.signals.harmonics.steady_windows`); the first
+    Each recording is cut into steady-speed windows (:func:`bearing_id.signals.windows.steady_windows`); the first
     ``settle`` seconds + 20 % of each window are dropped (the transient after a speed step: this rig has a lightly
     damped mode near 33 Hz, zeta < 1 %, whose free vibration lasts seconds), the rest is fitted with
     :func:`bearing_id.signals.harmonics.harmonic_vectors` for the orders 1X, 2X, 3X.  The strongest sub-synchronous
-    component (:func:`bearing_id.signals.harmonics.subsynchronous`) is searched in every window and, when above
+    component (:func:`bearing_id.signals.subsync.subsynchronous`) is searched in every window and, when above
     ``sub_snr``, fitted in the same regression as the nX vectors (so that it does not leak into them).  It counts as a
     *whirl* only when its ratio lies in ``whirl_band`` (0.3-0.6X), it whirls forward and it does not decay within the
     window; otherwise it is the free vibration left by a speed change (a lightly damped mode at a fixed frequency) and
@@ -36,6 +36,8 @@ import numpy as np
 
 from ..conventions import orbit_semi_axes, rad_s_to_rpm, whirl_direction
 from ..signals import harmonics as signals
+from ..signals.subsync import subsynchronous_bands
+from ..signals.windows import steady_windows
 
 DEFAULT_ORDERS = (1, 2, 3)
 
@@ -201,7 +203,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
         fs = float(rec.sample_rate)
         t = np.asarray(rec.t) if getattr(rec, 't', None) is not None else np.arange(len(rec.speed)) / fs
         pair = _xy_pair(rec.probes)
-        for a, b in signals.steady_windows(t, rec.speed, tol_rel=tol_rel, min_duration=min_duration):
+        for a, b in steady_windows(t, rec.speed, tol_rel=tol_rel, min_duration=min_duration):
             skip = min(int(round((settle + 0.2 * (b - a) / fs) * fs)), (b - a) // 2)
             a2 = a + skip
             ang = np.asarray(rec.angle[a2:b], dtype=float)
@@ -214,7 +216,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
             # free-vibration line needs only the fit that holds them)
             w = Window(rec=r, i0=a2, i1=b, speed=float(np.mean(rec.speed[a2:b])), X=None, std=None)
             try:                # (ratio, snr, whirl direction) per band; the synchronous fit done once for both
-                found = signals.subsynchronous_bands(x, ang, fs, ((0.05, 0.95), tuple(whirl_band)), xy=pair)
+                found = subsynchronous_bands(x, ang, fs, ((0.05, 0.95), tuple(whirl_band)), xy=pair)
             except ValueError:
                 found = []
             lines = [(sc.ratio, sc.snr, sc.whirl) for sc in found if sc is not None]

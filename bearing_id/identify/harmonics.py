@@ -2,7 +2,7 @@
 Collect the measured 1X harmonic vectors per excitation run and per steady speed, from recordings or a bag.
 
 Rule for each run
-    The speed record is split into steady windows (:func:`bearing_id.signals.harmonics.steady_windows`, speed constant
+    The speed record is split into steady windows (:func:`bearing_id.signals.windows.steady_windows`, speed constant
     within ``tol_rel``); the first ``settle`` fraction of each window is discarded and the 1X vectors of the rest are
     fitted over whole revolutions (:func:`bearing_id.signals.harmonics.harmonic_vectors`) jointly with up to
     ``transients`` exponentially decaying sinusoids (default 3: the rotor's lightly damped modes ring for seconds after
@@ -27,7 +27,8 @@ import uuid
 import numpy as np
 
 from ..config.params import Run
-from ..signals.harmonics import harmonic_vectors, SteadyWindowTracker
+from ..signals.harmonics import harmonic_vectors
+from ..signals.windows import SteadyWindowTracker
 
 DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
 DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
@@ -193,9 +194,9 @@ class RunStream:
 
     ``feed(samples (n, nch), angle (n,), contiguous=True)`` appends a chunk (a whole recording, or one
     DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window.
-    The per-sample speed is :func:`bearing_id.signals.harmonics.speed_from_angle` of the concatenated angle (each
+    The per-sample speed is :func:`bearing_id.signals.windows.speed_from_angle` of the concatenated angle (each
     chunk's last sample waits for the next chunk's first); windows follow
-    :class:`bearing_id.signals.harmonics.SteadyWindowTracker`, so any chunking gives the windows of the whole record.
+    :class:`bearing_id.signals.windows.SteadyWindowTracker`, so any chunking gives the windows of the whole record.
     ``contiguous=False`` (data were lost before this chunk) ends the open window at the gap.  A window is also closed
     once it reaches ``max_duration`` [s] (bounds memory; the next window is then marked ``continued``).  Only the open
     window's samples are buffered.  ``peek()`` returns the windows ``close()`` would return now without closing anything

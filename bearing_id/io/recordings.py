@@ -21,8 +21,8 @@ from .bags import read_bag
 from .messages import block_from_msg, excitation_from_msg
 from ..config.params import ExcitationEntry, Probe, Run
 from ..identify.harmonics import from_recordings, HarmonicData
-from ..signals.harmonics import speed_from_angle
 from ..signals.recording import check_recording, Recording
+from ..signals.windows import speed_from_angle
 
 
 def save_npz(rec: Recording, path: str | Path) -> Path:
