@@ -167,7 +167,7 @@ def loopback_dds_env() -> dict:
 
     ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule for every ROS process) plus the Fast DDS profile
     :data:`DDS_PROFILE` (Fast DDS 2.x and 3.x variable names), which binds the sockets that receive DDS traffic to
-    127.0.0.1.  The same as the Makefile and ``bearing_id.nodes.common.loopback_dds_env``; kept here so the test helpers
+    127.0.0.1.  The same as the Makefile and ``bearing_id.nodes.dds.loopback_dds_env``; kept here so the test helpers
     do not depend on the package under test.
     """
     if not DDS_PROFILE.is_file():

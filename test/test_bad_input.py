@@ -88,8 +88,8 @@ def peer(spec_path: str, out_path: str) -> int:
 
     sys.path.insert(0, str(REPO))
     from bearing_id.io import messages as M
-    from bearing_id.nodes.common import qos_latched, qos_stream
-    from bearing_id.nodes.sensor_driver import stream_messages
+    from bearing_id.nodes.qos import qos_latched, qos_stream
+    from bearing_id.nodes.sensor_driver_core import stream_messages
     from bearing_id.io.recordings import load_npz
 
     spec = json.loads(Path(spec_path).read_text())

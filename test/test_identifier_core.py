@@ -12,7 +12,7 @@ import json
 from bearing_id.config.params import load_rig, Probe
 from bearing_id.identify import harmonics
 from bearing_id.io.messages import Block
-from bearing_id.nodes.identifier import IdentifierCore
+from bearing_id.nodes.identifier_core import IdentifierCore
 from bearing_id.nodes.runs import RunResolver
 from bearing_id.simulation import rig as R
 from bearing_id.simulation.rig import simulate_data

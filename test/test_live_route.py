@@ -126,7 +126,7 @@ def _with_noise(rec, noise, rng):
 @pytest.mark.parametrize('method, scenario', [('physical', 'default'), ('direct', 'force')])
 def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scenario, tmp_path):
     from bearing_id.simulation import rig as R
-    from bearing_id.nodes.identifier import IdentifierCore
+    from bearing_id.nodes.identifier_core import IdentifierCore
     from bearing_id.config.params import load_rig
     rig = load_rig()
     truth = _truth(rig)

@@ -8,7 +8,8 @@ from bearing_id.config.params import ParamError, Probe, Run
 from bearing_id.io import recordings
 from bearing_id.io.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
 from bearing_id.io.record import Record
-from bearing_id.nodes.common import ParamSpec, StreamMonitor, validate_values, with_common, yaml_block
+from bearing_id.nodes.monitor import StreamMonitor
+from bearing_id.nodes.specs import ParamSpec, validate_values, with_common, yaml_block
 import numpy as np
 import pytest
 
@@ -206,7 +207,7 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path, pauses):
     that way and the live result moved 0.3 %).
     """
     from bearing_id.io import bags, messages
-    from bearing_id.nodes.identifier import IdentifierCore
+    from bearing_id.nodes.identifier_core import IdentifierCore
     from bearing_id.config.params import load_rig, PACKAGE_PARAMS
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
     ref = recordings.from_bag(bag)
@@ -258,7 +259,7 @@ def test_identifier_paper_method_equals_the_offline_route(tmp_path, R_std):
     """
     from bearing_id.identify import identify
     from bearing_id.io import bags, messages
-    from bearing_id.nodes.identifier import IdentifierCore
+    from bearing_id.nodes.identifier_core import IdentifierCore
     from bearing_id.config.params import load_rig, PACKAGE_PARAMS
     from bearing_id.rotor.assembly import RotorModel
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
@@ -305,7 +306,7 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     from bearing_id.simulation import rig as R
     from bearing_id.excitation import harmonic_forces
     from bearing_id.estimation.kalman import fast_filter, rotor_kalman_model
-    from bearing_id.nodes.kf_estimator import EstimatorCore
+    from bearing_id.nodes.kf_estimator_core import EstimatorCore
     from bearing_id.config.params import load_rig
     rig = load_rig()
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0], dwell=0.5)
@@ -348,7 +349,7 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
 
     from bearing_id.simulation import rig as R
     from bearing_id.conventions import rpm_to_rad_s
-    from bearing_id.nodes.kf_estimator import EstimatorCore
+    from bearing_id.nodes.kf_estimator_core import EstimatorCore
     from bearing_id.config.params import load_rig
     rig = load_rig()
     run = R.scenario('paper_table3')[0]

@@ -108,7 +108,7 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
 
 RAISING_NODE = """
 import sys
-from bearing_id.nodes.common import run_node
+from bearing_id.nodes.process import run_node
 from rclpy.node import Node
 
 
@@ -144,10 +144,10 @@ import ctypes
 import sys
 import time
 import rclpy
-from bearing_id.nodes import common
+from bearing_id.nodes import process
 from rclpy.node import Node
 
-common.TEARDOWN_LIMIT, common.TEARDOWN_HARD_LIMIT = 1.0, 3.0
+process.TEARDOWN_LIMIT, process.TEARDOWN_HARD_LIMIT = 1.0, 3.0
 HANGS = {'none': lambda: None,
          'sleeping': lambda: time.sleep(60),                     # a teardown that hangs, the GIL released
          'holding the GIL': lambda: ctypes.PyDLL(None).sleep(60)}   # libc sleep(60) with the GIL held
@@ -165,7 +165,7 @@ def make():
     return node
 
 
-sys.exit(common.run_node('hanger', 'test node', [], make, ['hanger']))
+sys.exit(process.run_node('hanger', 'test node', [], make, ['hanger']))
 """
 
 

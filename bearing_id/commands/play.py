@@ -3,7 +3,7 @@
 
 The bag's raw CDR bytes are published unchanged (rclpy accepts serialized messages), paced by the bag timestamps in
 real time or ``--rate`` times faster, after every stream topic has at least ``--wait-for`` subscribers.  QoS matches
-the nodes (:mod:`bearing_id.nodes.common`): reliable, deep queue for streams; reliable + transient-local (latched)
+the nodes (:mod:`bearing_id.nodes.qos`): reliable, deep queue for streams; reliable + transient-local (latched)
 for a topic whose recorded ``offered_qos_profiles`` are all transient-local, and -- when the bag stores none -- for
 ``/rotor/excitation`` and ``/bearing_id/coefficients``.  A truncated or corrupt bag is played up to the damage, then
 the command says where it stopped and exits 2.
@@ -17,7 +17,6 @@ import sys
 import time
 
 from ..io.bags import bag_topics, BagError, offered_qos, read_bag
-from ..nodes.common import qos_latched, qos_stream, StopFlag
 
 LATCHED = ('/rotor/excitation', '/bearing_id/coefficients')
 
@@ -56,8 +55,12 @@ def latched(topic: str, profiles) -> bool:
 
 
 def run(args) -> int:
+    # ROS only here: `bearing-id --help` works without it (rclpy is the optional 'ros' dependency)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+
+    from ..nodes.process import StopFlag
+    from ..nodes.qos import qos_latched, qos_stream
 
     if not args.rate > 0:
         print('bearing-id play: --rate must be > 0', file=sys.stderr)

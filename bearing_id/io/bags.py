@@ -186,7 +186,7 @@ def qos_to_dict(q) -> dict:
 
 def default_qos(topic: str) -> list:
     """
-    Return what bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.common`).
+    Return what bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.qos`).
 
     RELIABLE + TRANSIENT_LOCAL depth 20 for the latched topics, RELIABLE + VOLATILE otherwise (depth 400 for the
     streams, 50 for /rotor/speed, 10 for the rest).
