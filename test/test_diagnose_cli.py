@@ -68,24 +68,6 @@ def test_no_noise_floor_skips_the_check(runout_npz, tmp_path, capsys):
     assert (tmp_path / 'd_augmented_params.yaml').exists()
 
 
-def test_noise_floor_vectors_fitted_in_a_worker_change_nothing(runout_npz, tmp_path, capsys, monkeypatch):
-    """The noise-floor check's 1X vectors fitted in a forked worker (the default) give the in-process diagnosis."""
-    from bearing_id.cli import main
-    from bearing_id.commands import workers
-    made = []
-    start = workers.in_background
-    monkeypatch.setattr(workers, 'in_background', lambda *a: made.append(start(*a)) or made[-1])
-    out = {}
-    for n in ('1', '0'):
-        monkeypatch.setenv(workers.WORKERS_ENV, n)
-        assert main(['diagnose', *runout_npz, '--json', str(tmp_path / f'd{n}.json')]) == 0
-        out[n] = json.loads((tmp_path / f'd{n}.json').read_text())
-        out[n].pop('augmented_params', None)
-    assert [b.forked for b in made] == [True, False]
-    assert out['1']['noise_floor'] is not None and out['1'] == out['0']
-    capsys.readouterr()
-
-
 def test_help_says_what_is_printed(capsys):
     from bearing_id.cli import main
     with pytest.raises(SystemExit) as e:

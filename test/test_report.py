@@ -386,28 +386,3 @@ def test_identify_report(small_npz, tmp_path, capsys):
     html = (tmp_path / 'rep' / 'report.html').read_text(encoding='utf-8')
     assert 'Bearing coefficients vs speed' in html and 'truth' in html and 'bearing-id identify' in html
     assert (tmp_path / 'c.png').stat().st_size > 10_000
-
-
-def test_parallel_1x_vectors_equal_the_one_route(demo):
-    """
-    The report computes the per-run window fits in worker processes.
-
-    Assembled, they equal harmonics.from_recordings exactly (same windows, vectors, std, speeds).
-    """
-    from bearing_id.commands.report import _Renderer
-    from bearing_id.identify import harmonics
-    rig, recs, _ = demo
-    R = _Renderer(2, shared=recs)
-    try:
-        futs = R.start_vectors(recs)
-        if R.pool is None:
-            pytest.skip('no fork here: the report computes the 1X vectors in-process')
-        assert futs is not None
-        got = R.harmonic_data(recs, futs)
-    finally:
-        R.close()
-    want = harmonics.from_recordings(recs)
-    np.testing.assert_array_equal(got.speeds, want.speeds)
-    np.testing.assert_array_equal(got.X, want.X)
-    np.testing.assert_array_equal(got.X_std, want.X_std)
-    assert got.windows == want.windows and got.probes == want.probes and got.runs == want.runs
