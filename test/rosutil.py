@@ -13,7 +13,8 @@ participant lives in a bounded subprocess.
 * :func:`script` -- a console script of bearing_id: next to the ROS python (``.venv/bin``), else in a colcon install
   (``<prefix>/lib/bearing_id/`` of ``AMENT_PREFIX_PATH``), else on ``PATH``.
 * :class:`RosProcess` -- a subprocess in its own process group with a hard kill timeout; ``interrupt()`` sends SIGINT
-  and reports whether it exited within 5 s.
+  and reports whether it exited within :data:`STOP_WITHIN` (30 s: an upper bound for a loaded machine, not a speed
+  test).
 * :func:`run` -- run to completion with a hard timeout (the process group is killed on expiry).
 * :func:`shm_clean` -- ``fastdds shm clean``: removes the Fast DDS shared-memory segments that no live process uses
   (never another process's files by name).
@@ -38,6 +39,7 @@ import time
 REPO = Path(__file__).resolve().parents[1]
 DDS_PROFILE = REPO / 'params' / 'fastdds_localhost.xml'
 DOMAIN_RANGE = range(1, 101)
+STOP_WITHIN = 30.0  # s: how long a stopping process may take -- a generous upper bound, never a verdict on speed
 _domain_lock = None  # (domain id, open lock file) held for the life of this process
 
 
@@ -232,7 +234,7 @@ class RosProcess:
                 self.kill()
             return None
 
-    def interrupt(self, within: float = 5.0) -> tuple[int | None, float]:
+    def interrupt(self, within: float = STOP_WITHIN) -> tuple[int | None, float]:
         """
         Send SIGINT (like Ctrl-C) and wait up to ``within`` s: (exit code or None if it did not exit, seconds).
 
