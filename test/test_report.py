@@ -170,8 +170,8 @@ def test_interpolated_bearings_are_exact_at_the_speeds_and_refuse_to_extrapolate
         K = np.array([[[1e6, 2e5], [-3e5, 8e5]]]) * scale
         C = np.array([[[1e3, -1e2], [-1e2, 2e3]]]) * scale
         ones = np.ones((1, 2, 2), bool) & det
-        return IdentResult(w, 'direct', ('b1',), (2,), K, C, np.abs(K) * 0.01, np.abs(C) * 0.01, ones, ones.copy(), 16, 16,
-                           1.0, 0.0)
+        return IdentResult(w, 'direct', ('b1',), (2,), K, C, np.abs(K) * 0.01, np.abs(C) * 0.01, ones, ones.copy(),
+                           16, 16, 1.0, 0.0)
     rs = [res(100.0, 1.0), res(200.0, 2.0), res(300.0, 3.0)]
     ib = InterpolatedBearings(rs)
     for r in rs:                        # through the identified points, within 0.01 of their 1-sigma
