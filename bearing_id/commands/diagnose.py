@@ -11,9 +11,11 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 import json
 import multiprocessing
+from multiprocessing.connection import wait
 import os
 from pathlib import Path
 import signal
+import threading
 
 from .inputs import attach_excitation, check_probe_nodes, load_recordings
 from .report import report_for_diagnosis
@@ -114,13 +116,25 @@ def _with_recordings(obs, recs):
     return obs
 
 
+def _worker_init() -> None:
+    """In the worker: leave Ctrl-C to the command, and end with the command's process (SIGKILL included)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = multiprocessing.parent_process()
+    if parent is not None:          # its sentinel becomes readable when the parent process is gone
+
+        def end_with_parent():
+            wait([parent.sentinel])
+            os._exit(1)
+        threading.Thread(target=end_with_parent, daemon=True).start()
+
+
 def _floor_pool() -> ProcessPoolExecutor | None:
     """
     Return a one-process pool for the noise-floor vectors, or None (no spare core, or ``BEARING_ID_WORKERS=0``).
 
     The noise-floor check's 1X vectors (identify's window fits, ~1.5 s of a ~9 s diagnosis on the 2-core machine)
     are fitted there while this process locates and selects effects.  Forked (the recordings and the imported
-    package are inherited; POSIX), the worker ignores Ctrl-C: this process stops it.
+    package are inherited; POSIX); the worker ignores Ctrl-C and ends with this process (:func:`_worker_init`).
     """
     if os.environ.get(WORKERS_ENV, '').strip() == '0' or len(os.sched_getaffinity(0)) < 2:
         return None
@@ -128,7 +142,7 @@ def _floor_pool() -> ProcessPoolExecutor | None:
         ctx = multiprocessing.get_context('fork')
     except ValueError:                           # no fork on this platform: everything here
         return None
-    return ProcessPoolExecutor(1, mp_context=ctx, initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN))
+    return ProcessPoolExecutor(1, mp_context=ctx, initializer=_worker_init)
 
 
 def _floor_source(pool, recs):
