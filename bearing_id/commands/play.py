@@ -11,12 +11,12 @@ the command says where it stopped and exits 2.
 from __future__ import annotations
 
 import argparse
-import importlib
 from pathlib import Path
 import sys
 import time
 
 from ..io.bags import bag_topics, BagError, offered_qos, read_bag
+from ..io.messages import msg_class
 
 LATCHED = ('/rotor/excitation', '/bearing_id/coefficients')
 
@@ -34,12 +34,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument('--timeout', type=float, default=30.0, help='give up waiting for subscribers after this [s]')
     p.add_argument('--linger', type=float, default=1.0, help='stay up this long after the last message [s]')
     return p
-
-
-def msg_class(msgtype: str):
-    """Return the rclpy class of 'pkg/msg/Name' (importlib; rosidl_runtime_py is not on PyPI)."""
-    pkg, _, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
 
 def latched(topic: str, profiles) -> bool:

@@ -26,8 +26,9 @@ from pathlib import Path
 import sys
 import time
 
-from .play import LATCHED, msg_class
+from .play import LATCHED
 from ..io.bags import BagError, BagWriter, default_qos, qos_from_rclpy, recover_bag, typestore
+from ..io.messages import msg_class
 
 DEFAULT_TOPICS = {
     '/rotor/displacement': 'bearing_id_msgs/msg/DisplacementBlock',
