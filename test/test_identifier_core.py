@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import json
 
+import agreement
 from bearing_id.config.params import load_rig, Probe
 from bearing_id.identify import harmonics
 from bearing_id.io.messages import Block
-from bearing_id.nodes.identifier import IdentifierCore
+from bearing_id.nodes.identifier_core import IdentifierCore
 from bearing_id.nodes.runs import RunResolver
 from bearing_id.simulation import rig as R
 from bearing_id.simulation.rig import simulate_data
@@ -163,7 +164,9 @@ def test_estimated_vectors_of_an_old_record_are_not_resumed(rec, rig, tmp_path):
     again = IdentifierCore(rig, 'physical', tmp_path)
     assert again.resumed['vectors'] == sum(e['type'] == 'vector' for e in old) and again.resumed['malformed'] == 0
     data = again.assemble()
-    np.testing.assert_array_equal(data.X, ref.X)             # the measured vectors only, the withdrawal ignored
+    # the measured vectors only, the withdrawal ignored: the record's own numbers (floats stored by repr, which reads
+    # back exactly -- one route, no arithmetic between the two)
+    np.testing.assert_array_equal(data.X, ref.X)
     np.testing.assert_array_equal(data.X_std, ref.X_std)
     again.close()
 
@@ -181,7 +184,9 @@ def test_paper_does_not_use_resumed_vectors_without_their_plain_fit(rec, rig, tm
     again = IdentifierCore(rig, 'paper', tmp_path, required_runs=['A'])
     data = again.assemble()
     ref = harmonics.from_recordings([rec])
-    assert data is not None and np.array_equal(data.plain.X, ref.plain.X) and data.sample_rate == rec.sample_rate
+    assert data is not None and data.sample_rate == rec.sample_rate
+    agreement.assert_within_sigma(data.plain.X, ref.plain.X, np.sqrt(np.minimum(ref.plain.var_re, ref.plain.var_im)),
+                                  'plain X')
     again.close()
     lines = [json.loads(x) for x in (tmp_path / 'record.jsonl').read_text().splitlines()]
     for e in lines:
@@ -282,7 +287,7 @@ def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig
     assert core.add_window(final)
     (speed, X, S, _, _), = core.vectors[rec.run.id]       # replaced, not a second (duplicate) entry
     ref, = harmonics.recording_vectors(rec)
-    np.testing.assert_array_equal(X, ref.X)
+    agreement.assert_within_sigma(X, ref.X, ref.X_std, 'X')
     assert np.all(S < S_prov) and not np.array_equal(X, X_prov)
     short = replace(final, i1=final.i0 + 10, samples=final.samples[:10], angle=final.angle[:10],
                     speed=final.speed[:10])
@@ -322,10 +327,5 @@ def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, m
     live, data = core.solve(record=False)
     core.close()
     assert data.plain is not None and not data.recordings
-    assert [r.speed for r in live] == [r.speed for r in ref] and len(ref) == 2
-    for a, b in zip(live, ref):
-        for name in ('K', 'C', 'K_std', 'C_std'):
-            np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9, atol=0,
-                                       err_msg=f'{method}: {name} at {a.speed_rpm:.0f} rpm')
-        assert np.array_equal(a.K_determined, b.K_determined) and np.array_equal(a.C_determined, b.C_determined)
-        assert (a.rank, a.flags) == (b.rank, b.flags)
+    assert len(ref) == 2
+    agreement.assert_results_agree(live, ref, method)

@@ -3,7 +3,7 @@ from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.estimation.kalman import rotor_kalman_model, StreamingKF
 from bearing_id.excitation import harmonic_forces
-from bearing_id.nodes.kf_estimator import HEALTH_COHERENT, innovation_health, innovation_health_terms
+from bearing_id.nodes.kf_estimator_core import HEALTH_COHERENT, innovation_health, innovation_health_terms
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.rotor.supports import bearing_fn
 from bearing_id.simulation import rig as rigmod

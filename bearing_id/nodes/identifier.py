@@ -3,731 +3,263 @@
 
 Consumes ``/rotor/displacement`` (measured) and ``/rotor/excitation``; monitors ``/bearing_id/bearing_displacement``
 (the kf_estimator's bearing-node estimates: their rate and health only); publishes ``/bearing_id/coefficients``
-(BearingCoefficients, latched) and /diagnostics.
-
-Data path (the offline route, call for call)
-    Each block's samples and per-sample keyphasor angles (``sample_angles``) are appended to the stream of its run
-    (the run its ``run_id`` names, else the one announced last before its stamp; a block whose run is not announced
-    yet waits for it) -- a :class:`bearing_id.identify.harmonics.RunStream`, which is what ``bearing-id identify``
-    feeds a whole recording or bag through: the speed of every sample from the angle, steady windows by the same
-    rule, the same cut whatever the block boundaries.  A lost or rejected block ends the open window (the rest of
-    the dwell becomes a second window, and the two vectors are combined); a change of run or probe set closes the
-    stream.  A pause (no block for ``segment_timeout``: the end of a run's data, or a loaded machine, a paused
-    replay) does not: the open window is handed out provisionally, fitted and used at once, and when the stream goes
-    on, its final cut replaces that vector -- the wall clock never cuts the data, so the live vectors are the
-    offline ones whatever the arrival timing.  Each closed window is fitted in a worker thread
-    (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions, transient-aware
-    fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
-    runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured
-    method (the data path never waits for a fit or a solve; a burst of windows is fitted first, but a result is
-    never held back more than ``SOLVE_AFTER``).  Results the data do not determine are not published as numbers
-    (unless ``publish_undetermined``); /diagnostics reports their rank and condition instead.
-
-Record and resume
-    Every excitation, accumulated vector and result is appended to ``<record_dir>/record.jsonl``
-    (:class:`bearing_id.io.record.Record`); on start-up the node replays it, so a restart loses nothing already
-    accumulated and re-publishes the results; the runs announced before the restart (with their start stamps) are
-    known again at once.  A malformed record line is skipped with a note.
+(BearingCoefficients, latched) and /diagnostics.  The data path, the record and the solve are
+:class:`bearing_id.nodes.identifier_core.IdentifierCore` (the offline route's functions, call for call); this module
+only moves messages, runs the fits and solves in a worker thread and reports.
 """
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
-import math
 import queue
 import sys
 import threading
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
+from rclpy.node import Node
 
-from .common import (declare_parameters, DiagItem, diagnostics_msg, ERROR, flag_publishers, OK, ParamSpec, qos_input,
-                     qos_latched, relative, run_node, STALE, StreamMonitor, subscribe_latched,
-                     TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, WARN)
+from .declare import declare_parameters
+from .diagnostics import diagnostics_msg, flag_publishers
+from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
+from .monitor import StreamMonitor
+from .process import run_node
+from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
-from ..config.params import ExcitationEntry, load_rig, Probe, Run
-from ..conventions import rad_s_to_rpm, rpm_to_rad_s
-from ..identify import get_method, harmonics, identify
-from ..identify.harmonics import (combine_vectors, common_speeds, DEFAULT_MAX_WINDOW, HarmonicData, PlainFit, RunStream,
-                                  WindowVector)
-from ..identify.plausibility import stability_threshold
+from .status import DiagItem, ERROR, OK, STALE, WARN
+from .topics import relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION
+from ..config.params import load_rig
 from ..io import messages as M
-from ..io.record import Record
-from ..rotor.assembly import RotorModel
 
-NAME = 'identifier'
-
-SPECS = [
-    ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
-    ParamSpec('method', 'physical', 'identification method (bearing-id identify --method); physical is the one '
-              'unbalance runs at one probe location determine',
-              choices=('paper', 'conventional', 'direct', 'physical')),
-    ParamSpec('record_dir', '~/.ros/bearing_id_record', 'directory of the append-only record (resumed on restart)'),
-    ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
-              'announced on /rotor/excitation)', type_='str[]'),
-    ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
-    ParamSpec('speed_tolerance', 0.005, 'relative speed change that ends a steady window; also matches speeds '
-              'across runs', '-', lo=1e-5, hi=0.2),
-    ParamSpec('settle_fraction', 0.25, 'fraction of each steady window discarded at its start (transient after a '
-              'speed step)', '-', lo=0.0, hi=0.9),
-    ParamSpec('min_window', 0.2, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
-    ParamSpec('segment_timeout', 0.3, 'the open steady window is used provisionally when no block arrived for this '
-              'long (the next contiguous block continues it)', 's',
-              lo=0.01, hi=3600.0),
-    ParamSpec('max_waiting_blocks', 400, "blocks held while their run's excitation has not arrived yet (the oldest "
-              'is dropped and counted beyond this)', 'blocks', lo=1, hi=100000),
-    ParamSpec('max_segment', 120.0, 'a steady window is fitted in pieces of at most this length, then combined '
-              '(bounds memory; the offline route uses the same length)', 's', lo=0.1,
-              hi=86400.0),
-    ParamSpec('max_displacement', 1e-3, 'samples above this are implausible (wrong units or garbage)', 'm',
-              lo=1e-9, hi=1.0),
-    ParamSpec('kf_process_noise', 1e-16, "method paper: the filter's process noise Q (`bearing-id identify --Q`)",
-              'm^2', lo=0.0, hi=1.0),
-    ParamSpec('kf_measurement_noise', 0.0, "method paper: the filter's probe noise std (R = value^2; `bearing-id "
-              "identify --R`); 0: each window's residual around its plain 1X fit, as `bearing-id identify` by default",
-              'm', lo=0.0, hi=1e-3),
-    ParamSpec('publish_undetermined', False, 'publish results the data do not fully determine (NaN std and '
-              'determined=false mark the undetermined coefficients)'),
-    ParamSpec('stale_after', 5.0, 'an input silent for this long is reported STALE', 's', lo=0.1, hi=3600.0),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
-]
-
-
-# ------------------------------------------------------------------------------------------------ pure part
-@dataclass
-class _Stream:
-    """The open stream of the measured probes' samples: the run and probe set it carries."""
-
-    run: Run
-    probes: tuple
-    stream: object                 # identify.harmonics.RunStream
-    last_arrival: float = 0.0
-    peeked: bool = False           # its open windows were handed out provisionally and nothing was fed since
-
-
-def _probe_key(probes) -> tuple:
-    return tuple((p.name, int(p.node), p.direction) for p in probes)
-
-
-class IdentifierCore:
-    """
-    Windows, vectors per (run, speed), the record, and the solve (no ROS).
-
-    ``feed(block, run, contiguous, now)`` appends a checked block of the measured probes to the run stream
-    (:class:`bearing_id.identify.harmonics.RunStream`, the offline route's windowing) and returns the steady windows
-    it closed (cheap: the data path); ``flush`` hands out the open windows of a stream that paused, provisionally
-    (the stream stays open: when in doubt, a window is not ended by wall-clock time, only by the data -- lost blocks,
-    a change of run -- as offline); ``add_window(window)`` fits one window
-    (:func:`bearing_id.identify.harmonics.window_vector`) and stores its vector (the worker thread); a later cut of
-    the same window (:attr:`ClosedWindow.key`: the final one after a provisional one) replaces its vector;
-    ``solve()`` identifies at every speed at which all required runs have a measured vector; with ``warm_start``
-    (default) the physical method starts from the parameters of the previous solve (the same answer to the solver's
-    tolerance, fewer iterations: :func:`bearing_id.identify.physical.fit_physical` ``p0``).
-    Every method, paper included, identifies from the measured probes' vectors as ``bearing-id identify`` does (the
-    paper method's filter acts on them through its closed-form 1X transfer); the kf_estimator's estimates are not
-    accumulated (records written before 27 Nov 2026 may hold such 'estimated' vectors: not resumed).
-    Vectors are kept per probe set: a probe set that changes (between runs, or across a restart that resumes the
-    record) is never stacked with another; the latest probe set is the one identified.
-    """
-
-    def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = 0.005,
-                 settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float | None = None,
-                 warm_start: bool = True):
-        self.rig = rig
-        self.model = RotorModel.from_params(rig)
-        self.method = method
-        self.options = options
-        self.required = list(required_runs) if required_runs else None
-        self.tol_rel, self.settle, self.min_window = float(tol_rel), float(settle), float(min_window)
-        self.max_window = float(DEFAULT_MAX_WINDOW if max_window is None else max_window)
-        self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
-        self.runs: dict = {}                   # id -> Run, in announcement order
-        self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
-        # run id -> [(speed, X, X_std, probes, plain)] (plain: the window's plain 1X fit, harmonics.PlainFit)
-        self.vectors: dict = {}
-        self._last_stored: dict = {}           # run id -> index of the vector its last window went to
-        self._parts: dict = {}                 # run id -> per vector: [[key, (speed, X, X_std, plain)]]
-        self._window_at: dict = {}             # (run id, window key) -> (vector index, part index)
-        self._noted_combined: set = set()      # window keys whose 'combined' note was given
-        self._noted_no_plain = False           # the note on resumed vectors without a plain fit was given
-        self.stream = None                     # _Stream: the open stream of the measured probes
-        self.probe_set = None                  # probe key of the latest measured vector (the set identified)
-        self.notes: deque = deque(maxlen=20)
-        self.results: dict = {}                # speed -> IdentResult (latest)
-        self.warm_start = bool(warm_start)
-        self._warm = None                      # (parameter names, values [SI]) of the last physical fit
-        self.lock = threading.Lock()
-        get_method(method)
-        self.record = Record(record_dir)
-        self.resumed = self._resume()
-
-    # ---- record
-    def _resume(self) -> dict:
-        n_vec = n_res = n_bad = 0
-        for e in self.record.entries():
-            try:
-                if e['type'] == 'excitation':
-                    run = Run(str(e['run_id']), tuple(ExcitationEntry(**x) for x in e['entries']))
-                    if run.id not in self.runs:
-                        self.runs[run.id] = run
-                        self.run_starts.append((float(e.get('stamp', -math.inf)), run))
-                elif e.get('source', 'measured') != 'measured':
-                    continue                                # an 'estimated' vector of an old record: never used
-                elif e['type'] == 'vector' and e.get('used', True):
-                    probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
-                    X = np.asarray(e['X']).astype(complex).reshape(-1)
-                    Xs = np.asarray(e['X_std'], dtype=float).reshape(-1)
-                    plain = None
-                    if e.get('plain_X') is not None:        # (absent from records written before 27 Nov 2026)
-                        var = np.asarray(e['plain_var'], dtype=float).reshape(3, -1)
-                        plain = PlainFit(np.asarray(e['plain_X']).astype(complex).reshape(-1), *var)
-                    if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
-                            (plain is not None and plain.X.size != len(probes)):
-                        raise ValueError(f'{X.size} values for {len(probes)} probes')
-                    self._store(str(e['run_id']), float(e['speed']), X, Xs, probes, bool(e.get('after_gap', False)),
-                                e.get('window'), plain)
-                    if e.get('sample_rate') is not None:
-                        self.sample_rate = float(e['sample_rate'])
-                    n_vec += 1
-                elif e['type'] == 'withdrawn':
-                    self._withdraw(str(e['run_id']), str(e['window']))
-                elif e['type'] == 'result':
-                    n_res += 1
-            except (KeyError, ValueError, TypeError, AttributeError) as exc:
-                n_bad += 1
-                self.notes.append(f"record {self.record.path}: entry n={e.get('n')} ({e.get('type')}) is malformed "
-                                  f'({type(exc).__name__}: {exc}); skipped')
-        if self.record.torn_lines:
-            self.notes.append(f'record {self.record.path}: {self.record.torn_lines} torn line(s) skipped')
-        self.record.append('session', resumed_vectors=n_vec, resumed_results=n_res, method=self.method)
-        return {'vectors': n_vec, 'results': n_res, 'torn_lines': self.record.torn_lines, 'malformed': n_bad}
-
-    def add_excitation(self, run: Run, stamp: float = -math.inf) -> bool:
-        with self.lock:
-            if run.id in self.runs:
-                if self.runs[run.id] != run:
-                    self.notes.append(f'run {run.id} re-announced with a different excitation; the first is kept')
-                return False
-            self.runs[run.id] = run
-            self.run_starts.append((float(stamp), run))
-        self.record.append('excitation', run_id=run.id, stamp=float(stamp),
-                           entries=[{'kind': e.kind, 'node': e.node, 'magnitude': e.magnitude, 'phase': e.phase,
-                                     'direction': e.direction, 'frequency_ratio': e.frequency_ratio}
-                                    for e in run.excitation])
-        return True
-
-    def _store(self, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None) -> str:
-        """
-        Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
-
-        'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
-        the gap (also when a later cut of that rest replaces it).  'replaced': a later cut of a window already stored
-        (``key``, :attr:`ClosedWindow.key`; the final cut after a provisional one): its part is replaced and the vector
-        recombined.  'duplicate': a later window at a speed the run already has with this probe set: recorded, not
-        used -- the offline route keeps the first too.
-        """
-        pkey = _probe_key(probes)
-        lst = self.vectors.setdefault(run_id, [])
-        parts = self._parts.setdefault(run_id, [])
-        at = self._window_at.get((run_id, key)) if key is not None else None
-        if at is not None:
-            parts[at[0]][at[1]][1] = (speed, X, X_std, plain)
-            lst[at[0]] = self._combined(parts[at[0]], probes)
-            return 'combined' if at[1] > 0 else 'replaced'
-        last = self._last_stored.get(run_id)
-        if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
-                abs(lst[last][0] - speed) <= self.tol_rel * speed:
-            parts[last].append([key, (speed, X, X_std, plain)])
-            self._window_at[(run_id, key)] = (last, len(parts[last]) - 1)
-            lst[last] = self._combined(parts[last], probes)
-            return 'combined'
-        if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
-            self._last_stored.pop(run_id, None)
-            return 'duplicate'
-        lst.append((speed, X, X_std, probes, plain))
-        parts.append([[key, (speed, X, X_std, plain)]])
-        self._window_at[(run_id, key)] = (len(lst) - 1, 0)
-        self._last_stored[run_id] = len(lst) - 1
-        if self.probe_set is not None and self.probe_set != pkey:
-            self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in pkey]}: '
-                              f'vectors of different probe sets are kept apart; the new set is identified')
-        self.probe_set = pkey
-        return 'new'
-
-    @staticmethod
-    def _combined(parts, probes):
-        """Return the vector (speed, X, X_std, probes, plain) of a dwell's parts, combined in window order."""
-        v = None
-        for _, part in parts:
-            if part is None:
-                continue
-            w = WindowVector(part[0], part[1], part[2], 0, 0, None, part[3])
-            v = w if v is None else combine_vectors(v, w)        # as offline (recording_vectors)
-        return None if v is None else (v.speed, v.X, v.X_std, probes, v.plain)
-
-    def _withdraw(self, run_id, key) -> bool:
-        """Drop the stored part of window ``key`` (its final cut gives no vector); returns whether one was stored."""
-        at = self._window_at.pop((run_id, key), None)
-        self._noted_combined.discard(key)
-        if at is None:
-            return False
-        lst, parts = self.vectors[run_id], self._parts[run_id][at[0]]
-        parts[at[1]][1] = None
-        lst[at[0]] = None if lst[at[0]] is None else self._combined(parts, lst[at[0]][3])
-        return True
-
-    # ---- data path (callback thread)
-    def feed(self, block, run: Run, contiguous: bool, now: float) -> list:
-        """
-        Append a checked block of ``run`` (the measured probes) to the stream; returns the steady windows it closed.
-
-        The block has ``samples`` (n, nch) [m], ``angles()`` (n,) [rad], ``probes``, ``sample_rate``, ``stamp``,
-        ``seq``.
-        """
-        out = []
-        cur = self.stream
-        probes = tuple(block.probes)
-        if cur is not None and (cur.run.id != run.id or _probe_key(cur.probes) != _probe_key(probes)
-                                or cur.stream.fs != float(block.sample_rate)):
-            closed = cur.stream.close()        # the stream moved on to another run / probe set / rate
-            if not cur.peeked:                 # (else these are the windows flush() handed out: no new data since)
-                out += closed
-            cur = None
-        if cur is None:
-            cur = self.stream = _Stream(run, probes, RunStream(run, probes, float(block.sample_rate),
-                                                               tol_rel=self.tol_rel, max_duration=self.max_window))
-            contiguous = True
-        out += cur.stream.feed(block.samples, block.angles(), contiguous=contiguous, stamp=block.stamp,
-                               seq=block.seq)
-        cur.last_arrival, cur.peeked = now, False
-        return out
-
-    def flush(self, now: float, timeout: float) -> list:
-        """
-        Return the stream's open windows, provisionally, when no block arrived for ``timeout`` [s].
-
-        The end of a run's data, or only a pause in their arrival (a loaded machine, a paused replay): either way the
-        windows are cut as if the stream ended now (:meth:`RunStream.peek`) so that their vectors are used at once,
-        but the stream stays open -- a contiguous next block continues the window, whose final cut then replaces the
-        provisional vector.  Wall-clock time never cuts the data: the vectors are those of the offline route whatever
-        the arrival timing.  Once per pause.
-        """
-        cur = self.stream
-        if cur is None or cur.peeked or now - cur.last_arrival < timeout:
-            return []
-        cur.peeked = True
-        return cur.stream.peek()
-
-    def wants(self, win, min_duration: float) -> bool:
-        """Whether a window is worth fitting: ``min_duration`` [s] long, or a later cut of one stored already."""
-        if win.duration >= min_duration:
-            return True
-        with self.lock:
-            return (win.run.id, win.key) in self._window_at
-
-    # ---- accumulation (worker thread)
-    def add_window(self, win) -> list[tuple]:
-        """Fit one closed window (the offline rule) and store its vector; returns [(speed, X)] newly usable."""
-        what = (f'window of run {win.run.id} at {rad_s_to_rpm(float(np.median(win.speed))):.0f} rpm, '
-                f'blocks {win.seqs[0]}..{win.seqs[1]}' if win.seqs else f'window of run {win.run.id}')
-        try:
-            v = harmonics.window_vector(win, settle=self.settle, min_duration=self.min_window)
-        except ValueError:
-            if not win.provisional:
-                raise
-            v = None                # the data so far do not make a vector yet (e.g. under one revolution)
-        if v is None:
-            with self.lock:
-                withdrawn = self._withdraw(win.run.id, win.key)
-            if withdrawn:           # its provisional cut was stored; the final one is too short
-                self.record.append('withdrawn', source='measured', run_id=win.run.id, window=win.key)
-            elif win.duration >= 0.5 * self.min_window and not win.provisional:
-                self.notes.append(f'{what} ({win.duration:.2f} s): too short for a 1X vector; not used')
-            return []
-        with self.lock:
-            how = self._store(win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued, win.key,
-                              v.plain)
-            self.sample_rate = win.sample_rate
-        self.record.append('vector', source='measured', run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
-                           plain_X=None if v.plain is None else v.plain.X, sample_rate=win.sample_rate,
-                           plain_var=None if v.plain is None else np.array(v.plain.arrays()[1:]),
-                           probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
-                           seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
-                           used=how != 'duplicate', window=win.key, provisional=win.provisional)
-        if how == 'duplicate':
-            if not win.provisional:     # (a provisional cut's notes wait for its final cut)
-                self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} '
-                                  f'rpm; recorded, not used (the first window at a speed is used, as offline)')
-            return []
-        if how == 'combined' and win.key not in self._noted_combined:     # once per window, provisional or final
-            self._noted_combined.add(win.key)
-            self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
-        return [(v.speed, v.X)]
-
-    def vector_counts(self) -> dict:
-        """Return {run id: number of usable vectors}."""
-        with self.lock:
-            return {rid: sum(x is not None for x in v) for rid, v in self.vectors.items()}
-
-    def required_runs(self) -> list[str]:
-        return list(self.required) if self.required else list(self.runs)
-
-    def assemble(self):
-        """
-        Return the HarmonicData of the measured vectors (latest probe set) at every speed all required runs have.
-
-        In the first required run's order: :func:`bearing_id.identify.harmonics.common_speeds`, as offline.
-        """
-        with self.lock:
-            req = self.required_runs()
-            if not req or any(r not in self.runs for r in req) or self.probe_set is None:
-                return None
-
-            def of_set(rid):
-                out = [v for v in self.vectors.get(rid, [])
-                       if v is not None and _probe_key(v[3]) == self.probe_set]
-                if self.method == 'paper' and any(v[4] is None for v in out):
-                    if not self._noted_no_plain:
-                        self._noted_no_plain = True
-                        self.notes.append('method paper: vectors resumed from a record written before 27 Nov 2026 '
-                                          "lack the plain 1X fit the paper method's filter takes; they are not used "
-                                          '(start with an empty record_dir to identify those speeds again)')
-                    out = [v for v in out if v[4] is not None]
-                return out
-
-            meas = [of_set(rid) for rid in req]
-            speeds, picks = common_speeds(meas, self.tol_rel)
-            if not speeds:
-                return None
-            rows = [[meas[r][k] for r, k in enumerate(row)] for row in picks]
-            probes = rows[0][0][3]
-            ns, nr = len(speeds), len(req)
-            X = np.array([[rows[s][r][1] for s in range(ns)] for r in range(nr)], dtype=complex)
-            Xs = np.array([[rows[s][r][2] for s in range(ns)] for r in range(nr)], dtype=float)
-            plain = None
-            if all(rows[s][r][4] is not None for s in range(ns) for r in range(nr)):
-                plain = PlainFit.stack([[rows[s][r][4] for s in range(ns)] for r in range(nr)])
-            runs = tuple(self.runs[r] for r in req)
-            fs = self.sample_rate if math.isfinite(self.sample_rate) else None
-            data = HarmonicData(np.array(speeds), probes, runs, X, Xs, plain=plain, sample_rate=fs)
-        return data
-
-    def signature(self, data) -> tuple:
-        """Return what a solve depends on (run ids, speeds, vectors): equal signatures give equal results."""
-        return None if data is None else (tuple(r.id for r in data.runs), data.speeds.tobytes(), data.X.tobytes(),
-                                          data.X_std.tobytes())
-
-    def solve(self, data=None, record: bool = True):
-        """
-        Identify at every complete speed; returns (results, data) or ([], None).
-
-        ``data``: an :meth:`assemble` result, default a new one.  ``record``: append the results to the record now
-        (False: the caller does it with :meth:`record_results`, e.g. after publishing them).
-        """
-        data = self.assemble() if data is None else data
-        if data is None:
-            return [], None
-        opts = dict(self.options or {})
-        kf = opts.pop('kf', None) or {}
-        if self.method == 'paper':   # the offline route's filter settings (`bearing-id identify --Q --R`)
-            opts.update({k: kf[k] for k in ('Q', 'R') if kf.get(k) is not None})
-        if self.method == 'physical' and self.warm_start and self._warm is not None and 'p0' not in opts:
-            opts['p0'] = self._warm[1]
-        results = identify(self.method, self.model, self.rig, data, options=opts or None)
-        fit = results[0].extra.get('fit') if results else None
-        if self.method == 'physical' and fit is not None and np.all(np.isfinite(fit.values)):
-            self._warm = (fit.names, np.array(fit.values))
-        for r in results:
-            self.results[float(r.speed)] = r
-        if record:
-            self.record_results(results)
-        return results, data
-
-    def prepare(self) -> None:
-        """
-        Compute once, off the data path, what the solves at the planned speeds share.
-
-        The plausibility gate's stability threshold for the rig's planned speed range (``simulation.speeds_rpm``):
-        without it the first solve at each new top speed searches for it (~0.4 s).
-        """
-        sim = self.rig.simulation
-        if sim is not None and sim.speeds_rpm:          # every method's results pass the same gate
-            stability_threshold(self.model, self.rig, float(rpm_to_rad_s(max(sim.speeds_rpm))))
-
-    def record_results(self, results) -> None:
-        """Append results to the record (one fsync'ed line each)."""
-        for r in results:
-            self.record.append('result', **_result_payload(r))
-
-    def close(self):
-        self.record.close()
-
-
-def _result_payload(r) -> dict:
-    d = r.to_dict()
-    d['speed_rad_s'] = float(r.speed)
-    return {'result': d}
-
-
-# ------------------------------------------------------------------------------------------------ node
 SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this long after its window closed
 
 
-def _make_node():
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.node import Node
+class Identifier(Node):
+    """The identifier node: windows -> 1X vectors -> coefficients published (see the module docstring)."""
 
-    class Identifier(Node):
-        def __init__(self):
-            super().__init__(NAME)
-            v = declare_parameters(self, SPECS)
-            self.values = v
-            rig = load_rig(v['rig_params'] or None)
-            self.rig = rig
-            channels = v['channels'] or [p.name for p in rig.probes]
-            self.core = IdentifierCore(rig, v['method'], v['record_dir'], v['runs'], v['speed_tolerance'],
-                                       v['settle_fraction'], v['min_window'],
-                                       options={'kf': {'Q': v['kf_process_noise'],
-                                                       'R': v['kf_measurement_noise'] ** 2 or None}},
-                                       max_window=v['max_segment'])
-            self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
-            self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
-            self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
-            for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
-                self.resolver.announce(stamp, run)
-            self.problems: deque = deque(maxlen=10)
-            self._shared = threading.Lock()         # problems and latency: written by the solver thread
-            self.skipped = {'no_speed': 0, 'no_angles': 0}
-            self._gap = False                       # the next measured block follows rejected data
-            self.published = 0
-            self.last_results = []
-            self.solve_time = None
-            self.latency = deque(maxlen=50)         # s, last block of a window -> coefficients published
-            self._jobs: queue.Queue = queue.Queue()
-            self._worker = threading.Thread(target=self._work, daemon=True, name='identifier_solver')
-            self.pub = self.create_publisher(M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), qos_latched(100))
-            self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-            # the excitation subscription first: when a run's announcement and its first block are ready together,
-            # the executor takes the announcement first (a block of a run not yet announced waits for it)
-            subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
-            self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
-                                     lambda m: self.on_block(m, 'measured'), qos_input(self))
-            self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
-                                     lambda m: self.on_block(m, 'estimated'), qos_input(self))
-            self.create_timer(0.05, self.tick)
-            self.create_timer(v['diagnostics_period'], self.diagnostics)
-            self._worker.start()
-            r = self.core.resumed
-            self.get_logger().info(f"method {v['method']}, record {self.core.record.path} (resumed {r['vectors']} "
-                                   f"vectors, {r['results']} results)")
-            if r['vectors']:
-                self._jobs.put(('solve', time.monotonic()))
+    def __init__(self):
+        super().__init__(NAME)
+        v = declare_parameters(self, SPECS)
+        self.values = v
+        rig = load_rig(v['rig_params'] or None)
+        self.rig = rig
+        channels = v['channels'] or [p.name for p in rig.probes]
+        self.core = IdentifierCore(rig, v['method'], v['record_dir'], v['runs'], v['speed_tolerance'],
+                                   v['settle_fraction'], v['min_window'],
+                                   options={'kf': {'Q': v['kf_process_noise'],
+                                                   'R': v['kf_measurement_noise'] ** 2 or None}},
+                                   max_window=v['max_segment'])
+        self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
+        self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
+        self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
+        for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
+            self.resolver.announce(stamp, run)
+        self.problems: deque = deque(maxlen=10)
+        self._shared = threading.Lock()         # problems and latency: written by the solver thread
+        self.skipped = {'no_speed': 0, 'no_angles': 0}
+        self._gap = False                       # the next measured block follows rejected data
+        self.published = 0
+        self.last_results = []
+        self.solve_time = None
+        self.latency = deque(maxlen=50)         # s, last block of a window -> coefficients published
+        self._jobs: queue.Queue = queue.Queue()
+        self._worker = threading.Thread(target=self._work, daemon=True, name='identifier_solver')
+        self.pub = self.create_publisher(M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), qos_latched(100))
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        # the excitation subscription first: when a run's announcement and its first block are ready together,
+        # the executor takes the announcement first (a block of a run not yet announced waits for it)
+        subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
+        self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
+                                 lambda m: self.on_block(m, 'measured'), qos_input(self))
+        self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
+                                 lambda m: self.on_block(m, 'estimated'), qos_input(self))
+        self.create_timer(0.05, self.tick)
+        self.create_timer(v['diagnostics_period'], self.diagnostics)
+        self._worker.start()
+        r = self.core.resumed
+        self.get_logger().info(f"method {v['method']}, record {self.core.record.path} (resumed {r['vectors']} "
+                               f"vectors, {r['results']} results)")
+        if r['vectors']:
+            self._jobs.put(('solve', time.monotonic()))
 
-        def _problem(self, text):
-            with self._shared:
-                self.problems.append(text)
-            self.get_logger().warn(text, throttle_duration_sec=2.0)
+    def _problem(self, text):
+        with self._shared:
+            self.problems.append(text)
+        self.get_logger().warn(text, throttle_duration_sec=2.0)
 
-        def on_excitation(self, msg):
-            try:
-                stamp, run = excitation_of(msg, self.core.model.n_nodes)
-            except MALFORMED as exc:
-                self._problem(f'malformed Excitation rejected: {exc}')
+    def on_excitation(self, msg):
+        try:
+            stamp, run = excitation_of(msg, self.core.model.n_nodes)
+        except MALFORMED as exc:
+            self._problem(f'malformed Excitation rejected: {exc}')
+            return
+        _, released = self.resolver.announce(stamp, run)
+        now = time.monotonic()
+        for b, r, contiguous in released:        # blocks of this run that arrived before its announcement
+            self._feed(b, r, contiguous, now)
+        if self.core.add_excitation(run, stamp):
+            self.get_logger().info(f'excitation: run {run.id}')
+
+    def on_block(self, msg, source):
+        try:
+            b = M.block_from_msg(msg)
+        except MALFORMED as exc:
+            self._problem(f'malformed DisplacementBlock on the {source} stream: {exc}')
+            return
+        mon = self.monitor if source == 'measured' else self.monitor_est
+        chk = mon.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
+        for p in chk.problems:
+            self._problem(p)
+        now = time.monotonic()
+        bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
+                                                         self.core.model.n_nodes)
+        for p in bad:
+            self._problem(f'{source} block seq {b.seq} rejected: {p}')
+        if not chk.usable or bad:
+            self._gap = self._gap or source == 'measured'    # rejected data ends the open window there
+            return
+        if not b.has_sample_angles:
+            self.skipped['no_angles'] += 1
+        if source == 'estimated':
+            return                         # monitored only: every method identifies from the measured vectors
+        contiguous = chk.contiguous and not self._gap
+        self._gap = False
+        run = self.resolver.resolve(b, contiguous)
+        if run is None:
+            return
+        self._feed(b, run, contiguous, now)
+
+    def _feed(self, b, run, contiguous, now):
+        try:
+            wins = self.core.feed(b, run, contiguous, now)
+        except ValueError as exc:
+            self._problem(f'measured block seq {b.seq} not accumulated: {exc}')
+            return
+        self._close(wins, now)
+
+    def _close(self, windows, now):
+        # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
+        # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
+        for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
+            if self.core.wants(w, 0.5 * self.core.min_window):
+                self._jobs.put(('window', w, now))
+
+    def tick(self):
+        now = time.monotonic()
+        self._close(self.core.flush(now, self.values['segment_timeout']), now)
+
+    def _work(self):
+        t_req = None              # when the oldest window not yet solved closed (latency reference)
+        last_sig = None
+        try:
+            self.core.prepare()   # before the first window has closed (>= min_window of data away)
+        except Exception as exc:  # reported; each solve then computes what it needs itself
+            self._problem(f'preparing the solves failed: {type(exc).__name__}: {exc}')
+        while True:
+            job = self._jobs.get()
+            if job is None:
                 return
-            _, released = self.resolver.announce(stamp, run)
-            now = time.monotonic()
-            for b, r, contiguous in released:        # blocks of this run that arrived before its announcement
-                self._feed(b, r, contiguous, now)
-            if self.core.add_excitation(run, stamp):
-                self.get_logger().info(f'excitation: run {run.id}')
-
-        def on_block(self, msg, source):
-            try:
-                b = M.block_from_msg(msg)
-            except MALFORMED as exc:
-                self._problem(f'malformed DisplacementBlock on the {source} stream: {exc}')
-                return
-            mon = self.monitor if source == 'measured' else self.monitor_est
-            chk = mon.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
-            for p in chk.problems:
-                self._problem(p)
-            now = time.monotonic()
-            bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
-                                                             self.core.model.n_nodes)
-            for p in bad:
-                self._problem(f'{source} block seq {b.seq} rejected: {p}')
-            if not chk.usable or bad:
-                self._gap = self._gap or source == 'measured'    # rejected data ends the open window there
-                return
-            if not b.has_sample_angles:
-                self.skipped['no_angles'] += 1
-            if source == 'estimated':
-                return                         # monitored only: every method identifies from the measured vectors
-            contiguous = chk.contiguous and not self._gap
-            self._gap = False
-            run = self.resolver.resolve(b, contiguous)
-            if run is None:
-                return
-            self._feed(b, run, contiguous, now)
-
-        def _feed(self, b, run, contiguous, now):
-            try:
-                wins = self.core.feed(b, run, contiguous, now)
-            except ValueError as exc:
-                self._problem(f'measured block seq {b.seq} not accumulated: {exc}')
-                return
-            self._close(wins, now)
-
-        def _close(self, windows, now):
-            # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
-            # arrival order, so that the callbacks -- and with them the pause timer -- never wait for it
-            for w in windows:     # (shorter ones, e.g. ramp steps, give nothing)
-                if self.core.wants(w, 0.5 * self.core.min_window):
-                    self._jobs.put(('window', w, now))
-
-        def tick(self):
-            now = time.monotonic()
-            self._close(self.core.flush(now, self.values['segment_timeout']), now)
-
-        def _work(self):
-            t_req = None              # when the oldest window not yet solved closed (latency reference)
-            last_sig = None
-            try:
-                self.core.prepare()   # before the first window has closed (>= min_window of data away)
-            except Exception as exc:  # reported; each solve then computes what it needs itself
-                self._problem(f'preparing the solves failed: {type(exc).__name__}: {exc}')
-            while True:
-                job = self._jobs.get()
-                if job is None:
-                    return
-                if job[0] == 'window':                 # fit and accumulate it
-                    _, win, closed_at = job
-                    try:
-                        added = self.core.add_window(win)
-                    except Exception as exc:          # reported; the window is lost, nothing else is
-                        self._problem(f'harmonic fit failed on a measured window: {type(exc).__name__}: {exc}')
-                        added = []
-                    if added:
-                        t_req = closed_at if t_req is None else min(t_req, closed_at)
-                else:                                  # a solve request (e.g. resumed from the record)
-                    t_req = job[1] if t_req is None else min(t_req, job[1])
-                while self.core.notes:
-                    self._problem(self.core.notes.popleft())
-                if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < SOLVE_AFTER):
-                    continue              # more windows queued: fit them first, but never hold a result back long
+            if job[0] == 'window':                 # fit and accumulate it
+                _, win, closed_at = job
                 try:
-                    data = self.core.assemble()
-                    sig = self.core.signature(data)
-                    if sig is None or sig == last_sig:
-                        t_req = None
-                        continue          # no new complete speed
-                    t0 = time.perf_counter()
-                    results, _ = self.core.solve(data, record=False)     # recorded once published
-                    last_sig = sig
-                except Exception as exc:              # reported, never published
-                    self._problem(f'identification failed: {type(exc).__name__}: {exc}')
+                    added = self.core.add_window(win)
+                except Exception as exc:          # reported; the window is lost, nothing else is
+                    self._problem(f'harmonic fit failed on a measured window: {type(exc).__name__}: {exc}')
+                    added = []
+                if added:
+                    t_req = closed_at if t_req is None else min(t_req, closed_at)
+            else:                                  # a solve request (e.g. resumed from the record)
+                t_req = job[1] if t_req is None else min(t_req, job[1])
+            while self.core.notes:
+                self._problem(self.core.notes.popleft())
+            if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < SOLVE_AFTER):
+                continue              # more windows queued: fit them first, but never hold a result back long
+            try:
+                data = self.core.assemble()
+                sig = self.core.signature(data)
+                if sig is None or sig == last_sig:
                     t_req = None
-                    continue
-                self.solve_time = time.perf_counter() - t0
-                self.last_results = results
-                sent = 0
-                for r in results:
-                    if r.fully_determined or self.values['publish_undetermined']:
-                        self.pub.publish(M.coefficients_to_msg(r, stamp=self.get_clock().now().to_msg(),
-                                                               frame_id=self.rig.name))
-                        sent += 1
-                self.published += sent
-                if sent:
-                    with self._shared:
-                        self.latency.append(time.monotonic() - t_req)
+                    continue          # no new complete speed
+                t0 = time.perf_counter()
+                results, _ = self.core.solve(data, record=False)     # recorded once published
+                last_sig = sig
+            except Exception as exc:              # reported, never published
+                self._problem(f'identification failed: {type(exc).__name__}: {exc}')
                 t_req = None
-                try:
-                    self.core.record_results(results)
-                except (OSError, ValueError) as exc:
-                    self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
+                continue
+            self.solve_time = time.perf_counter() - t0
+            self.last_results = results
+            sent = 0
+            for r in results:
+                if r.fully_determined or self.values['publish_undetermined']:
+                    self.pub.publish(M.coefficients_to_msg(r, stamp=self.get_clock().now().to_msg(),
+                                                           frame_id=self.rig.name))
+                    sent += 1
+            self.published += sent
+            if sent:
+                with self._shared:
+                    self.latency.append(time.monotonic() - t_req)
+            t_req = None
+            try:
+                self.core.record_results(results)
+            except (OSError, ValueError) as exc:
+                self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
 
-        def diagnostics(self):
-            items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
-                         f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])),
-                     self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
-            if items[1].level == STALE:
-                items[1].level = OK
-                items[1].message += ' (monitored only: no method needs it)'
-            rs = self.resolver
-            ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
-                          {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),
-                           'blocks_waiting_for_excitation': len(rs.waiting),
-                           'blocks_assigned_after_waiting': rs.released,
-                           'blocks_dropped_waiting_too_long': rs.dropped})
-            if not self.core.runs:
-                ex.level = ERROR if self.monitor.n_blocks else STALE
-                ex.message = f'no excitation received on {TOPIC_EXCITATION}: blocks wait, nothing is accumulated'
-            elif rs.dropped:
-                ex.level = WARN
-                ex.message = f"{rs.dropped} block(s) dropped after waiting too long for their run's excitation"
-            items.append(ex)
-            nvec = self.core.vector_counts()
-            acc = DiagItem(f'{NAME}: accumulation', OK, 'ok', {
-                'vectors_per_run': ', '.join(f'{k}: {n}' for k, n in nvec.items()) or 'none',
-                'record': str(self.core.record.path), 'resumed_vectors': self.core.resumed['vectors'],
-                'published_results': self.published, 'blocks_without_speed': self.skipped['no_speed'],
-                'blocks_without_sample_angles': self.skipped['no_angles']})
-            if self.skipped['no_angles']:
-                acc.level = WARN
-                acc.message = (f"{self.skipped['no_angles']} block(s) without sample_angles: their angle assumes "
-                               f'constant speed over the block (biased on speed ramps)')
-            if self.solve_time is not None:
-                acc.values['last_solve_s'] = self.solve_time
-            with self._shared:       # snapshots: the solver thread appends while this timer reads
-                latency, problems = list(self.latency), list(self.problems)
-                self.problems.clear()
-            if latency:
-                acc.values['last_latency_s'] = latency[-1]
-                acc.values['median_latency_s'] = float(np.median(latency))
-                acc.values['max_latency_s'] = max(latency)
-            if problems:
-                acc.level, acc.message = WARN, problems[-1]
-                acc.values['problems'] = ' | '.join(problems[-5:])
-            items.append(acc)
-            items.append(identifiability_item(self.last_results, self.values['publish_undetermined']))
-            self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
+    def diagnostics(self):
+        items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
+                     f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])),
+                 self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
+        if items[1].level == STALE:
+            items[1].level = OK
+            items[1].message += ' (monitored only: no method needs it)'
+        rs = self.resolver
+        ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
+                      {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),
+                       'blocks_waiting_for_excitation': len(rs.waiting),
+                       'blocks_assigned_after_waiting': rs.released,
+                       'blocks_dropped_waiting_too_long': rs.dropped})
+        if not self.core.runs:
+            ex.level = ERROR if self.monitor.n_blocks else STALE
+            ex.message = f'no excitation received on {TOPIC_EXCITATION}: blocks wait, nothing is accumulated'
+        elif rs.dropped:
+            ex.level = WARN
+            ex.message = f"{rs.dropped} block(s) dropped after waiting too long for their run's excitation"
+        items.append(ex)
+        nvec = self.core.vector_counts()
+        acc = DiagItem(f'{NAME}: accumulation', OK, 'ok', {
+            'vectors_per_run': ', '.join(f'{k}: {n}' for k, n in nvec.items()) or 'none',
+            'record': str(self.core.record.path), 'resumed_vectors': self.core.resumed['vectors'],
+            'published_results': self.published, 'blocks_without_speed': self.skipped['no_speed'],
+            'blocks_without_sample_angles': self.skipped['no_angles']})
+        if self.skipped['no_angles']:
+            acc.level = WARN
+            acc.message = (f"{self.skipped['no_angles']} block(s) without sample_angles: their angle assumes "
+                           f'constant speed over the block (biased on speed ramps)')
+        if self.solve_time is not None:
+            acc.values['last_solve_s'] = self.solve_time
+        with self._shared:       # snapshots: the solver thread appends while this timer reads
+            latency, problems = list(self.latency), list(self.problems)
+            self.problems.clear()
+        if latency:
+            acc.values['last_latency_s'] = latency[-1]
+            acc.values['median_latency_s'] = float(np.median(latency))
+            acc.values['max_latency_s'] = max(latency)
+        if problems:
+            acc.level, acc.message = WARN, problems[-1]
+            acc.values['problems'] = ' | '.join(problems[-5:])
+        items.append(acc)
+        items.append(identifiability_item(self.last_results, self.values['publish_undetermined']))
+        self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
 
-        def close(self):
-            self._jobs.put(None)
-            self._worker.join(timeout=5.0)
-            self.core.close()
-
-    return Identifier()
-
-
-def identifiability_item(results, publish_undetermined: bool = False) -> DiagItem:
-    """Rank / unknowns / condition per speed; WARN naming the speeds whose coefficients the data do not determine."""
-    name = f'{NAME}: identifiability'
-    if not results:
-        return DiagItem(name, OK, 'no complete speed yet (waiting for every required run)', {})
-    vals = {}
-    bad = []
-    for r in results:
-        rpm = rad_s_to_rpm(r.speed)
-        vals[f'{rpm:.0f}rpm'] = f'rank {r.rank}/{r.unknowns}, condition {r.condition:.3g}, residual {r.residual:.3g}'
-        if not r.fully_determined:
-            und = r.undetermined_names()
-            bad.append(f'{rpm:.0f} rpm: rank {r.rank} of {r.unknowns}, {len(und)} coefficient(s) not determined '
-                       f"({', '.join(und[:4])}{'...' if len(und) > 4 else ''})")
-    if bad:
-        tail = 'published flagged' if publish_undetermined else 'not published'
-        return DiagItem(name, WARN, f"{'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''} -- {tail}", vals)
-    misfit = [r for r in results if r.misfit]
-    if misfit:       # a model that does not fit the data is a warning, never an OK
-        note = next((n for n in misfit[0].notes if 'MISFIT' in n), 'model misfit')
-        return DiagItem(name, WARN, f'all {len(results)} speed(s) determined, but {len(misfit)} with a MODEL MISFIT '
-                                    f'(1-sigma a lower bound): {note}', vals)
-    return DiagItem(name, OK, f'all {len(results)} speed(s) determined', vals)
+    def close(self):
+        self._jobs.put(None)
+        self._worker.join(timeout=5.0)
+        self.core.close()
 
 
 def main(argv=None) -> int:
     return run_node(NAME, 'Accumulate 1X harmonic vectors per excitation run and speed, identify the bearing '
-                          'stiffness and damping, publish them with their uncertainty.', SPECS, _make_node, argv)
+                          'stiffness and damping, publish them with their uncertainty.', SPECS, Identifier, argv)
 
 
 if __name__ == '__main__':  # pragma: no cover

@@ -3,500 +3,209 @@
 
 Consumes ``/rotor/displacement``, ``/rotor/speed``, ``/rotor/excitation``; publishes
 ``/bearing_id/bearing_displacement`` (DisplacementBlock, x and y at each bearing node, same sequence and stamp as the
-input block) and ``/bearing_id/innovation`` (DisplacementBlock, probe channels, innovations in m), and /diagnostics
-(input checks, filter consistency: mean NIS against its 95 % chi-square band, model validity: orbit against 30 % of
-the clearance, speed against the stability threshold).
-
-Model cache
-    The discretised FE model (theoretical bearing coefficients at the speed, :func:`bearing_id.estimation.kalman.
-    rotor_kalman_model`) is cached per speed band (relative width ``speed_band``) and built by a worker thread.  A block
-    whose band has no model yet waits in an ordered queue (at most ``max_pending_blocks``) while the callback returns at
-    once: rebuilds never stall the data path.  Expected speeds (``prebuild_speeds_rpm``) are built at start-up.
-    The filter restarts from the model's steady state (kalman.StreamingKF) after a gap, a band change or a run change.
+input block) and ``/bearing_id/innovation`` (DisplacementBlock, probe channels, innovations in m), and /diagnostics.
+The filter, its model cache and the health checks are :class:`bearing_id.nodes.kf_estimator_core.EstimatorCore`.
 """
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 import math
-import queue
 import sys
-import threading
 import time
 
-import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
 
-from .common import (declare_parameters, DiagItem, diagnostics_msg, ERROR, flag_publishers, OK, ParamSpec, qos_input,
-                     qos_stream, relative, run_node, sec_to_stamp, STALE, StreamMonitor, subscribe_latched,
-                     TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_INNOVATION, TOPIC_SPEED,
-                     WARN)
+from .declare import declare_parameters
+from .diagnostics import diagnostics_msg, flag_publishers
+from .kf_estimator_core import block_speed, EstimatorCore, NAME, SPECS
+from .monitor import StreamMonitor
+from .process import run_node
+from .qos import qos_input, qos_stream, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
-from ..config.params import load_rig, Probe
-from ..conventions import rad_s_to_rpm, rpm_to_rad_s
-from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
-from ..excitation import harmonic_forces
+from .status import DiagItem, ERROR, OK, STALE, WARN
+from .topics import (relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_INNOVATION,
+                     TOPIC_SPEED)
+from ..config.params import load_rig
+from ..conventions import rpm_to_rad_s
 from ..io import messages as M
-from ..rotor import stability, supports
-from ..rotor.assembly import RotorModel
-
-NAME = 'kf_estimator'
-ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_validity)
-
-SPECS = [
-    ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
-    ParamSpec('process_noise', 1e-16, 'Q, process noise variance per step times identity (paper: 1e-16 .. 1e-18)',
-              'm^2', lo=0.0, hi=1.0),
-    ParamSpec('measurement_noise', 1e-7, 'probe noise standard deviation (R = value^2 times identity)', 'm',
-              lo=1e-12, hi=1e-3),
-    ParamSpec('speed_band', 0.01, 'relative width of the speed bands a model is cached and reused for', '-',
-              lo=1e-5, hi=0.2),
-    ParamSpec('min_speed_rpm', 60.0, 'below this speed no oil-film model is run (blocks are skipped)', 'rpm',
-              lo=0.0, hi=1e5),
-    ParamSpec('prebuild_speeds_rpm', None, 'models built at start-up (unset: simulation.speeds_rpm of rig_params)',
-              'rpm', lo=1.0, hi=1e5, type_='float[]'),
-    ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
-    ParamSpec('max_displacement', 1e-3, 'samples above this are implausible (wrong units or garbage)', 'm',
-              lo=1e-9, hi=1.0),
-    ParamSpec('max_pending_blocks', 400, "blocks held while their speed band's model is being built", 'blocks',
-              lo=1, hi=100000),
-    ParamSpec('nis_window', 50, 'blocks in the running mean of the normalised innovation squared', 'blocks',
-              lo=1, hi=100000),
-    ParamSpec('speed_timeout', 2.0, 'a /rotor/speed older than this is not used for blocks without speed', 's',
-              lo=0.01, hi=3600.0),
-    ParamSpec('stale_after', 5.0, 'an input silent for this long is reported STALE', 's', lo=0.1, hi=3600.0),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
-]
 
 
-HEALTH_COHERENT = 0.2   # share of innovation power coherent with 1X or 2X above which the model is flagged
-HEALTH_LAG1 = 0.5       # |lag-1 autocorrelation| of the innovations above which they are not white
+def sec_to_stamp(t: float) -> Time:
+    """Return ``builtin_interfaces/Time`` of ``t`` [s] (nanoseconds rounded, carried into seconds)."""
+    sec = math.floor(t)
+    ns = int(round((t - sec) * 1e9))
+    if ns >= 1_000_000_000:
+        sec, ns = sec + 1, ns - 1_000_000_000
+    return Time(sec=int(sec), nanosec=ns)
 
 
-def innovation_health_terms(nu: np.ndarray, angle: np.ndarray) -> dict:
-    """Per-block sums for :func:`innovation_health`: nu (n, m) innovations [m], angle (n,) rotor angle [rad]."""
-    nu = np.asarray(nu, dtype=float)
-    return {'n': nu.shape[0], 'power': np.sum(nu**2, axis=0),
-            1: nu.T @ np.exp(-1j * angle), 2: nu.T @ np.exp(-2j * angle),
-            'lag1': np.sum(nu[1:] * nu[:-1], axis=0)}
+class KFEstimator(Node):
+    """The kf_estimator node: measured blocks -> bearing-node estimates and innovations, health diagnostics."""
 
-
-def innovation_health(terms: list) -> dict:
-    """
-    Model health from innovations: the share of their power coherent with 1X and 2X, and lag-1 whiteness.
-
-    A model that predicts the measurement leaves white innovations (shares ~ 2/N, lag-1 correlation ~ 0); a model
-    that mispredicts the synchronous response leaves a coherent 1X (or 2X) in them.  Shares are the worst channel's.
-    """
-    n = sum(t['n'] for t in terms)
-    power = sum(t['power'] for t in terms)
-    out = {'n': n, 'fraction': {}}
-    for k in (1, 2):
-        c = sum(t[k] for t in terms) / n                 # mean of nu e^{-jk phi} = X_k / 2
-        out['fraction'][k] = float(np.max(2 * np.abs(c) ** 2 / np.maximum(power / n, 1e-300)))
-    out['lag1'] = float(np.max(sum(t['lag1'] for t in terms) / np.maximum(power, 1e-300)))
-    return out
-
-
-# ------------------------------------------------------------------------------------------------ pure part
-def block_speed(angles: np.ndarray, sample_rate: float) -> float | None:
-    """Mean rotor speed [rad/s] over a block from its per-sample angles [rad] (None when not positive/finite)."""
-    if angles.size < 2:
-        return None
-    w = float((angles[-1] - angles[0]) * sample_rate / (angles.size - 1))
-    return w if math.isfinite(w) and w > 0 else None
-
-
-def band_key(speed: float, width: float) -> int:
-    """Index of the relative speed band holding ``speed`` [rad/s] (bands of relative width ``width``)."""
-    return int(math.floor(math.log(speed) / math.log1p(width)))
-
-
-@dataclass
-class Output:
-    """What one processed block produced (SI units)."""
-
-    seq: int
-    stamp: float
-    speed: float
-    estimates: np.ndarray        # (n, 2 nb) bearing-node displacements [m]
-    innovations: np.ndarray      # (n, m) [m]
-    nis: np.ndarray              # (n,)
-    block: object = None         # the input block (sample rate, angle, probes, frame)
-    run_id: str = ''             # the excitation run the block was filtered with
-
-
-class EstimatorCore:
-    """
-    The node's data path without ROS: model cache per speed band (built by a worker thread), one streaming filter.
-
-    ``submit(block, run, speed, contiguous)`` queues a checked block; ``drain()`` processes every queued block whose
-    model is ready, in order, and returns the Outputs.  ``block`` needs ``seq``, ``stamp`` [s], ``samples`` (n, m),
-    ``angles()`` (n,) keyphasor angle of every sample [rad], ``sample_rate`` [Hz], ``probes`` (params.Probe per
-    channel).  ``speed`` [rad/s] selects the model (its speed band) and the forcing frequency.
-    """
-
-    def __init__(self, rig, Q: float, R_std: float, band: float, max_pending: int = 400, nis_window: int = 50):
+    def __init__(self):
+        super().__init__(NAME)
+        v = declare_parameters(self, SPECS)
+        self.values = v
+        rig = load_rig(v['rig_params'] or None)
         self.rig = rig
-        self.rotor = RotorModel.from_params(rig)
-        self.bearing_fn = supports.bearing_fn(rig)
-        self.Q = float(Q)
-        self.R = float(R_std) ** 2
-        self.band = float(band)
-        self.max_pending = int(max_pending)
-        self.outputs_probes = tuple(Probe(f'{b.name}_{d}', b.node, d) for b in rig.bearings for d in ('x', 'y'))
-        self._models: dict = {}
-        self._building: set = set()
-        self._lock = threading.Lock()
-        self._jobs: queue.Queue = queue.Queue()
-        self._pending: deque = deque()
-        self._active = None          # (model key, run id, StreamingKF)
-        self.dropped_pending = 0
-        self.build_times: list = []
-        self.nis_hist: deque = deque(maxlen=int(nis_window))
-        self.health_hist: deque = deque(maxlen=int(nis_window))
-        self.n_meas = None
-        self.threshold = None        # stability threshold [rad/s] (computed by the worker)
-        self.last_orbit: dict = {}
-        self.resets = 0
-        self.errors: list = []
-        self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
-        self._worker.start()
+        channels = v['channels'] or [p.name for p in rig.probes]
+        self.core = EstimatorCore(rig, v['process_noise'], v['measurement_noise'], v['speed_band'],
+                                  v['max_pending_blocks'], v['nis_window'])
+        self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
+        self.resolver = RunResolver(v['max_pending_blocks'])
+        self.last_speed = None            # (speed, wall time)
+        self.speed_msgs = 0
+        self.last_block_speed = None
+        self.problems: deque = deque(maxlen=10)
+        self.skipped = {'no_speed': 0, 'no_angles': 0, 'slow': 0}
+        speeds = v['prebuild_speeds_rpm']
+        if speeds is None and rig.simulation is not None:
+            speeds = list(rig.simulation.speeds_rpm)
+        fs = rig.simulation.sample_rate if rig.simulation is not None else None
+        probes = tuple(p for p in rig.probes if p.name in channels)
+        if fs and len(probes) == len(channels):
+            for s in speeds or []:
+                self.core.request(float(rpm_to_rad_s(s)), probes, fs)
+        top = max(speeds) if speeds else 3000.0
+        self.core.request_threshold(float(rpm_to_rad_s(top)) * 2.0)
+        self.pub_est = self.create_publisher(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
+                                             qos_stream())
+        self.pub_nu = self.create_publisher(M.DisplacementBlock, relative(TOPIC_INNOVATION), qos_stream())
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        # excitation and speed subscriptions first: ready together with a block, they are taken first
+        subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
+        self.create_subscription(M.RotorSpeed, relative(TOPIC_SPEED), self.on_speed, qos_input(self, 50))
+        self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
+        self.create_timer(0.02, self.drain)
+        self.create_timer(v['diagnostics_period'], self.diagnostics)
+        self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, "
+                               f"R ({v['measurement_noise']:g} m)^2; prebuilding {len(speeds or [])} models")
 
-    # ---- worker
-    def _work(self):
-        while True:
-            job = self._jobs.get()
-            if job is None:
-                return
-            key, speed, probes, fs = job
-            t0 = time.perf_counter()
-            try:
-                if key == 'threshold':
-                    self.threshold = float(stability.threshold_speed(self.rotor, self.bearing_fn, speed))
-                    continue
-                km = rotor_kalman_model(self.rotor, speed, self.bearing_fn(speed), probes, fs, Q=self.Q, R=self.R,
-                                        outputs=[(p.node, p.direction) for p in self.outputs_probes])
-                StreamingKF(km)          # builds and caches the steady-state gain and the chunked operator
-                with self._lock:
-                    self._models[key] = km
-                self.build_times.append(time.perf_counter() - t0)
-            except Exception as exc:      # a model that cannot be built is reported, never silently used
-                with self._lock:
-                    self.errors.append(f'model at {rad_s_to_rpm(speed):.0f} rpm: {exc}')
-                    self._models[key] = exc
-            finally:
-                with self._lock:
-                    self._building.discard(key)
+    def on_speed(self, msg):
+        s = float(msg.speed)
+        if math.isfinite(s):
+            self.last_speed = (s, time.monotonic())
+        self.speed_msgs += 1
 
-    def request(self, speed: float, probes, fs: float):
-        key = self.key(speed, probes, fs)
-        with self._lock:
-            if key in self._models or key in self._building:
-                return key
-            self._building.add(key)
-        self._jobs.put((key, speed, tuple(probes), fs))
-        return key
-
-    def request_threshold(self, speed_max: float):
-        self._jobs.put(('threshold', speed_max, (), 0.0))
-
-    def key(self, speed, probes, fs):
-        return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs))
-
-    def ready(self, key) -> bool:
-        with self._lock:
-            return key in self._models
-
-    @property
-    def pending(self) -> int:
-        return len(self._pending)
-
-    # ---- data path
-    def submit(self, block, run, speed: float, contiguous: bool) -> str | None:
-        """Queue a block; returns a problem text if the queue overflowed (oldest block dropped)."""
-        key = self.request(speed, block.probes, block.sample_rate)
-        self._pending.append((block, run, speed, contiguous, key))
-        if len(self._pending) > self.max_pending:
-            old = self._pending.popleft()
-            self.dropped_pending += 1
-            self._active = None
-            return (f'model for {rad_s_to_rpm(old[2]):.0f} rpm not ready in time: block seq {old[0].seq} dropped '
-                    f'(queue of {self.max_pending} full)')
-        return None
-
-    def drain(self) -> list[Output]:
-        out = []
-        while self._pending:
-            block, run, speed, contiguous, key = self._pending[0]
-            with self._lock:
-                km = self._models.get(key)
-            if km is None:
-                break
-            self._pending.popleft()
-            if isinstance(km, Exception):
-                continue
-            act = self._active
-            if act is None or act[0] != key or act[1] != run.id or not contiguous:
-                forces = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof)
-                kf = StreamingKF(km.with_forces(forces, speed), band_tol_rel=self.band)
-                self._active = act = (key, run.id, kf)
-                self.resets += 1
-                self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
-            kf = act[2]
-            angle = block.angles()
-            n = angle.size
-            est, nu, nis = kf.step_block(block.samples, angle, speed)
-            self.nis_hist.append((float(np.sum(nis)), n))
-            self.health_hist.append(innovation_health_terms(nu, angle))
-            self.n_meas = nu.shape[1]
-            for j, b in enumerate(self.rig.bearings):
-                r = np.sqrt(est[:, 2 * j] ** 2 + est[:, 2 * j + 1] ** 2)
-                self.last_orbit[b.name] = (float(np.max(r)), speed)
-            out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id))
-        return out
-
-    # ---- health
-    def nis_status(self) -> DiagItem:
-        name = f'{NAME}: filter consistency (NIS)'
-        if not self.nis_hist or not self.n_meas:
-            return DiagItem(name, OK, 'no filtered data yet', {})
-        tot = sum(s for s, _ in self.nis_hist)
-        n = sum(k for _, k in self.nis_hist)
-        mean = tot / n
-        lo, hi = nis_band(n, self.n_meas)
-        vals = {'mean_nis': mean, 'band_lo': lo, 'band_hi': hi, 'expected': self.n_meas, 'samples': n,
-                'filter_restarts': self.resets}
-        if lo <= mean <= hi:
-            return DiagItem(name, OK, f'consistent: mean NIS {mean:.3g} in [{lo:.3g}, {hi:.3g}]', vals)
-        how = 'model or noise settings disagree with the data (model error, R too small)' if mean > hi else \
-            'R larger than the real noise'
-        return DiagItem(name, WARN, f'inconsistent: mean NIS {mean:.3g} outside [{lo:.3g}, {hi:.3g}]: {how}', vals)
-
-    def health_status(self) -> DiagItem:
-        """Live model health from the innovations (see :func:`innovation_health`)."""
-        name = f'{NAME}: model health (innovations)'
-        if not self.health_hist:
-            return DiagItem(name, OK, 'no filtered data yet', {})
-        h = innovation_health(list(self.health_hist))
-        vals = {'fraction_1x': h['fraction'][1], 'fraction_2x': h['fraction'][2], 'lag1_correlation': h['lag1'],
-                'samples': h['n']}
-        worst = max(h['fraction'][1], h['fraction'][2])
-        if worst < HEALTH_COHERENT and abs(h['lag1']) < HEALTH_LAG1:
-            return DiagItem(name, OK, f"innovations white: {100 * h['fraction'][1]:.1f} % of their power at 1X, "
-                            f"{100 * h['fraction'][2]:.1f} % at 2X, lag-1 correlation {h['lag1']:.2f}", vals)
-        order = 1 if h['fraction'][1] >= h['fraction'][2] else 2
-        return DiagItem(name, WARN, f"model mismatch: {100 * h['fraction'][order]:.0f} % of the innovation power is "
-                        f"coherent with {order}X (lag-1 correlation {h['lag1']:.2f}); the model mispredicts the "
-                        f'{order}X response -- locate and explain it with `bearing-id diagnose` on a recording', vals)
-
-    def validity_status(self, speed: float | None) -> DiagItem:
-        name = f'{NAME}: model validity'
-        vals = {}
-        issues = []
-        for b in self.rig.bearings:
-            if b.name in self.last_orbit:
-                r, sp = self.last_orbit[b.name]
-                vals[f'{b.name}_orbit_um'] = r * 1e6
-                vals[f'{b.name}_orbit_limit_um'] = ORBIT_LIMIT * b.clearance * 1e6
-                if r > ORBIT_LIMIT * b.clearance:
-                    issues.append(f'{b.name} (node {b.node}) orbit {r * 1e6:.1f} um > {ORBIT_LIMIT:.0%} of clearance '
-                                  f'{b.clearance * 1e6:.0f} um at {rad_s_to_rpm(sp):.0f} rpm: linear coefficients '
-                                  f'not valid')
-        if self.threshold is not None:
-            vals['stability_threshold_rpm'] = rad_s_to_rpm(self.threshold)
-            if speed is not None and speed >= self.threshold:
-                issues.append(f'speed {rad_s_to_rpm(speed):.0f} rpm at or above the stability threshold '
-                              f'{rad_s_to_rpm(self.threshold):.0f} rpm (oil whip)')
-        if speed is not None:
-            vals['speed_rpm'] = rad_s_to_rpm(speed)
-        with self._lock:          # the builder thread adds models while the diagnostics timer reads
-            vals['models_cached'] = sum(1 for v in self._models.values() if not isinstance(v, Exception))
-        vals['pending_blocks'] = self.pending
-        vals['dropped_blocks'] = self.dropped_pending
-        if self.build_times:
-            vals['last_model_build_s'] = self.build_times[-1]
-        if self.errors:
-            issues.append(self.errors[-1])
-        if issues:
-            return DiagItem(name, WARN, '; '.join(issues), vals)
-        return DiagItem(name, OK, 'orbits within 30 % of clearance, speed below the stability threshold'
-                        if self.threshold is not None else 'orbits within 30 % of clearance', vals)
-
-    def close(self):
-        self._jobs.put(None)
-        self._worker.join(timeout=2.0)
-
-
-# ------------------------------------------------------------------------------------------------ node
-def _make_node():
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.node import Node
-
-    class KFEstimator(Node):
-        def __init__(self):
-            super().__init__(NAME)
-            v = declare_parameters(self, SPECS)
-            self.values = v
-            rig = load_rig(v['rig_params'] or None)
-            self.rig = rig
-            channels = v['channels'] or [p.name for p in rig.probes]
-            self.core = EstimatorCore(rig, v['process_noise'], v['measurement_noise'], v['speed_band'],
-                                      v['max_pending_blocks'], v['nis_window'])
-            self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
-            self.resolver = RunResolver(v['max_pending_blocks'])
-            self.last_speed = None            # (speed, wall time)
-            self.speed_msgs = 0
-            self.last_block_speed = None
-            self.problems: deque = deque(maxlen=10)
-            self.skipped = {'no_speed': 0, 'no_angles': 0, 'slow': 0}
-            speeds = v['prebuild_speeds_rpm']
-            if speeds is None and rig.simulation is not None:
-                speeds = list(rig.simulation.speeds_rpm)
-            fs = rig.simulation.sample_rate if rig.simulation is not None else None
-            probes = tuple(p for p in rig.probes if p.name in channels)
-            if fs and len(probes) == len(channels):
-                for s in speeds or []:
-                    self.core.request(float(rpm_to_rad_s(s)), probes, fs)
-            top = max(speeds) if speeds else 3000.0
-            self.core.request_threshold(float(rpm_to_rad_s(top)) * 2.0)
-            self.pub_est = self.create_publisher(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
-                                                 qos_stream())
-            self.pub_nu = self.create_publisher(M.DisplacementBlock, relative(TOPIC_INNOVATION), qos_stream())
-            self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-            # excitation and speed subscriptions first: ready together with a block, they are taken first
-            subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
-            self.create_subscription(M.RotorSpeed, relative(TOPIC_SPEED), self.on_speed, qos_input(self, 50))
-            self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
-            self.create_timer(0.02, self.drain)
-            self.create_timer(v['diagnostics_period'], self.diagnostics)
-            self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, "
-                                   f"R ({v['measurement_noise']:g} m)^2; prebuilding {len(speeds or [])} models")
-
-        def on_speed(self, msg):
-            s = float(msg.speed)
-            if math.isfinite(s):
-                self.last_speed = (s, time.monotonic())
-            self.speed_msgs += 1
-
-        def on_excitation(self, msg):
-            try:
-                stamp, run = excitation_of(msg, self.core.rotor.n_nodes)
-            except MALFORMED as exc:
-                self._problem(f'malformed Excitation rejected: {exc}')
-                return
-            new, released = self.resolver.announce(stamp, run)
-            if new:
-                self.get_logger().info(f'excitation: run {run.id} with {len(run.excitation)} entries')
-            for b, r, (speed, contiguous) in released:    # blocks that arrived before their run's announcement
-                self._submit(b, r, speed, contiguous)
-            if released:
-                self.drain()
-
-        def _problem(self, text):
-            self.problems.append(text)
-            self.get_logger().warn(text, throttle_duration_sec=2.0)
-
-        def on_block(self, msg):
-            try:
-                b = M.block_from_msg(msg)
-            except MALFORMED as exc:
-                self._problem(f'malformed DisplacementBlock rejected: {exc}')
-                return
-            chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
-            for p in chk.problems:
-                self._problem(p)
-            bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
-                                                             self.core.rotor.n_nodes)
-            for p in bad:
-                self._problem(f'block seq {b.seq} rejected: {p}')
-            if not chk.usable or bad:
-                return
-            if b.has_sample_angles:
-                speed = block_speed(b.sample_angles, b.sample_rate)
-            else:
-                self.skipped['no_angles'] += 1
-                speed = b.speed if (math.isfinite(b.speed) and b.speed > 0) else None
-            if speed is None and self.last_speed and time.monotonic() - self.last_speed[1] < self.values[
-                    'speed_timeout']:
-                speed = self.last_speed[0]
-            if speed is None:
-                self.skipped['no_speed'] += 1
-                self._problem(f'no speed for block seq {b.seq}: the block carries none and /rotor/speed is silent; '
-                              f'block skipped')
-                return
-            self.last_block_speed = speed
-            if speed < rpm_to_rad_s(self.values['min_speed_rpm']):
-                self.skipped['slow'] += 1
-                return
-            if not b.has_sample_angles and b.n_samples and self.skipped['no_angles'] == 1:
-                self._problem(f'block seq {b.seq} carries no sample_angles: its angle is rebuilt assuming constant '
-                              f'speed over the block (biased on speed ramps)')
-            run = self.resolver.resolve(b, (speed, chk.contiguous))
-            if run is None:               # its run's excitation has not arrived yet: the block waits for it
-                return
-            self._submit(b, run, speed, chk.contiguous)
+    def on_excitation(self, msg):
+        try:
+            stamp, run = excitation_of(msg, self.core.rotor.n_nodes)
+        except MALFORMED as exc:
+            self._problem(f'malformed Excitation rejected: {exc}')
+            return
+        new, released = self.resolver.announce(stamp, run)
+        if new:
+            self.get_logger().info(f'excitation: run {run.id} with {len(run.excitation)} entries')
+        for b, r, (speed, contiguous) in released:    # blocks that arrived before their run's announcement
+            self._submit(b, r, speed, contiguous)
+        if released:
             self.drain()
 
-        def _submit(self, b, run, speed, contiguous):
-            err = self.core.submit(b, run, speed, contiguous)
-            if err:
-                self._problem(err)
+    def _problem(self, text):
+        self.problems.append(text)
+        self.get_logger().warn(text, throttle_duration_sec=2.0)
 
-        def drain(self):
-            for o in self.core.drain():
-                b = o.block
-                stamp = sec_to_stamp(o.stamp)
-                ang = b.sample_angles
-                self.pub_est.publish(M.block_to_msg(
-                    samples=o.estimates, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
-                    probes=self.core.outputs_probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang,
-                    run_id=o.run_id))
-                self.pub_nu.publish(M.block_to_msg(
-                    samples=o.innovations, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
-                    probes=b.probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang, run_id=o.run_id))
+    def on_block(self, msg):
+        try:
+            b = M.block_from_msg(msg)
+        except MALFORMED as exc:
+            self._problem(f'malformed DisplacementBlock rejected: {exc}')
+            return
+        chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
+        for p in chk.problems:
+            self._problem(p)
+        bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
+                                                         self.core.rotor.n_nodes)
+        for p in bad:
+            self._problem(f'block seq {b.seq} rejected: {p}')
+        if not chk.usable or bad:
+            return
+        if b.has_sample_angles:
+            speed = block_speed(b.sample_angles, b.sample_rate)
+        else:
+            self.skipped['no_angles'] += 1
+            speed = b.speed if (math.isfinite(b.speed) and b.speed > 0) else None
+        if speed is None and self.last_speed and time.monotonic() - self.last_speed[1] < self.values[
+                'speed_timeout']:
+            speed = self.last_speed[0]
+        if speed is None:
+            self.skipped['no_speed'] += 1
+            self._problem(f'no speed for block seq {b.seq}: the block carries none and /rotor/speed is silent; '
+                          f'block skipped')
+            return
+        self.last_block_speed = speed
+        if speed < rpm_to_rad_s(self.values['min_speed_rpm']):
+            self.skipped['slow'] += 1
+            return
+        if not b.has_sample_angles and b.n_samples and self.skipped['no_angles'] == 1:
+            self._problem(f'block seq {b.seq} carries no sample_angles: its angle is rebuilt assuming constant '
+                          f'speed over the block (biased on speed ramps)')
+        run = self.resolver.resolve(b, (speed, chk.contiguous))
+        if run is None:               # its run's excitation has not arrived yet: the block waits for it
+            return
+        self._submit(b, run, speed, chk.contiguous)
+        self.drain()
 
-        def diagnostics(self):
-            items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
-                f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after']))]
-            sp_item = DiagItem(f'{NAME}: input {TOPIC_SPEED}', OK, 'receiving', {'messages': self.speed_msgs})
-            if self.last_speed is None:
-                sp_item.level, sp_item.message = STALE, f'no data received on {TOPIC_SPEED}'
-            elif time.monotonic() - self.last_speed[1] > self.values['stale_after']:
-                sp_item.level, sp_item.message = STALE, f'no data on {TOPIC_SPEED} for ' \
-                                                        f'{time.monotonic() - self.last_speed[1]:.1f} s'
-            items.append(sp_item)
-            rs = self.resolver
-            ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'{len(rs)} run(s) known',
-                          {'runs': len(rs), 'blocks_waiting_for_excitation': len(rs.waiting),
-                           'blocks_assigned_after_waiting': rs.released,
-                           'blocks_dropped_waiting_too_long': rs.dropped})
-            if rs.dropped:
-                ex.level, ex.message = WARN, f'{rs.dropped} block(s) dropped after waiting too long for their run'
-            if len(rs) == 0:
-                ex.level, ex.message = (ERROR if self.monitor.n_blocks else STALE), \
-                    f'no excitation received on {TOPIC_EXCITATION}: blocks cannot be filtered'
-            items.append(ex)
-            proc = DiagItem(f'{NAME}: processing', OK, 'ok', {
-                'blocks_without_speed': self.skipped['no_speed'], 'blocks_below_min_speed': self.skipped['slow'],
-                'blocks_without_sample_angles': self.skipped['no_angles'],
-                'pending_blocks': self.core.pending})
-            if self.problems:
-                proc.level, proc.message = WARN, self.problems[-1]
-                proc.values['problems'] = ' | '.join(list(self.problems)[-5:])
-                self.problems.clear()
-            items += [proc, self.core.nis_status(), self.core.health_status(),
-                      self.core.validity_status(self.last_block_speed)]
-            self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
+    def _submit(self, b, run, speed, contiguous):
+        err = self.core.submit(b, run, speed, contiguous)
+        if err:
+            self._problem(err)
 
-        def close(self):
-            self.core.close()
+    def drain(self):
+        for o in self.core.drain():
+            b = o.block
+            stamp = sec_to_stamp(o.stamp)
+            ang = b.sample_angles
+            self.pub_est.publish(M.block_to_msg(
+                samples=o.estimates, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
+                probes=self.core.outputs_probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang,
+                run_id=o.run_id))
+            self.pub_nu.publish(M.block_to_msg(
+                samples=o.innovations, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,
+                probes=b.probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang, run_id=o.run_id))
 
-    return KFEstimator()
+    def diagnostics(self):
+        items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
+            f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after']))]
+        sp_item = DiagItem(f'{NAME}: input {TOPIC_SPEED}', OK, 'receiving', {'messages': self.speed_msgs})
+        if self.last_speed is None:
+            sp_item.level, sp_item.message = STALE, f'no data received on {TOPIC_SPEED}'
+        elif time.monotonic() - self.last_speed[1] > self.values['stale_after']:
+            sp_item.level, sp_item.message = STALE, f'no data on {TOPIC_SPEED} for ' \
+                                                    f'{time.monotonic() - self.last_speed[1]:.1f} s'
+        items.append(sp_item)
+        rs = self.resolver
+        ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'{len(rs)} run(s) known',
+                      {'runs': len(rs), 'blocks_waiting_for_excitation': len(rs.waiting),
+                       'blocks_assigned_after_waiting': rs.released,
+                       'blocks_dropped_waiting_too_long': rs.dropped})
+        if rs.dropped:
+            ex.level, ex.message = WARN, f'{rs.dropped} block(s) dropped after waiting too long for their run'
+        if len(rs) == 0:
+            ex.level, ex.message = (ERROR if self.monitor.n_blocks else STALE), \
+                f'no excitation received on {TOPIC_EXCITATION}: blocks cannot be filtered'
+        items.append(ex)
+        proc = DiagItem(f'{NAME}: processing', OK, 'ok', {
+            'blocks_without_speed': self.skipped['no_speed'], 'blocks_below_min_speed': self.skipped['slow'],
+            'blocks_without_sample_angles': self.skipped['no_angles'],
+            'pending_blocks': self.core.pending})
+        if self.problems:
+            proc.level, proc.message = WARN, self.problems[-1]
+            proc.values['problems'] = ' | '.join(list(self.problems)[-5:])
+            self.problems.clear()
+        items += [proc, self.core.nis_status(), self.core.health_status(),
+                  self.core.validity_status(self.last_block_speed)]
+        self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
+
+    def close(self):
+        self.core.close()
 
 
 def main(argv=None) -> int:
     return run_node(NAME, 'Kalman-filter estimate of the bearing-node displacements from the measured probes '
-                          '(Kang et al. 2020, section 3.1), block by block.', SPECS, _make_node, argv)
+                          '(Kang et al. 2020, section 3.1), block by block.', SPECS, KFEstimator, argv)
 
 
 if __name__ == '__main__':  # pragma: no cover

@@ -11,12 +11,48 @@ counted, and /diagnostics says so).
 from __future__ import annotations
 
 from collections import deque
+import threading
+from typing import Any
 
-from .common import ExcitationTimeline, stamp_to_sec
 from ..io.messages import excitation_from_msg
 
 #: what converting a hostile message can raise (reported and dropped by the callbacks, never raised out of them)
 MALFORMED = (ValueError, TypeError, AttributeError, OverflowError, IndexError)
+
+
+def stamp_to_sec(stamp) -> float:
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+class ExcitationTimeline:
+    """Known excitation runs in stream time: a block belongs to the run announced last at or before its stamp."""
+
+    def __init__(self):
+        self._runs: list[tuple[float, Any]] = []     # (stamp [s], params.Run), sorted by stamp
+        self._lock = threading.Lock()
+
+    def add(self, stamp: float, run) -> bool:
+        """Register ``run`` starting at ``stamp`` [s]; returns False for a repeat of a known (stamp, run id)."""
+        with self._lock:
+            if any(abs(s - stamp) < 1e-9 and r.id == run.id for s, r in self._runs):
+                return False
+            self._runs.append((float(stamp), run))
+            self._runs.sort(key=lambda x: x[0])
+            return True
+
+    def at(self, stamp: float, tol: float = 1e-6):
+        """Return the run in force at ``stamp`` [s] or None when no excitation was announced before it."""
+        with self._lock:
+            cur = None
+            for s, r in self._runs:
+                if s <= stamp + tol:
+                    cur = r
+                else:
+                    break
+            return cur
+
+    def __len__(self):
+        return len(self._runs)
 
 
 def excitation_of(msg, n_nodes: int | None = None):

@@ -10,213 +10,112 @@ Topics
     ``/rotor/displacement`` (DisplacementBlock, ``block_size`` samples; sequence +1 per block across runs; stamps
     continuous across runs, wall time of the first sample), ``/rotor/speed`` (RotorSpeed, one per block),
     ``/rotor/excitation`` (Excitation, latched; sent at each run change, stamped with the run's first block).
-    QoS: see :mod:`bearing_id.nodes.common`.
+    QoS: see :mod:`bearing_id.nodes.qos`.  Sources and messages: :mod:`bearing_id.nodes.sensor_driver_core`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import sys
 import threading
 import time
 
-from .common import (declare_parameters, DiagItem, diagnostics_msg, OK, ParamSpec, qos_latched, qos_stream, relative,
-                     run_node, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED, WARN)
-from ..config.params import load_rig, ParamError, parse_probes
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+
+from .declare import declare_parameters
+from .diagnostics import diagnostics_msg
+from .process import run_node
+from .qos import qos_latched, qos_stream
+from .sensor_driver_core import block_spans, load_recordings, NAME, SPECS, stream_messages
+from .status import DiagItem, OK, WARN
+from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
+from ..config.params import ParamError
 from ..io import messages as M
-from ..io.daq import read_daq
-from ..simulation import rig as rigmod
-
-NAME = 'sensor_driver'
-
-SPECS = [
-    ParamSpec('source', 'sim', 'data source: the simulated rig of rig_params, or DAQ export files',
-              choices=('sim', 'file')),
-    ParamSpec('rig_params', '', 'rig YAML (empty: the packaged params/rig.yaml)'),
-    ParamSpec('scenario', 'default', "excitation plan of the sim source: the runs in rig_params, the paper's "
-              'unbalance of Table 3 or 4, or the directional-force plan',
-              choices=('default', 'paper_table3', 'paper_table4', 'force')),
-    ParamSpec('files', None, 'file source: DAQ exports (.csv or .npz), one per excitation run, played in order',
-              type_='str[]'),
-    ParamSpec('speeds_rpm', None, 'sim source: speed steps (unset: simulation.speeds_rpm of rig_params)', 'rpm',
-              lo=1.0, hi=1e5, type_='float[]'),
-    ParamSpec('dwell', None, 'sim source: time at each speed (unset: simulation.dwell)', 's', lo=0.01, hi=1e4,
-              type_='float'),
-    ParamSpec('noise', None, "sim source: noise std as a fraction of each channel's RMS (unset: simulation.noise)",
-              '-', lo=0.0, hi=1.0, type_='float'),
-    ParamSpec('probes', None, "sim source: probe channels NODE+x|y, e.g. [6x, 6y] (unset: the rig's probes)",
-              type_='str[]'),
-    ParamSpec('block_size', 1024, 'samples per DisplacementBlock', 'samples', lo=16, hi=1 << 20),
-    ParamSpec('rate_factor', 1.0, 'playback speed relative to real time', '-', lo=0.01, hi=1000.0),
-    ParamSpec('wait_for_subscribers', 1, 'start once this many subscribers listen to /rotor/displacement '
-              '(reliable QoS only protects matched subscribers)', '', lo=0, hi=100),
-    ParamSpec('subscriber_timeout', 60.0, 'give up waiting for subscribers after this long and start anyway', 's',
-              lo=0.0, hi=3600.0),
-    ParamSpec('exit_when_done', False, 'exit after the last block (else stay up, reporting diagnostics)'),
-    ParamSpec('frame_id', '', 'header frame_id (empty: the rig name)'),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
-]
 
 
-# ------------------------------------------------------------------------------------------------ pure part
-@dataclass(frozen=True)
-class BlockSpan:
-    """One block of a recording: rows [i0, i1) of run ``run_index``; ``t_offset`` [s] of the run in the stream."""
+class SensorDriver(Node):
+    """The sensor_driver node: publishes its source's blocks, speed and excitation in real time x rate_factor."""
 
-    run_index: int
-    i0: int
-    i1: int
-    t_offset: float
+    def __init__(self):
+        super().__init__(NAME)
+        v = declare_parameters(self, SPECS)
+        self.values = v
+        self.recordings = load_recordings(v)
+        fs = {r.sample_rate for r in self.recordings}
+        if len(fs) != 1:
+            raise ParamError(f"parameter 'files': the runs have different sample rates {sorted(fs)} Hz")
+        self.fs = fs.pop()
+        self.frame_id = v['frame_id'] or self.recordings[0].rig_name
+        self.spans = block_spans([r.samples.shape[0] for r in self.recordings], self.fs, v['block_size'])
+        self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
+        self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
+        self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.sent = 0
+        self.late = 0            # blocks published later than their real-time slot by > one block
+        self.state = 'waiting for subscribers'
+        self.finished = False
+        self._stop = threading.Event()
+        self.create_timer(v['diagnostics_period'], self._diagnostics)
+        self._thread = threading.Thread(target=self._publish_loop, name='sensor_driver_pub', daemon=True)
+        self._thread.start()
+        n = sum(r.samples.shape[0] for r in self.recordings)
+        self.get_logger().info(
+            f"source {v['source']}: {len(self.recordings)} run(s), {n} samples x "
+            f'{self.recordings[0].samples.shape[1]} channels at {self.fs:.0f} Hz, {len(self.spans)} blocks, '
+            f"rate factor {v['rate_factor']:g}")
 
-
-def load_recordings(values: dict):
-    """Load the source's recordings (one per run) from validated parameter ``values``; raises ParamError/ValueError."""
-    if values['source'] == 'file':
-        files = values['files'] or []
-        if not files:
-            raise ParamError("parameter 'files' must list at least one DAQ export when source is 'file'")
-        return [read_daq(f) for f in files]
-    rig = load_rig(values['rig_params'] or None)
-    if rig.simulation is None:
-        raise ParamError(f"parameter 'rig_params': {values['rig_params'] or 'the packaged rig'} has no simulation "
-                         f'section')
-    runs = rig.simulation.runs if values['scenario'] == 'default' else rigmod.scenario(values['scenario'])
-    probes = None
-    if values['probes']:
-        try:
-            probes = parse_probes(','.join(values['probes']))
-        except ParamError as exc:
-            raise ParamError(f"parameter 'probes': {exc}") from None
-    return [rigmod.simulate_run(rig, r, speeds_rpm=values['speeds_rpm'], dwell=values['dwell'],
-                                noise=values['noise'], probes=probes) for r in runs]
-
-
-def block_spans(lengths, sample_rate: float, block_size: int):
-    """Blocks over consecutive runs of ``lengths`` samples: the stream's time runs on across runs."""
-    out = []
-    t_off = 0.0
-    for k, n in enumerate(lengths):
-        for i0 in range(0, n, block_size):
-            out.append(BlockSpan(k, i0, min(n, i0 + block_size), t_off))
-        t_off += n / sample_rate
-    return out
-
-
-def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, types=None):
-    """
-    Everything the driver publishes for ``recordings``, in order: yields (topic, stamp_ns, msg, end_ns).
-
-    Per block: an Excitation when the run changes (stamped at the run's first block), a RotorSpeed and the
-    DisplacementBlock (stamp = time of the first sample; ``end_ns`` = time one sample after its last; the keyphasor
-    angle of every sample in ``sample_angles``; the run in ``run_id``).  ``types``:
-    None for rclpy messages, a rosbags typestore for bag writing.
-    """
-    fs = recordings[0].sample_rate
-    prev = None
-    for seq, sp in enumerate(block_spans([r.samples.shape[0] for r in recordings], fs, block_size)):
-        rec = recordings[sp.run_index]
-        t_ns = t0_ns + int(round((sp.t_offset + sp.i0 / fs) * 1e9))
-        end_ns = t0_ns + int(round((sp.t_offset + sp.i1 / fs) * 1e9))
-        if sp.run_index != prev:
-            yield (TOPIC_EXCITATION, t_ns, M.excitation_to_msg(rec.run, stamp=t_ns, frame_id=frame_id, types=types),
-                   t_ns)
-            prev = sp.run_index
-        w, a = float(rec.speed[sp.i0]), float(rec.angle[sp.i0])
-        yield TOPIC_SPEED, t_ns, M.speed_to_msg(w, a, stamp=t_ns, frame_id=frame_id, types=types), t_ns
-        yield (TOPIC_DISPLACEMENT, t_ns, M.block_to_msg(rec.samples[sp.i0:sp.i1], seq, fs, w, a, rec.probes,
-                                                        stamp=t_ns, frame_id=frame_id, types=types,
-                                                        sample_angles=rec.angle[sp.i0:sp.i1], run_id=rec.run.id),
-               end_ns)
-
-
-# ------------------------------------------------------------------------------------------------ node
-def _make_node():
-    from rclpy.node import Node
-
-    class SensorDriver(Node):
-        def __init__(self):
-            super().__init__(NAME)
-            v = declare_parameters(self, SPECS)
-            self.values = v
-            self.recordings = load_recordings(v)
-            fs = {r.sample_rate for r in self.recordings}
-            if len(fs) != 1:
-                raise ParamError(f"parameter 'files': the runs have different sample rates {sorted(fs)} Hz")
-            self.fs = fs.pop()
-            self.frame_id = v['frame_id'] or self.recordings[0].rig_name
-            self.spans = block_spans([r.samples.shape[0] for r in self.recordings], self.fs, v['block_size'])
-            self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
-            self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
-            self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
-            from diagnostic_msgs.msg import DiagnosticArray
-            self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-            self.sent = 0
-            self.late = 0            # blocks published later than their real-time slot by > one block
-            self.state = 'waiting for subscribers'
-            self.finished = False
-            self._stop = threading.Event()
-            self.create_timer(v['diagnostics_period'], self._diagnostics)
-            self._thread = threading.Thread(target=self._publish_loop, name='sensor_driver_pub', daemon=True)
-            self._thread.start()
-            n = sum(r.samples.shape[0] for r in self.recordings)
-            self.get_logger().info(
-                f"source {v['source']}: {len(self.recordings)} run(s), {n} samples x "
-                f'{self.recordings[0].samples.shape[1]} channels at {self.fs:.0f} Hz, {len(self.spans)} blocks, '
-                f"rate factor {v['rate_factor']:g}")
-
-        def _publish_loop(self):
-            v = self.values
-            t_wait = time.monotonic()
-            while (self.pub_disp.get_subscription_count() < v['wait_for_subscribers']
-                   and time.monotonic() - t_wait < v['subscriber_timeout'] and not self._stop.is_set()):
-                time.sleep(0.05)
+    def _publish_loop(self):
+        v = self.values
+        t_wait = time.monotonic()
+        while (self.pub_disp.get_subscription_count() < v['wait_for_subscribers']
+               and time.monotonic() - t_wait < v['subscriber_timeout'] and not self._stop.is_set()):
+            time.sleep(0.05)
+        if self._stop.is_set():
+            return
+        self.state = 'publishing'
+        t0_wall = time.monotonic()
+        base_ns = self.get_clock().now().nanoseconds
+        rate = v['rate_factor']
+        pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc}
+        for topic, t_ns, msg, end_ns in stream_messages(self.recordings, v['block_size'], base_ns, self.frame_id):
             if self._stop.is_set():
                 return
-            self.state = 'publishing'
-            t0_wall = time.monotonic()
-            base_ns = self.get_clock().now().nanoseconds
-            rate = v['rate_factor']
-            pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc}
-            for topic, t_ns, msg, end_ns in stream_messages(self.recordings, v['block_size'], base_ns, self.frame_id):
-                if self._stop.is_set():
-                    return
-                if topic == TOPIC_EXCITATION:
-                    self.state = f'publishing run {msg.run_id}'
-                elif topic == TOPIC_DISPLACEMENT:
-                    # a block goes out when its last sample would have been acquired
-                    delay = t0_wall + (end_ns - base_ns) * 1e-9 / rate - time.monotonic()
-                    if delay > 0:
-                        self._stop.wait(delay)
-                    elif -delay > v['block_size'] / self.fs / rate:
-                        self.late += 1
-                    self.sent += 1
-                pubs[topic].publish(msg)
-            self.state = 'done'
-            self.get_logger().info(f'published all {self.sent} blocks ({self.late} late)')
-            self._diagnostics()
-            if v['exit_when_done']:
-                time.sleep(0.5)          # let reliable QoS deliver the tail
-                self.finished = True
+            if topic == TOPIC_EXCITATION:
+                self.state = f'publishing run {msg.run_id}'
+            elif topic == TOPIC_DISPLACEMENT:
+                # a block goes out when its last sample would have been acquired
+                delay = t0_wall + (end_ns - base_ns) * 1e-9 / rate - time.monotonic()
+                if delay > 0:
+                    self._stop.wait(delay)
+                elif -delay > v['block_size'] / self.fs / rate:
+                    self.late += 1
+                self.sent += 1
+            pubs[topic].publish(msg)
+        self.state = 'done'
+        self.get_logger().info(f'published all {self.sent} blocks ({self.late} late)')
+        self._diagnostics()
+        if v['exit_when_done']:
+            time.sleep(0.5)          # let reliable QoS deliver the tail
+            self.finished = True
 
-        def _diagnostics(self):
-            level = OK if self.late == 0 else WARN
-            msg = self.state if self.late == 0 else f'{self.state}; {self.late} block(s) published late ' \
-                                                    f"(machine too slow for rate_factor {self.values['rate_factor']})"
-            item = DiagItem(f'{NAME}: source', level, msg, {
-                'source': self.values['source'], 'blocks_sent': self.sent, 'blocks_total': len(self.spans),
-                'late_blocks': self.late, 'sample_rate_hz': self.fs,
-                'subscribers': self.pub_disp.get_subscription_count()})
-            self.pub_diag.publish(diagnostics_msg([item], self.get_clock().now().to_msg(), self.frame_id))
+    def _diagnostics(self):
+        level = OK if self.late == 0 else WARN
+        msg = self.state if self.late == 0 else f'{self.state}; {self.late} block(s) published late ' \
+                                                f"(machine too slow for rate_factor {self.values['rate_factor']})"
+        item = DiagItem(f'{NAME}: source', level, msg, {
+            'source': self.values['source'], 'blocks_sent': self.sent, 'blocks_total': len(self.spans),
+            'late_blocks': self.late, 'sample_rate_hz': self.fs,
+            'subscribers': self.pub_disp.get_subscription_count()})
+        self.pub_diag.publish(diagnostics_msg([item], self.get_clock().now().to_msg(), self.frame_id))
 
-        def close(self):
-            self._stop.set()
-            self._thread.join(timeout=2.0)
-
-    return SensorDriver()
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=2.0)
 
 
 def main(argv=None) -> int:
     return run_node(NAME, 'Publish displacement blocks, rotor speed and the known excitation from the simulated '
-                          'rig or from DAQ export files (SI units: m, rad/s, rad).', SPECS, _make_node, argv)
+                          'rig or from DAQ export files (SI units: m, rad/s, rad).', SPECS, SensorDriver, argv)
 
 
 if __name__ == '__main__':  # pragma: no cover

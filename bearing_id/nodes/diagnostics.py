@@ -1,0 +1,44 @@
+"""Publishing diagnostics: :class:`bearing_id.nodes.status.DiagItem` lists to ``diagnostic_msgs/DiagnosticArray``."""
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from .status import DiagItem, WARN
+from .topics import relative
+
+
+def flag_publishers(node, topic: str, item: DiagItem) -> DiagItem:
+    """
+    WARN on ``item`` when more than one publisher feeds ``topic``.
+
+    E.g. two DAQ drivers, or a bag replayed into a live system: their blocks interleave and every window breaks
+    (``publishers`` is added to its values).
+    """
+    try:
+        n = node.count_publishers(relative(topic))
+    except Exception:            # noqa: BLE001 -- a graph query must never take diagnostics down
+        return item
+    item.values['publishers'] = n
+    if n > 1 and item.level < WARN:
+        item.level = WARN
+        item.message = (f'{n} publishers on {topic}: their blocks interleave (sequence restarts, stamps going '
+                        f'back) -- stop all but one')
+    return item
+
+
+def diagnostics_msg(items: list[DiagItem], stamp, hardware_id: str = ''):
+    """Build a DiagnosticArray with one status per item (values formatted with repr-precision for floats)."""
+    arr = DiagnosticArray()
+    arr.header.stamp = stamp
+    for it in items:
+        st = DiagnosticStatus(level=bytes([int(it.level)]), name=it.name, message=str(it.message)[:1000],
+                              hardware_id=hardware_id)
+        st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in it.values.items()]
+        arr.status.append(st)
+    return arr
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    return str(v)
