@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field, replace
-from functools import partial
 import math
 import uuid
 
@@ -396,12 +395,6 @@ def recording_windows(rec, *, tol_rel=DEFAULT_TOL_REL, max_window: float = DEFAU
     return wins + stream.close()
 
 
-def detached_window_vector(win: ClosedWindow, **kw) -> WindowVector | None:
-    """Return :func:`window_vector` of ``win`` (keywords passed on) without the window (small to send elsewhere)."""
-    v = window_vector(win, **kw)
-    return None if v is None else replace(v, window=None)
-
-
 def window_vectors(wins, vectors, tol_rel: float = DEFAULT_TOL_REL) -> list[WindowVector]:
     """
     Return one recording's 1X vectors from its windows ``wins`` and their :func:`window_vector` results ``vectors``.
@@ -462,15 +455,11 @@ def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list
 
 
 def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                    transients: int = DEFAULT_TRANSIENTS, window_map=None) -> HarmonicData:
+                    transients: int = DEFAULT_TRANSIENTS) -> HarmonicData:
     """
     1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
 
     ``transients``: decaying components allowed in each window's fit (module docstring); 0 = the plain fit.
-    ``window_map``: how the windows' fits are run, a callable with the signature of ``map`` returning a list in order
-    (default: the built-in one, here and in order); it gets :func:`detached_window_vector` and every run's windows
-    (:func:`recording_windows`) in one list -- e.g. :func:`bearing_id.commands.workers.forked_map` fits them in worker
-    processes.  The vectors do not depend on it.
     """
     recordings = list(recordings)
     if not recordings:
@@ -480,16 +469,8 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
         if tuple((p.node, p.direction) for p in r.probes) != tuple((p.node, p.direction) for p in probes):
             raise ValueError(f'run {r.run.id} has channels {r.channels}, run {recordings[0].run.id} has '
                              f'{recordings[0].channels}: all runs must use the same probes')
-    wins = [recording_windows(r, tol_rel=tol_rel) for r in recordings]
-    flat = [w for run in wins for w in run]
-    fit = partial(detached_window_vector, settle=settle, min_duration=min_duration, transients=transients)
-    vectors = list((window_map or map)(fit, flat))
-    if len(vectors) != len(flat):
-        raise RuntimeError(f'window_map returned {len(vectors)} results for {len(flat)} windows')
-    per_run, k = [], 0
-    for run in wins:
-        per_run.append(window_vectors(run, vectors[k:k + len(run)], tol_rel))
-        k += len(run)
+    per_run = [recording_vectors(r, tol_rel=tol_rel, settle=settle, min_duration=min_duration, transients=transients)
+               for r in recordings]
     return stack_vectors(recordings, per_run, tol_rel)
 
 
@@ -523,7 +504,7 @@ def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
 
 
 __all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
-           'stationarity_excess', 'combine_vectors', 'recording_windows', 'detached_window_vector', 'window_vectors',
+           'stationarity_excess', 'combine_vectors', 'recording_windows', 'window_vectors',
            'recording_vectors', 'common_speeds', 'stack_vectors',
            'from_recordings', 'DEFAULT_SETTLE',
            'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']

@@ -44,23 +44,6 @@ def new_figure(figsize, nrows: int = 1, ncols: int = 1, **kw):
     return fig, axes
 
 
-def warm_up() -> None:
-    """
-    Import matplotlib's Figure and Agg and draw one tiny figure (a title, a log axis: fonts and the mathtext parser).
-
-    Called once before worker processes are forked, so that they inherit all of it instead of each loading it.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(1.0, 1.0))
-    ax = fig.add_subplot()
-    ax.set_yscale('log')
-    ax.plot([1.0, 2.0], [1.0, 100.0])
-    ax.set_title('warm-up µ σ', fontsize=8)
-    fig.suptitle('warm-up')
-    FigureCanvasAgg(fig).draw()
-
-
 MAX_TICKS = 5                  # major ticks per linear axis (matplotlib's automatic choice draws up to ~10)
 
 
