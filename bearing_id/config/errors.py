@@ -1,9 +1,8 @@
 """
-ParamError and the one way a parameter problem becomes its message: ``FIELD PATH`` + what is wrong.
+ParamError, and how a parameter problem is worded: the field's path, the offending value, what was expected.
 
-A message names the field as a path into the file (``bearings[1].clearance``, ``materials.hub.E``; ``rig`` for the
-top level), the offending value (cut short: a hostile value may be huge) and what was expected.  The schema
-(:mod:`.fields`, :mod:`.schema`) raises :func:`problem` inside pydantic, which adds the location;
+A path is ``bearings[1].clearance`` or ``materials.hub.E`` (``rig`` is the file's top level).  The schema's
+validators raise :func:`problem` (the words after the path) inside pydantic, which supplies the path;
 :func:`from_validation` turns pydantic's ValidationError into one ParamError of one line.
 """
 from __future__ import annotations
@@ -19,76 +18,53 @@ class ParamError(ValueError):
 
 
 def short(v, n: int = 60) -> str:
-    """Return the repr of a value for a message, cut to ``n`` characters."""
+    """Return the repr of a value cut to about ``n`` characters (a hostile value may be huge)."""
     r = reprlib.Repr()
     r.maxstring, r.maxother, r.maxlist, r.maxdict, r.maxlevel = n, n, 6, 6, 2
     return r.repr(v)
 
 
 def kind(v) -> str:
-    """Return what a YAML value is, in words ('a mapping', 'a list', 'a number', ...)."""
+    """Return what a YAML value is, in words: 'a mapping', 'a list', 'a string', 'a number', ..."""
     return {dict: 'a mapping', list: 'a list', str: 'a string', bool: 'a boolean', type(None): 'null'}.get(
         type(v), 'a number' if isinstance(v, (int, float)) else type(v).__name__)
 
 
 def got(v) -> str:
-    """Return 'a string 'oil'' -- the kind and the value, for the end of a message."""
+    """Return the kind and the value for a message: "a string 'oil'", 'null'."""
     return 'null' if v is None else f'{kind(v)} {short(v)}'
 
 
 def problem(tail: str, sub: str = '') -> PydanticCustomError:
     """
-    Return the error a schema validator raises: ``tail`` follows the field's path (and ``sub`` below it).
+    Return the error a schema validator raises: ``tail`` follows the path of the field (and of ``sub`` below it).
 
-    ``tail`` starts with what separates it from the path (' must be ...', ': unknown key ...', ' = 3.0 ...');
-    ``sub`` names a field below the one being validated ('.inner_diameter', '.csv.kxx[2]').
+    ``tail`` begins with its separator (' must be ...', ': unknown key ...', ' = 3.0 [m] ...'); ``sub`` names a
+    field below the one validated ('.inner_diameter', '[1]').
     """
     return PydanticCustomError('param', '{tail}', {'tail': tail, 'sub': sub})
 
 
-def path(loc) -> str:
-    """Return pydantic's location ('bearings', 1, 'clearance') as 'bearings[1].clearance'."""
-    out = ''
-    for part in loc:
-        if isinstance(part, int):
-            out += f'[{part}]'
-        elif part == '[key]':              # a mapping's key is what is wrong
-            out += ' (a key)'
-        else:
-            name = part if len(part) <= 40 else short(part, 40)
-            out += f'.{name}' if out else name
-    return out
+#: pydantic's own checks of a container's type: error type -> what the value must be
+_EXPECTED = {'list_type': 'a list', 'dict_type': 'a mapping', 'model_type': 'a mapping (key: value)',
+             'string_type': 'a name (text)', 'bool_type': 'true or false', 'literal_error': 'one of {expected}'}
 
 
-#: pydantic's own checks (those the schema leaves to it): error type -> what the field must be
-_EXPECTED = {'list_type': 'a list', 'tuple_type': 'a list', 'dict_type': 'a mapping', 'string_type': 'text',
-             'bool_type': 'true or false', 'model_type': 'a mapping (key: value)'}
-
-
-def split(err: dict) -> tuple[str, str]:
-    """Return (field path, what is wrong) of one pydantic error (a :func:`problem`, or one of pydantic's own)."""
-    where, ctx, typ = path(err['loc']), err.get('ctx') or {}, err['type']
-    if typ == 'param':
-        return where + ctx['sub'], ctx['tail']
-    if typ == 'missing':
-        return where, ' is missing'
-    if typ == 'extra_forbidden':
-        return where, ': unknown key'
-    if typ in _EXPECTED:
-        return where, f" must be {_EXPECTED[typ]}, got {got(err['input'])}"
-    return where, f": {err['msg']} (got {got(err['input'])})"
-
-
-def message(err: dict) -> str:
-    """Return the one-line message of one pydantic error; 'rig' names the file's top level."""
-    where, tail = split(err)
-    return (f'rig{where}' if where[:1] in ('', '.') else where) + tail
+def message(err: dict, root: str = 'rig') -> str:
+    """Return one pydantic error as 'PATH WHAT' (a :func:`problem`, or one of pydantic's own); ``root`` names loc ()."""
+    ctx = err.get('ctx') or {}
+    where = ''.join(f'[{p}]' if isinstance(p, int) else f'.{p if len(p) <= 40 else short(p, 40)}' for p in err['loc'])
+    if err['type'] == 'param':
+        where, tail = where + ctx['sub'], ctx['tail']
+    elif err['type'] in _EXPECTED:
+        tail = f" must be {_EXPECTED[err['type']].format(**ctx)}, got {got(err['input'])}"
+    else:
+        tail = f": {err['msg']} (got {got(err['input'])})"
+    return ((root if not err['loc'] else '') + where).lstrip('.') + tail
 
 
 def from_validation(exc: ValidationError, limit: int = 3) -> ParamError:
     """Return one ParamError of one line listing the first ``limit`` problems of a ValidationError."""
     errs = exc.errors(include_url=False)
-    text = '; '.join(message(e) for e in errs[:limit])
-    if len(errs) > limit:
-        text += f' (and {len(errs) - limit} more)'
-    return ParamError(text)
+    more = f' (and {len(errs) - limit} more)' if len(errs) > limit else ''
+    return ParamError('; '.join(message(e) for e in errs[:limit]) + more)

@@ -1,18 +1,17 @@
 """
-The value types of the parameter-file schema and its base model, for pydantic v2.
+The value types of the parameter-file schema, and :class:`Section`, the base of its pydantic models.
 
-Each value type (:class:`Num`, :class:`Numbers`, :class:`Choice`, :class:`Text`, :class:`Flag`, :class:`Pair`,
-:class:`Shear`, :class:`Load`, :class:`Direction`) is pydantic metadata that validates one YAML value the way an
-engineer writes it and raises :func:`.errors.problem` with what was expected: a number is finite, within its range
-and in SI units -- or text NUMBER UNIT converted by :func:`.units.to_si` ("12.65 mm"); YAML 1.1's '1e9' (a string) is
-a number too; a boolean is never a number.  :class:`Section` is the base of every mapping of the file: it must be a
-mapping, its unknown keys are refused with a did-you-mean, a missing required key is named with its unit.
+A value type is pydantic metadata (``Annotated[float, Num('m', 1e-4, 10)]``) whose ``check`` is the whole validation
+of one YAML value, raising :func:`.errors.problem` with what was expected.  A number is finite, within its range and
+in SI units, or text NUMBER UNIT converted by :func:`.units.to_si` ("12.65 mm"); YAML 1.1's '1e9' (a string) is a
+number too, a boolean never is.  A :class:`Section` must be a mapping; an unknown key is refused with the nearest
+known one, a missing key is named with its unit.
 """
 from __future__ import annotations
 
 import difflib
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, model_validator, ValidationInfo
 from pydantic_core import core_schema, PydanticCustomError
@@ -22,24 +21,20 @@ from .units import to_si
 from ..conventions import parse_probe_direction
 
 
-class _Plain:
-    """Pydantic metadata whose :meth:`check` is the whole validation of the value (a plain validator)."""
+class Check:
+    """Pydantic metadata: :meth:`check` validates and converts the value; ``expect`` says what it must be."""
 
     expect = ''
 
     def check(self, v):
-        raise NotImplementedError
+        return v
 
     def __get_pydantic_core_schema__(self, source, handler):
         return core_schema.no_info_plain_validator_function(self.check)
 
 
-class Num(_Plain):
-    """
-    A number [``unit``] within [``lo``, ``hi``] (None: no bound).
-
-    ``whole``: an integer (returned as int); ``positive``: also > 0 (a modulus); ``null``: None passes (null).
-    """
+class Num(Check):
+    """A number [``unit``] in [``lo``, ``hi``]; ``whole``: an int; ``positive``: > 0 too; ``null``: None passes."""
 
     def __init__(self, unit: str = '-', lo: float | None = None, hi: float | None = None, *, whole: bool = False,
                  positive: bool = False, null: bool = False):
@@ -50,7 +45,7 @@ class Num(_Plain):
         unit = f' [{self.unit}]' if self.unit else ''
         if v is None and self.null:
             return None
-        if isinstance(v, str):   # YAML 1.1 reads 2e11 (no dot) as a string; else a number with a unit
+        if isinstance(v, str):
             try:
                 v = float(v.strip())
             except ValueError:
@@ -72,15 +67,21 @@ class Num(_Plain):
             raise problem(f' = {v!r}{unit} is outside the allowed range [{self.lo}, {self.hi}]')
         if self.positive and not v > 0.0:
             raise problem(f' = {v!r}{unit} must be > 0')
-        if self.whole:
-            if v != int(v):
-                raise problem(f' must be a whole number, got {v!r}')
-            return int(v)
-        return v
+        if self.whole and v != int(v):
+            raise problem(f' must be a whole number, got {v!r}')
+        return int(v) if self.whole else v
 
 
-class Numbers(_Plain):
-    """A list of numbers [``unit``] within [``lo``, ``hi``], read as a tuple (an item's error names its index)."""
+def at(sub: str, fn, *args):
+    """Return ``fn(*args)``; its :func:`problem` names the sub-field ``sub`` ('[1]')."""
+    try:
+        return fn(*args)
+    except PydanticCustomError as exc:
+        raise problem(exc.context['tail'], sub + exc.context['sub']) from None
+
+
+class Numbers(Check):
+    """A list of numbers [``unit``] in [``lo``, ``hi``], read as a tuple."""
 
     def __init__(self, unit: str = '-', lo: float | None = None, hi: float | None = None):
         self.num = Num(unit, lo, hi)
@@ -92,57 +93,19 @@ class Numbers(_Plain):
         return tuple(at(f'[{i}]', self.num.check, x) for i, x in enumerate(v))
 
 
-class Choice(_Plain):
-    """One of the given words."""
-
-    def __init__(self, *options: str):
-        self.options = options
-        self.expect = f'one of {options}'
-
-    def check(self, v):
-        if not isinstance(v, str) or v not in self.options:
-            raise problem(f' must be one of {self.options}, got {short(v)}')
-        return v
-
-
-class Text(_Plain):
-    """A name: text (a number is accepted and kept as text; null means 'not given' and stays None)."""
-
-    def check(self, v):
-        if v is None or isinstance(v, str):
-            return v
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise problem(f' must be a name (text), got {got(v)}')
-        return str(v)
-
-
-class Flag(_Plain):
-    """True or false."""
-
-    def check(self, v):
-        if not isinstance(v, bool):
-            raise problem(f' must be true or false, got {got(v)}')
-        return v
-
-
-class Pair(_Plain):
-    """A number [``unit``] (the same in x and y) or a list [x, y] of two; read as the tuple (x, y)."""
-
-    def __init__(self, unit: str, lo: float, hi: float):
-        self.num = Num(unit, lo, hi)
-        self.expect = unit
+class Pair(Numbers):
+    """A number [``unit``] (the same in x and y) or a list [x, y], read as the tuple (x, y)."""
 
     def check(self, v):
         if not isinstance(v, list):
-            x = self.num.check(v)
-            return (x, x)
+            return (self.num.check(v),) * 2
         if len(v) != 2:
             raise problem(f' must be a number or a list [x, y] of two [{self.num.unit}], got {short(v)}')
-        return tuple(at(f'[{i}]', self.num.check, x) for i, x in enumerate(v))
+        return super().check(v)
 
 
-class Shear(_Plain):
-    """The shear coefficient: 'hutchinson', 'cowper' or a number kappa in [0.1, 2]."""
+class Shear(Check):
+    """A shear coefficient: 'hutchinson', 'cowper' or a number kappa in [0.1, 2]."""
 
     METHODS = ('hutchinson', 'cowper')
 
@@ -155,90 +118,76 @@ class Shear(_Plain):
             raise problem(f"{exc.context['tail']} (or one of {self.METHODS})") from None
 
 
-class Load(_Plain):
-    """A bearing's static load: a number [N] >= 0, null (from statics), or the film force [Fx, Fy] [N], non-zero."""
+class Load(Check):
+    """A static load: a number [N] >= 0, null (from statics) or the film force on the journal [Fx, Fy] [N] != 0."""
 
     def check(self, v):
         if not isinstance(v, list):
             return Num('N', 0, 1e7, null=True).check(v)
-        vec = tuple(at(f'[{i}]', Num('N', -1e7, 1e7).check, x) for i, x in enumerate(v))
+        vec = Numbers('N', -1e7, 1e7).check(v)
         if len(vec) != 2 or math.hypot(*vec) == 0:
             raise problem(f' must be a number [N], null, or a non-zero vector [Fx, Fy] [N], got {short(v)}')
         return vec
 
 
-class Direction(_Plain):
-    """A probe axis: 'x', 'y' or an angle text such as '45deg' or '45deg*1.02' (:mod:`bearing_id.conventions`)."""
+class Direction(Check):
+    """A probe axis: 'x', 'y' or an angle text ('45deg', '45deg*1.02': :mod:`bearing_id.conventions`)."""
 
     def check(self, v):
         try:
-            ok = isinstance(v, str) and parse_probe_direction(v) is not None
+            if isinstance(v, str) and parse_probe_direction(v):
+                return v
         except ValueError:
-            ok = False
-        if not ok:
-            raise problem(f" must be one of ('x', 'y') or an angle text like '45deg' (or give angle_deg), got "
-                          f'{short(v)}')
-        return v
-
-
-def at(sub: str, fn, *args):
-    """Run ``fn(*args)``, naming the sub-field ``sub`` ('[1]', '.magnitude') in the :func:`problem` it raises."""
-    try:
-        return fn(*args)
-    except PydanticCustomError as exc:
-        raise problem(exc.context['tail'], sub + exc.context['sub']) from None
+            pass
+        raise problem(f" must be one of ('x', 'y') or an angle text like '45deg' (or give angle_deg), got {short(v)}")
 
 
 class Section(BaseModel):
     """
-    A mapping of the file: refuses anything but a mapping, unknown keys (with the nearest known one) and a missing key.
+    A mapping of the file (a pydantic model): a mapping, no unknown key, no missing required key.
 
-    ``_keys(data)`` and ``_required(data)`` give the allowed and the required keys for the data at hand (a subclass
-    may make them depend on which keys are there: a v1 or a v2 shaft); ``_prepare(data, info)`` may replace the data
-    first (a table read from a CSV file).
+    ``allowed(data)`` and ``required(data)`` may depend on the keys present (a v1 or a v2 shaft); ``prepare(data,
+    info)`` may replace the data first (a table from a CSV file).  ``EXPECT`` words a key's expectation by hand.
     """
 
-    model_config = ConfigDict(extra='forbid', arbitrary_types_allowed=True)
+    model_config = ConfigDict(extra='forbid', coerce_numbers_to_str=True)
+    EXPECT: ClassVar[dict] = {}
 
     @classmethod
-    def _keys(cls, d: dict) -> tuple:
-        return tuple(f.alias or name for name, f in cls.model_fields.items())
+    def allowed(cls, d: dict) -> tuple:
+        return tuple(f.alias or k for k, f in cls.model_fields.items())
 
     @classmethod
-    def _required(cls, d: dict) -> tuple:
-        return tuple(f.alias or name for name, f in cls.model_fields.items() if f.is_required())
+    def required(cls, d: dict) -> tuple:
+        return tuple(f.alias or k for k, f in cls.model_fields.items() if f.is_required())
 
     @classmethod
-    def _prepare(cls, d: dict, info: ValidationInfo) -> dict:
+    def prepare(cls, d: dict, info: ValidationInfo):
         return d
 
     @classmethod
-    def missing(cls, key: str, why: str = ''):
-        """Return the error for ``key`` of this mapping not given, with its unit or choices and ``why``."""
+    def missing(cls, key: str, why: str = '') -> PydanticCustomError:
+        """Return the error for ``key`` not given: its unit or choices, and ``why``."""
         f = cls.model_fields.get(key)
-        expect = getattr(cls, 'EXPECT', {}).get(key) or next(
-            (m.expect for m in (f.metadata if f else ()) if getattr(m, 'expect', '')), '')
+        expect = cls.EXPECT.get(key) or next((m.expect for m in (f.metadata if f else ()) if
+                                              getattr(m, 'expect', '')), '')
         note = '; '.join(x for x in (expect, why) if x)
         return problem(f' is missing ({note})' if note else ' is missing', f'.{key}')
 
     @model_validator(mode='before')
     @classmethod
     def _mapping(cls, d: Any, info: ValidationInfo) -> Any:
-        if isinstance(d, cls):
-            return d
         if not isinstance(d, dict):
             raise problem(f' must be a mapping (key: value), got {got(d)}')
-        d = cls._prepare(d, info)
-        if isinstance(d, cls):
-            return d
-        allowed = cls._keys(d)
+        d = cls.prepare(d, info)
+        allowed = cls.allowed(d)
         for k in d:
             if not isinstance(k, str) or k not in allowed:
                 near = difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6)
-                hint = f' (did you mean {near[0]}?)' if near else f" (known: {', '.join(sorted(allowed))})"
+                hint = f'did you mean {near[0]}?' if near else f"known: {', '.join(sorted(allowed))}"
                 name = k if isinstance(k, str) and len(k) <= 40 else short(k, 40)
-                raise problem(f': unknown key{hint}', f'.{name}')
-        for k in cls._required(d):
+                raise problem(f': unknown key ({hint})', f'.{name}')
+        for k in cls.required(d):
             if k not in d:
                 raise cls.missing(k)
         return d
