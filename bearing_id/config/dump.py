@@ -6,10 +6,18 @@ trip is exact.  ``diagnose`` writes its augmented model this way.
 """
 from __future__ import annotations
 
+from dataclasses import asdict
 import math
 
 from .rig import RigParams
 from ..conventions import GRAVITY
+
+
+def _plain(x):
+    """Return ``x`` with every tuple a list (what YAML's safe dumper writes)."""
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return {k: _plain(v) for k, v in x.items()} if isinstance(x, dict) else x
 
 
 def rig_to_dict(rig: RigParams) -> dict:
@@ -41,8 +49,7 @@ def rig_to_dict(rig: RigParams) -> dict:
             out = {'length': e.length, 'outer_diameter': e.outer_diameter, 'inner_diameter': e.inner_diameter,
                    **elastic(e), **shear(e)}
             if e.added_mass:
-                out['added_mass'] = [{'outer_diameter': a.outer_diameter, 'inner_diameter': a.inner_diameter,
-                                      'density': a.density} for a in e.added_mass]
+                out['added_mass'] = _plain([asdict(a) for a in e.added_mass])
             if e.layers:
                 out['layers'] = [{'outer_diameter': la.outer_diameter, 'inner_diameter': la.inner_diameter,
                                   **elastic(la), **shear(la)} for la in e.layers]
@@ -68,7 +75,7 @@ def rig_to_dict(rig: RigParams) -> dict:
                           'thickness': x.thickness, 'density': x.density, 'mass_factor': x.mass_factor})
     d['discs'] = discs
     if rig.point_masses:
-        d['point_masses'] = [{'node': p.node, 'mass': p.mass, 'Ip': p.Ip, 'Id': p.Id} for p in rig.point_masses]
+        d['point_masses'] = _plain([asdict(p) for p in rig.point_masses])
     if tuple(rig.gravity) != (0.0, -GRAVITY):
         d['gravity'] = list(rig.gravity)
 
@@ -102,8 +109,7 @@ def rig_to_dict(rig: RigParams) -> dict:
             else:
                 o['load'] = b.load
         if b.support is not None:
-            o['support'] = {'mass': list(b.support.mass), 'stiffness': list(b.support.stiffness),
-                            'damping': list(b.support.damping)}
+            o['support'] = _plain(asdict(b.support))
         if b.table is not None:
             o['table'] = table(b.table)
         return o
@@ -111,26 +117,12 @@ def rig_to_dict(rig: RigParams) -> dict:
     d['bearings'] = [bearing(b) for b in rig.bearings] + [bearing(b) for b in rig.known_bearings]
     if rig.seals:
         d['seals'] = [bearing(b, seal=True) for b in rig.seals]
-    d['probes'] = [{'name': p.name, 'node': p.node, 'direction': p.direction} for p in rig.probes]
+    d['probes'] = [asdict(p) for p in rig.probes]
     if rig.modal_test is not None:
-        d['modal_test'] = {'measured_hz': list(rig.modal_test.measured_hz),
-                           'paper_initial_hz': list(rig.modal_test.paper_initial_hz),
-                           'paper_updated_hz': list(rig.modal_test.paper_updated_hz)}
-    s = rig.simulation
-    if s is not None:
-        t = s.truth
-        truth = {'bearing_model': t.bearing_model, 'viscosity_factor': list(t.viscosity_factor),
-                 'clearance_factor': list(t.clearance_factor)}
-        if t.k_factor:
-            truth['k_factor'] = list(t.k_factor)
-        if t.c_factor:
-            truth['c_factor'] = list(t.c_factor)
-        d['simulation'] = {'sample_rate': s.sample_rate, 'block_size': s.block_size, 'speeds_rpm': list(s.speeds_rpm),
-                           'dwell': s.dwell, 'ramp': s.ramp, 'noise': s.noise, 'seed': s.seed, 'truth': truth,
-                           'runs': [{'id': r.id, 'excitation': [
-                               {'kind': e.kind, 'node': e.node, 'magnitude': e.magnitude, 'phase': e.phase,
-                                'direction': e.direction, 'frequency_ratio': e.frequency_ratio}
-                               for e in r.excitation]} for r in s.runs]}
+        d['modal_test'] = _plain(asdict(rig.modal_test))
+    if rig.simulation is not None:        # the keys of Simulation, Truth, Run and ExcitationEntry are the file's
+        d['simulation'] = _plain(asdict(rig.simulation))
+        d['simulation']['truth'] = {k: v for k, v in d['simulation']['truth'].items() if v != []}
     if rig.extra:
         d['extra'] = dict(rig.extra)
     return d
