@@ -3,9 +3,9 @@ The machine a parameter file describes, as small frozen dataclasses (SI units; n
 
 :class:`RigParams` is the whole file: the shaft (a uniform v1 shaft, or a v2 shaft of :class:`ElementSpec`), discs,
 point masses, the identified bearings, the known bearings and seals (built into the rotor model), the probes, and
-optionally the simulated rig and a modal test.  These objects are built only by :func:`bearing_id.config.params.
-parse_rig` from a validated file (or directly, by code that knows its values: a probe, a run, a test's variant);
-``dataclasses.replace`` and :meth:`RigParams.replace` make the variants.
+optionally the simulated rig and a modal test.  A file becomes one through ``parse_rig`` / ``load_rig``
+(:mod:`.params`: validated by :mod:`.schema`, built by :mod:`.build`); code that knows its values makes a probe,
+a run or a variant directly (``dataclasses.replace``, :meth:`RigParams.replace`), unvalidated and at no cost.
 """
 from __future__ import annotations
 

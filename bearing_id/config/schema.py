@@ -73,8 +73,13 @@ class MaterialFile(Elastic):
         return self
 
 
-class Made(Elastic):
-    """A part of a named ``material`` (the shaft's by default) or of E/G/nu/density given inline."""
+class LayerFile(Elastic):
+    """
+    A concentric full element on its host's nodes (a sleeve, a hub), and the base of a shaft element.
+
+    Diameters [m] (a layer's bore defaults to its host's diameter), a named ``material`` (an element's defaults to
+    the shaft's) or E/G/nu/density inline, and its own shear coefficient (None: the shaft's).
+    """
 
     material: Name = None
     outer_diameter: Length
@@ -91,10 +96,6 @@ class Made(Elastic):
                 raise problem(': give material or E/G/nu/density inline, not both')
             self.resolve()
         return self
-
-
-class LayerFile(Made):
-    """A concentric full element on its host's nodes (sleeve, hub); its bore defaults to the host's diameter."""
 
 
 class AddedMassFile(Section):
@@ -116,7 +117,7 @@ class AddedMassFile(Section):
         return self
 
 
-class ElementFile(Made):
+class ElementFile(LayerFile):
     """A shaft element of a v2 shaft: length [m], diameters [m] (solid by default), layers, added masses."""
 
     name: Name = None
