@@ -38,7 +38,7 @@ def _rel(a, b):
 @pytest.mark.parametrize('which', ['paper_rig', 'plant_like'])
 @pytest.mark.parametrize('sparse', [False, True])
 def test_speed_response_equals_the_dense_solve(which, sparse):
-    rig = load_rig(EXAMPLES / f'{which}.yaml')
+    rig = load_rig(None if which == 'paper_rig' else EXAMPLES / f'{which}.yaml')
     model = RotorModel.from_params(rig)
     if which == 'plant_like':
         assert model.pedestals                          # a film in series with a pedestal is exercised
@@ -64,7 +64,7 @@ def test_speed_response_equals_the_dense_solve(which, sparse):
 
 
 def test_whole_fit_agrees_with_the_reference():
-    rig = load_rig(EXAMPLES / 'paper_rig.yaml')
+    rig = load_rig()
     model = RotorModel.from_params(rig)
     nodes = tuple(b.node for b in rig.bearings)
     speed = 300.0
@@ -112,7 +112,7 @@ def test_stacked_response_and_weighted_stack_equal_the_per_run_path(which):
 
     __call__ and the dense solve to 1e-9 relative, weighted_stack to 1e-15 (the same arithmetic).
     """
-    rig = load_rig(EXAMPLES / f'{which}.yaml')
+    rig = load_rig(None if which == 'paper_rig' else EXAMPLES / f'{which}.yaml')
     model = RotorModel.from_params(rig)
     nodes = tuple(b.node for b in rig.bearings)
     rng = np.random.default_rng(5)

@@ -9,11 +9,13 @@ Route 1 (independent of params/rotor assembly): the imported schema dict is asse
 :mod:`bearing_id.rotor.elements` alone (layers as full elements, supports as two extra DOFs, tables at the row).
 Route 2: the imported YAML through ``load_rig`` and ``RotorModel.from_params`` (the product's route; the compressor's
 36 hub/sleeve layers as schema ``layers``, full concentric elements).
-Requirement (issue 12): every ROSS eigenvalue matched by one of ours within 1e-6 relative.
+Requirement (issue 12): every ROSS eigenvalue matched by one of ours within 1e-6 relative.  Where the two routes
+assemble the same terms, the tolerance is their rounding (Higham's bound on a sum, eq. 4.4), written out there.
 """
 import json
 import math
 from pathlib import Path
+import sys
 
 from bearing_id.io import ross_import
 from bearing_id.rotor.elements import DiscElement, ShaftElement
@@ -23,6 +25,7 @@ import pytest
 DATA = Path(__file__).parent / 'data' / 'ross'
 ROTORS = ('compressor', 'stepped', 'hollow_hutchinson')
 TOL = 1e-6
+EPS = sys.float_info.epsilon
 
 
 def ref(name):
@@ -42,8 +45,13 @@ def _table_at(table, speed):
             np.array([[v['cxx'], v['cxy']], [v['cyx'], v['cyy']]]))
 
 
-def assemble(p, speed):
-    """(M, C + speed G, K) of an imported schema dict, with every bearing and seal at ``speed``."""
+def assemble(p, speed, magnitudes=False):
+    """
+    (M, C + speed G, K) of an imported schema dict, with every bearing and seal at ``speed``.
+
+    ``magnitudes``: each entry is instead the sum of the magnitudes of the terms it sums (the scale of its rounding).
+    """
+    mag = np.abs if magnitudes else (lambda a: a)
     mats = p['materials']
     sh = p['shaft']
     els = []
@@ -71,17 +79,17 @@ def assemble(p, speed):
     for i, group in enumerate(els):
         s = slice(4 * i, 4 * i + 8)
         for el in group:
-            M[s, s] += el.M()
-            K[s, s] += el.K()
-            G[s, s] += el.G()
-            C[s, s] += sh['damping_alpha'] * el.M() + sh['damping_beta'] * el.K()
+            M[s, s] += mag(el.M())
+            K[s, s] += mag(el.K())
+            G[s, s] += mag(el.G())
+            C[s, s] += mag(sh['damping_alpha'] * el.M()) + mag(sh['damping_beta'] * el.K())
     for d in p.get('discs', []) + p.get('point_masses', []):
         i = 4 * (d['node'] - 1)
         de = DiscElement(d['mass'], d.get('Id', 0.0), d.get('Ip', 0.0))
-        M[i:i + 4, i:i + 4] += de.M()
-        G[i:i + 4, i:i + 4] += de.G()
+        M[i:i + 4, i:i + 4] += mag(de.M())
+        G[i:i + 4, i:i + 4] += mag(de.G())
     for b in brgs:
-        kb, cb = _table_at(b['table'], speed)
+        kb, cb = map(mag, _table_at(b['table'], speed))
         i = 4 * (b['node'] - 1)
         idx = [i, i + 1]
         if 'support' in b:
@@ -93,8 +101,8 @@ def assemble(p, speed):
             idx += [j, j + 1]
             kb = np.block([[kb, -kb], [-kb, kb]])
             cb = np.block([[cb, -cb], [-cb, cb]])
-        K[np.ix_(idx, idx)] += kb
-        C[np.ix_(idx, idx)] += cb
+        K[np.ix_(idx, idx)] += mag(kb)
+        C[np.ix_(idx, idx)] += mag(cb)
     return M, C + speed * G, K
 
 
@@ -156,7 +164,8 @@ def test_what_the_import_contains(imported):
     # ROSS's 'hutchinson' kappa: (1 + nu), not (1 + nu)^2; for r = 0.5, nu = 0.29 it is 0.508 (ours 0.655)
     r2, r12 = 0.25, 1.5625
     expect = 6 * r12 * (1 + nu) / (r12 * (7 + 12 * nu + 4 * nu**2) + 4 * r2 * (5 + 6 * nu + 2 * nu**2))
-    assert h['shaft']['shear_coefficient'] == pytest.approx(expect, rel=1e-14)
+    # the same closed form of positive terms (about 20 roundings) in ross_import and here
+    assert h['shaft']['shear_coefficient'] == pytest.approx(expect, rel=32 * EPS)
     assert h['bearings'][1]['support'] == {'mass': [40.0, 55.0], 'stiffness': [1.0e8, 1.5e8], 'damping': [2e3, 3e3]}
 
 
@@ -239,8 +248,9 @@ def test_compressor_through_load_rig_equals_route_1(tmp_path, layers):
     The compressor (55 elements, 2 bearing and 12 seal tables) through ``load_rig`` = the same import assembled here.
 
     Both ways of writing ROSS's layers (full ``layers``, mass-only ``added_mass``): the product's matrices equal
-    route 1's (element by element with rotor.elements, damping summed per element as ROSS does) to 1e-12 relative,
-    and the lowest 40 eigenvalues to 1e-9.
+    route 1's (element by element with rotor.elements, damping summed per element as ROSS does) to their rounding:
+    the same terms summed in another order, so each entry within 2 gamma_n of the sum of its terms' magnitudes
+    (Higham, eq. 4.4), n the most terms an entry sums.  (Their eigenvalues against ROSS's: route 2 above.)
     """
     from bearing_id.rotor.supports import bearing_fn
     from bearing_id.config.params import load_rig
@@ -252,12 +262,11 @@ def test_compressor_through_load_rig_equals_route_1(tmp_path, layers):
     fn = bearing_fn(rig)
     e = ref('compressor')['modes'][1]
     mats = system_matrices(model, e['speed'], fn(e['speed']))
-    mats1 = assemble(p, e['speed'])
-    for a, b in zip(mats, mats1):
-        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b))
-    here = eigenvalues(*mats1)
-    here = here[np.argsort(np.abs(here))][:40]
-    assert mismatch(eigenvalues(*mats), here) <= 1e-9
+    # an entry sums two elements of a host and its layers (C: alpha M and beta K of each), a disc, a bearing or seal
+    # and a pedestal
+    n = 2 * 2 * (1 + max(len(el.get('layers', ())) for el in p['shaft']['elements'])) + 3
+    for a, b, scale in zip(mats, assemble(p, e['speed']), assemble(p, e['speed'], magnitudes=True)):
+        assert np.all(np.abs(a - b) <= 2 * n * EPS * scale)
 
 
 def _stepped():
@@ -294,7 +303,7 @@ def test_ross_hutchinson_per_element_kappa():
         r2 = (e['inner_diameter'] / e['outer_diameter']) ** 2
         r12 = (1 + r2) ** 2
         kap = 6 * r12 * (1 + nu) / (r12 * (7 + 12 * nu + 4 * nu**2) + 4 * r2 * (5 + 6 * nu + 2 * nu**2))
-        assert e['shear_coefficient'] == pytest.approx(kap, rel=1e-14)
+        assert e['shear_coefficient'] == pytest.approx(kap, rel=32 * EPS)     # as in test_what_the_import_contains
     assert len({e['shear_coefficient'] for e in els}) == 2      # solid and hollow sections
 
 
@@ -334,7 +343,7 @@ def test_mixed_shear_methods_give_every_element_and_layer_ross_kappa(tmp_path, e
     out.write_text(ross_import.to_yaml(p))
     model = RotorModel.from_params(load_rig(out))
     nn = model.n_nodes
-    M, K = np.zeros((4 * nn, 4 * nn)), np.zeros((4 * nn, 4 * nn))
+    M, K, AM, AK = (np.zeros((4 * nn, 4 * nn)) for _ in range(4))      # A: sums of the terms' magnitudes
     for k in keys:
         e, m = d[k], d[k]['material']
         kap = ross_import.ross_kappa(e['odl'], e['idl'], m['E'] / (2 * m['G_s']) - 1, e['shear_method_calc'])
@@ -342,6 +351,12 @@ def test_mixed_shear_methods_give_every_element_and_layer_ross_kappa(tmp_path, e
         s = slice(4 * e['n'], 4 * e['n'] + 8)
         M[s, s] += el.M()
         K[s, s] += el.K()
+        AM[s, s] += np.abs(el.M())
+        AK[s, s] += np.abs(el.K())
+    # the same terms summed in another order (n of them at most: the elements of two stations) -- and kappa from
+    # 'cowper' by the package's formula or ROSS's, about 10 roundings each, which moves an element's entries by
+    # less than 8 EPS of themselves (phi / (1 + phi) < 1 times the relative change of kappa)
     r = model.rotor_ndof
-    assert np.max(np.abs(model.M_shaft[:r, :r] - M)) <= 1e-12 * np.max(np.abs(M))
-    assert np.max(np.abs(model.K_shaft[:r, :r] - K)) <= 1e-12 * np.max(np.abs(K))
+    n = 2 * max(sum(d[k]['n'] == i for k in keys) for i in range(nn))
+    assert np.all(np.abs(model.M_shaft[:r, :r] - M) <= 2 * (n + 8) * EPS * AM)
+    assert np.all(np.abs(model.K_shaft[:r, :r] - K) <= 2 * (n + 8) * EPS * AK)

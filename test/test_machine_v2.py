@@ -1,14 +1,17 @@
 """
 Schema v2 machines (issue 12): stepped shafts, inertia discs, table bearings, pedestals, probes at any angle.
 
-References: the v1 description of the same rig (bit for bit), the exact Euler-Bernoulli transfer-matrix solution of a
-stepped free-free beam, hand-written linear interpolation, the frequency-domain condensation of a pedestal, the
-rotation of an x/y probe pair, and the simulated plant-like machine's truth bearings.
+References: the v1 description of the same rig, the exact Euler-Bernoulli transfer-matrix solution of a stepped
+free-free beam, numpy's linear interpolation, the frequency-domain condensation of a pedestal, the rotation of an
+x/y probe pair, and the simulated plant-like machine's truth bearings.  Where two routes compute one quantity the
+tolerance is derived from machine epsilon (EPS) and the operations or the condition number involved, written out
+at each check.
 """
 import copy
 import dataclasses
 import json
 import math
+import sys
 
 from bearing_id import conventions as cv
 from bearing_id.bearings.table import interpolate
@@ -22,6 +25,7 @@ from scipy.optimize import brentq
 import yaml
 
 PLANT = PACKAGE_PARAMS / 'examples' / 'plant_like.yaml'
+EPS = sys.float_info.epsilon
 
 
 @pytest.fixture(scope='module')
@@ -43,14 +47,21 @@ def v2_of_v1(raw: dict) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ schema
-def test_v1_and_v2_descriptions_give_the_same_model_bit_for_bit(raw):
+def test_v1_and_v2_descriptions_give_the_same_model(raw):
+    """
+    The same rig as v1 keys and as a v2 material and section: the same element inputs, so the same matrices.
+
+    Tolerance: both give each element the same L, D, E, rho and G = E / (2 (1 + nu)) (to 1 ulp); an element entry
+    is computed in fewer than 32 roundings and a global entry sums at most two elements (and the bearings' K, C
+    alike), so entries agree to 2 x 32 EPS of the largest.
+    """
     m1 = RotorModel.from_params(load_rig())
     m2 = RotorModel.from_params(parse_rig(v2_of_v1(raw)))
-    for name in ('M', 'K', 'G', 'C'):
-        assert np.array_equal(getattr(m1, name), getattr(m2, name)), name
     w = 2000 * math.pi / 30
     co = bearing_fn(load_rig())(w)
-    assert np.array_equal(dynamic_stiffness(m1, w, w, co), dynamic_stiffness(m2, w, w, co))
+    pairs = [(getattr(m1, name), getattr(m2, name)) for name in ('M', 'K', 'G', 'C')]
+    for a, b in pairs + [(dynamic_stiffness(m1, w, w, co), dynamic_stiffness(m2, w, w, co))]:
+        assert a.shape == b.shape and np.max(np.abs(a - b)) <= 64 * EPS * np.max(np.abs(a))
 
 
 def test_units_in_strings(raw):
@@ -59,9 +70,12 @@ def test_units_in_strings(raw):
     d['bearings'][0]['clearance'] = '50 um'
     d['simulation']['speeds_rpm'] = ['600 rpm', '62.83185307179586 rad/s']
     rig = parse_rig(d)
-    assert rig.shaft.diameter == pytest.approx(0.01265, rel=1e-15)
-    assert rig.bearings[0].clearance == pytest.approx(5e-5, rel=1e-15)
-    assert rig.simulation.speeds_rpm == pytest.approx((600.0, 600.0), rel=1e-12)
+    # pint multiplies by the unit's factor (1e-3, 1e-6: each a rounded decimal): two roundings, and the decimal
+    # literal one more
+    assert rig.shaft.diameter == pytest.approx(0.01265, rel=2 * EPS)
+    assert rig.bearings[0].clearance == pytest.approx(5e-5, rel=2 * EPS)
+    # 20 pi rounded to 16 digits (3e-17 relative), times pint's factor 60 / (2 pi) (a few roundings): 8 EPS
+    assert rig.simulation.speeds_rpm == pytest.approx((600.0, 600.0), rel=8 * EPS)
     d['shaft']['diameter'] = '12.65 kg'
     with pytest.raises(ParamError, match=r'shaft\.diameter.*wrong unit'):
         parse_rig(d)
@@ -180,10 +194,11 @@ def test_layers_are_full_elements_on_the_host_nodes_with_their_own_shear():
     sleeve, hub, core = els[4].layers
     assert sleeve.inner_diameter == 0.03 and sleeve.shear_coefficient == 0.55   # inner defaults to the host's outer
     assert hub.youngs_modulus == hub.shear_modulus == 6894.75 and hub.shear_coefficient is None
-    assert core.shear_modulus == pytest.approx(7.0e10 / 2.66, rel=1e-15)
+    assert core.shear_modulus == pytest.approx(7.0e10 / 2.66, rel=2 * EPS)    # E / (2 (1 + nu)): 3 roundings
     model = RotorModel.from_params(rig)
     nd = 4 * 8
     M, K, G = (np.zeros((nd, nd)) for _ in range(3))
+    A = {k: np.zeros((nd, nd)) for k in 'MKG'}     # per entry, the sum of its terms' magnitudes
     for i in range(7):
         parts = [ShaftElement(0.1, 0.03, 0.0, 2.1e11, 2.1e11 / 2.6, 7850.0, shear_method='hutchinson')]
         if i >= 4:
@@ -196,19 +211,26 @@ def test_layers_are_full_elements_on_the_host_nodes_with_their_own_shear():
             M[s, s] += el.M()
             K[s, s] += el.K()
             G[s, s] += el.G()
+            for k, mat in (('M', el.M()), ('K', el.K()), ('G', el.G())):
+                A[k][s, s] += np.abs(mat)
+    # the same element matrices summed in another order: an entry of n <= 8 terms (4 parts on each of 2 elements)
+    # is off by at most gamma_n ~ n EPS times the sum of its terms' magnitudes either way (Higham, eq. 4.4);
+    # C = 2 M + 3e-5 K adds 3 roundings
+    A['C'] = 2.0 * A['M'] + 3e-5 * A['K']
     for name, ref in (('M', M), ('K', K), ('G', G), ('C', 2.0 * M + 3e-5 * K)):
-        got = getattr(model, name)
-        assert np.max(np.abs(got - ref)) <= 1e-13 * np.max(np.abs(ref)), name
+        assert np.all(np.abs(getattr(model, name) - ref) <= 2 * (8 + 3) * EPS * A[name]), name
     # E = G (nu = -0.5): the hub's own shear parameter 12 E I / (kappa G A L^2) = 12 (D^2 + d^2) / (16 kappa L^2)
     # with its own kappa(nu = -0.5) -- 2.8 here, ~20 on ROSS's shorter compressor elements
     hub_el = ShaftElement(0.1, 0.12, 0.05, 6894.75, 6894.75, 7833.412)
     kap = shear_coefficient(0.12, 0.05, -0.5)
-    assert hub_el.phi == pytest.approx(12 * (0.12**2 + 0.05**2) / 16 / (kap * 0.01), rel=1e-12)
+    # both sides: about ten roundings of positive terms
+    assert hub_el.phi == pytest.approx(12 * (0.12**2 + 0.05**2) / 16 / (kap * 0.01), rel=16 * EPS)
     area = math.pi / 4
     layered = (7850.0 * area * (0.03**2 - 0.01**2 + 0.05**2 - 0.03**2) + 7833.412 * area * (0.12**2 - 0.05**2)
                + 2700.0 * area * 0.01**2)
     want = 7850.0 * area * 0.03**2 * 0.4 + 0.3 * layered
-    assert model.mass == pytest.approx(want, rel=1e-12) and rig.shaft.mass == pytest.approx(want, rel=1e-12)
+    # sums of positive products (about 40 roundings either way): 64 EPS
+    assert model.mass == pytest.approx(want, rel=64 * EPS) and rig.shaft.mass == pytest.approx(want, rel=64 * EPS)
 
 
 def test_a_same_material_layer_is_the_solid_shaft_in_the_slender_limit():
@@ -261,10 +283,7 @@ def test_layers_and_element_shear_round_trip():
     from bearing_id.config.params import rig_to_dict
     rig = parse_rig(_layered())
     text = yaml.safe_dump(rig_to_dict(rig), sort_keys=False)
-    back = parse_rig(yaml.safe_load(text))
-    assert back == rig and 'layers' in text
-    for name in ('M', 'K', 'G', 'C'):
-        assert np.array_equal(getattr(RotorModel.from_params(back), name), getattr(RotorModel.from_params(rig), name))
+    assert parse_rig(yaml.safe_load(text)) == rig and 'layers' in text        # exact: YAML keeps a float's repr
 
 
 def test_table_interpolation_is_linear_in_speed_and_flat_outside():
@@ -281,7 +300,8 @@ def test_table_interpolation_is_linear_in_speed_and_flat_outside():
         for k, v in cols.items():
             want = np.interp(s, rpm, v)    # numpy's linear interpolation holds the end values outside
             got = (K if k[0] == 'k' else C)['xy'.index(k[1]), 'xy'.index(k[2])]
-            assert got == pytest.approx(want, rel=1e-12, abs=1e-9 * max(map(abs, v))), (s, k)
+            # a + t (b - a) here and in numpy, t from speeds in rad/s here and in rpm there: a few roundings each
+            assert abs(got - want) <= 8 * EPS * max(map(abs, v)), (s, k)
 
 
 def test_known_elements_are_in_the_model_and_not_identified():
@@ -294,8 +314,10 @@ def test_known_elements_are_in_the_model_and_not_identified():
     i = cv.dof_index(24, 'x', model.n_nodes)
     Zr = RotorModel.from_params(dataclasses.replace(rig, seals=())).K - w * w * model.M \
         + 1j * w * (model.C + w * model.G)
-    # atol: the rounding of the 3.6e10 diagonal the seal block sits on
-    assert np.allclose(Z[i:i + 2, i:i + 2] - Zr[i:i + 2, i:i + 2], K + 1j * w * C, rtol=1e-9, atol=1e-3)
+    # the seal block is what remains of the 3.6e10 diagonal it sits on after subtracting the model without it: a few
+    # roundings of that diagonal (K - w^2 M + j w (C + w G), summed in another order)
+    tol = 16 * EPS * np.max(np.abs(Z[i:i + 2, i:i + 2]))
+    assert np.max(np.abs(Z[i:i + 2, i:i + 2] - Zr[i:i + 2, i:i + 2] - (K + 1j * w * C))) <= tol
 
 
 def test_pedestal_in_series_equals_the_condensed_impedance():
@@ -313,7 +335,8 @@ def test_pedestal_in_series_equals_the_condensed_impedance():
         F = np.zeros(ped_noseal.ndof, complex)
         F[cv.dof_index(17, 'x', bare.n_nodes)] = 100.0
         F[cv.dof_index(13, 'y', bare.n_nodes)] = 50.0j
-        q_full = np.linalg.solve(dynamic_stiffness(ped_noseal, W, w, co), F)[:bare.ndof]
+        Z_full = dynamic_stiffness(ped_noseal, W, w, co)
+        q_full = np.linalg.solve(Z_full, F)[:bare.ndof]
         # condensed: film Zf in series with the pedestal Zs = k - w^2 m + j w c (diagonal), K_eff = Zf (Zf + Zs)^-1 Zs
         Kb, Cb = co[30]
         Zf = Kb + 1j * w * Cb
@@ -323,7 +346,10 @@ def test_pedestal_in_series_equals_the_condensed_impedance():
         i = cv.dof_index(30, 'x', bare.n_nodes)
         Z[i:i + 2, i:i + 2] += Keff
         q_cond = np.linalg.solve(Z, F[:bare.ndof])
-        assert np.max(np.abs(q_full - q_cond)) <= 1e-9 * np.max(np.abs(q_cond))
+        # two backward-stable solves (LU, partial pivoting): each off by a few EPS times its condition number (the
+        # 2 x 2 condensation, condition ~1.5, adds a few EPS)
+        tol = 4 * EPS * (np.linalg.cond(Z_full) + np.linalg.cond(Z))
+        assert np.max(np.abs(q_full - q_cond)) <= tol * np.max(np.abs(q_cond))
 
 
 # ------------------------------------------------------------------------------------------------ probes at an angle
@@ -342,7 +368,8 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
     pm = probe_matrix(model, [(6, cv.probe_direction(45.0)), (6, cv.probe_direction(-45.0))])
     c, s = cv.probe_row(45.0)
     R = np.array([[c, s], [c, -s]])
-    assert np.array_equal(pm, R @ xy)            # exact: the rows are (cos, sin) of each probe axis
+    # the x/y rows are unit vectors: R @ xy is c * 1 + s * 0 per entry, one rounding at most
+    assert np.max(np.abs(pm - R @ xy)) <= EPS
     # and through the simulated rig (time domain, no noise): the +-45 channels are the rotated x/y channels
     from bearing_id.config.params import Probe
     from bearing_id.simulation.rig import simulate_run
@@ -351,7 +378,9 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
     a = simulate_run(rig, run, probes=(Probe('x', 6, 'x'), Probe('y', 6, 'y')), **kw)
     b = simulate_run(rig, run, probes=(Probe('p', 6, cv.probe_direction(45.0)),
                                        Probe('m', 6, cv.probe_direction(-45.0))), **kw)
-    assert np.max(np.abs(b.samples - a.samples @ R.T)) <= 1e-12 * np.max(np.abs(a.samples))
+    # both are c x +- s y of the same states (the x/y channels are x and y themselves): 3 roundings each side with
+    # |c| + |s| = sqrt(2), so at most 2 * 3/2 * sqrt(2) EPS of the largest sample
+    assert np.max(np.abs(b.samples - a.samples @ R.T)) <= 3 * math.sqrt(2) * EPS * np.max(np.abs(a.samples))
 
 
 def test_messages_carry_the_probe_angle():
@@ -511,17 +540,6 @@ def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
         assert abs(par[k]['value'] - v) <= 3 * par[k]['std'], (k, par[k])
 
 
-@pytest.mark.parametrize('path', [None, PLANT])
-def test_rig_to_dict_round_trips(path, tmp_path):
-    from bearing_id.config.params import rig_to_dict
-    rig = load_rig(path)
-    text = yaml.safe_dump(rig_to_dict(rig), sort_keys=False)
-    back = parse_rig(yaml.safe_load(text))
-    assert back == rig
-    for name in ('M', 'K', 'G', 'C'):
-        assert np.array_equal(getattr(RotorModel.from_params(back), name), getattr(RotorModel.from_params(rig), name))
-
-
 def test_conventional_from_pm45_pairs_equals_from_xy_pairs():
     """The conventional method on +-45 deg pairs (x, y rebuilt at each probe node) = on x/y pairs at those nodes."""
     from bearing_id.identify.conventional import identify_conventional
@@ -536,13 +554,20 @@ def test_conventional_from_pm45_pairs_equals_from_xy_pairs():
     runs = rig.simulation.runs
     speeds = [900, 1800, 2700]
     out = []
-    for probes in (xy, pm):
+    for probes in (xy, pm, xy):
         data = simulate_data(rig, runs, speeds, probes=probes, noise=0.0, model=model)
         data.X_std[...] = 1e-3 * np.abs(data.X).max()
+        if len(out) == 2:      # the x/y phasors moved by a relative 1e-8: the method's sensitivity to its data
+            data.X[...] *= 1.0 + 1e-8 * np.random.default_rng(3).standard_normal(data.X.shape)
         out.append(identify_conventional(model, rig, data, probes, runs, {'bearing_fn': bearing_fn(rig)}))
-    for a, b in zip(*out):
-        assert np.allclose(a.K, b.K, rtol=1e-9, atol=1e-9 * np.abs(a.K).max())
-        assert np.allclose(a.C, b.C, rtol=1e-9, atol=1e-9 * np.abs(a.C).max())
+    # the +-45 deg phasors are the x/y ones rotated (c x + s y, a few roundings: 4 EPS relative) and rotated back by
+    # the method; K and C move by the measured sensitivity (their change per relative change of the phasors, the
+    # method's condition number) times those 2 x 4 EPS -- bounded here with a factor 4 for the random direction
+    for a, b, p in zip(*out):
+        for sym in ('K', 'C'):
+            scale = np.max(np.abs(getattr(a, sym)))
+            kappa = np.max(np.abs(getattr(p, sym) - getattr(a, sym))) / (1e-8 * scale)
+            assert np.max(np.abs(getattr(a, sym) - getattr(b, sym))) <= 4 * kappa * 8 * EPS * scale, sym
 
 
 def test_known_table_bearing_is_a_support_in_statics():
@@ -573,7 +598,12 @@ def test_known_table_bearing_is_a_support_in_statics():
                                                 rotary_inertia=False) for e in model.elements], bearing_nodes=(1, 25))
     eb.support_nodes = model.support_nodes
     r = static_bearing_loads(eb)
-    assert all(r[n] == pytest.approx(want[n], rel=1e-9) for n in want)
+    # exact in exact arithmetic; the reactions come from one backward-stable solve on the free DOFs of the vertical
+    # plane: a few EPS times its condition number
+    plane = [cv.dof_index(k, a, eb.n_nodes) for k in range(1, eb.n_nodes + 1) for a in ('y', 'tx')]
+    free = [i for i in plane if i not in {cv.dof_index(k, 'y', eb.n_nodes) for k in want}]
+    tol = 8 * EPS * np.linalg.cond(eb.K[np.ix_(free, free)])
+    assert all(r[n] == pytest.approx(want[n], rel=tol) for n in want)
 
 
 def test_finite_bearing_with_gumbel_cavitation_uses_the_half_sommerfeld_solver(raw):
@@ -588,5 +618,8 @@ def test_finite_bearing_with_gumbel_cavitation_uses_the_half_sommerfeld_solver(r
     b0, b1 = parse_rig(d).bearings
     s = solution(b0, 300.0, 9.7)
     ref = finite.reynolds(b0.diameter, b0.length, b0.clearance, b0.viscosity, 9.7, 300.0, cavitation='gumbel')
-    assert np.array_equal(s.K, ref.K) and np.array_equal(s.C, ref.C)
+    # the same solver call: each converged to its contract |F - W| / W <= 1e-8, which moves K and C by less than
+    # 1e-7 of their largest entry (dK/dq * c / K < 10 for eccentricities < 0.9); Swift-Stieber is 2 % away
+    for a, b in ((s.K, ref.K), (s.C, ref.C)):
+        assert np.max(np.abs(a - b)) <= 1e-7 * np.max(np.abs(b))
     assert not np.allclose(solution(b1, 300.0, 9.7).K, s.K, rtol=0.02)   # Swift-Stieber differs by > 2 %

@@ -21,7 +21,7 @@ import pytest
 
 def paper_rig_refined(factor: int):
     """Return the paper rig with each of its 10 elements split into ``factor`` (same positions of everything)."""
-    d = load_yaml_bounded('params/examples/paper_rig.yaml')
+    d = load_yaml_bounded('params/rig.yaml')
     d['shaft']['n_elements'] = 10 * factor
     for key in ('discs', 'bearings', 'probes'):
         for x in d[key]:
