@@ -62,19 +62,24 @@ def expm(A) -> np.ndarray:
     return t[:, None] * sla.expm(Ab) / t[None, :]
 
 
+def forced_states(A, B, forces, omega: float) -> np.ndarray:
+    """
+    Return forced-response state phasors (n, k) = (j omega I - A)^-1 B F^T.
+
+    forces : complex (k, n_inputs) force phasors [N] (one per run or ratio); omega [rad/s].
+    """
+    A = np.asarray(A, dtype=float)
+    rhs = np.asarray(B) @ np.atleast_2d(np.asarray(forces, dtype=complex)).T
+    return np.linalg.solve(1j * float(omega) * np.eye(A.shape[0]) - A, rhs)
+
+
 def input_phasors(A, B, forces: dict, speed: float) -> dict:
     """
     State phasors of the particular solution: {r: Xp_r = (j r speed I - A)^-1 B F_r} (complex (n,)).
 
     forces : {frequency ratio r: complex force phasor (n_inputs,)} [N]; speed [rad/s].
     """
-    A = np.asarray(A, dtype=float)
-    n = A.shape[0]
-    out = {}
-    for r, F in (forces or {}).items():
-        w = float(r) * float(speed)
-        out[float(r)] = np.linalg.solve(1j * w * np.eye(n) - A, np.asarray(B) @ np.asarray(F, dtype=complex))
-    return out
+    return {float(r): forced_states(A, B, F, float(r) * float(speed))[:, 0] for r, F in (forces or {}).items()}
 
 
 def particular_state(Xp: dict, angle, rows=None) -> np.ndarray:

@@ -21,8 +21,7 @@ Interpolation-bias check (stated rules)
       chi-square test against the propagated noise of the interpolated displacements
       (:func:`bearing_id.identify.lsq.solve_coefficients`, :func:`bearing_id.identify.determined.fit_quality`); a
       misfit (the straight line does not fit the data within their noise) Birge-scales every std and flags the
-      result ``misfit``.  (Before issue 11: residual-based / propagated std > CONSISTENCY_FLAG = 3 made every
-      coefficient undetermined; the constant is kept for reference.)
+      result ``misfit``.
 
 Determined: the one rule of :mod:`bearing_id.identify.determined` (in :func:`bearing_id.identify.lsq.build_result`),
 with the interpolation-bias flags as the method's own veto.  ``probe_pairs`` lives in :mod:`.lsq` (re-exported here).
@@ -37,8 +36,6 @@ from .lsq import (bearing_dofs, bearing_force_map, build_result, coefficient_lab
 from .result import IdentResult
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
 from ..rotor.supports import bearing_fn
-
-CONSISTENCY_FLAG = 3.0      # historical (see the module docstring); the misfit test replaces it
 
 
 def interpolate(model, probes, X, X_std=None, pairs=None):
@@ -136,4 +133,4 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
     return out
 
 
-__all__ = ['probe_pairs', 'interpolate', 'interpolation_bias', 'identify_conventional', 'CONSISTENCY_FLAG']
+__all__ = ['probe_pairs', 'interpolate', 'interpolation_bias', 'identify_conventional']

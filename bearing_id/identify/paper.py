@@ -61,7 +61,7 @@ from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result,
                   coeffs_to_theta, DEFAULT_RTOL, forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients,
                   solve_derivatives, svd_solve, theta_to_KC)
 from .result import IdentResult
-from ..estimation.kalman import innovations, rotor_kalman_model
+from ..estimation.kalman import forced_states, innovations, rotor_kalman_model
 from ..rotor.assembly import bearing_matrices
 from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
 from ..rotor.supports import bearing_fn
@@ -147,7 +147,7 @@ def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=No
     Rs = [np.maximum(p.noise_var, 1e-30) if R is None else R for p in plains]
     kms = _kf_models(model, w, theory, probes, fs, Q, Rs, kf_rotor)
     F = forces_at(model, data.runs, w)
-    Xp = _forced_states(kms[0], w, F)
+    Xp = forced_states(kms[0].A, kms[0].B, F, w)
     Ts = {}
     dz = None
     if jacobian and not smoother:
@@ -231,7 +231,7 @@ def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_ra
     X = np.asarray(X, dtype=complex)
     forces = np.asarray(forces, dtype=complex)
     kms = _kf_models(model, speed, theory, probes, sample_rate, Q, _per_run(R, len(forces)), kf_rotor)
-    return _phasors(kms, _forced_states(kms[0], speed, forces), X, speed, smoother)[0]
+    return _phasors(kms, forced_states(kms[0].A, kms[0].B, forces, speed), X, speed, smoother)[0]
 
 
 def _per_run(R, nr: int) -> list:
@@ -246,13 +246,6 @@ def _per_run(R, nr: int) -> list:
 def _rkey(R):
     a = np.asarray(R, dtype=float)
     return (a.shape, a.tobytes())
-
-
-def _forced_states(km, speed: float, forces) -> np.ndarray:
-    """Particular-solution state phasors Xp (n, nr) = (j speed I - A)^-1 B F_r for forces (nr, ndof) [N]."""
-    n = km.n
-    rhs = km.B @ np.asarray(forces, dtype=complex).T
-    return np.linalg.solve(1j * float(speed) * np.eye(n) - km.A, rhs)
 
 
 def _exp_divided_differences(x) -> np.ndarray:
@@ -344,7 +337,7 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     ut = Uai @ Udir                                   # U^-1 u_k  (n, 8 nb)
     vt = Ua[vidx, :].T                                # U^T v_k   (n, 8 nb)
     Zs = 1j * speed * Id - A
-    Xp = _forced_states(km0, speed, forces)           # (n, nr)
+    Xp = forced_states(km0.A, km0.B, forces, speed)   # (n, nr)
     dz = np.zeros((nr, 2 * nb, 8 * nb), dtype=complex)
     lin = {}
     for r in range(nr):
@@ -643,7 +636,8 @@ def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoothe
         if not smoother:
             dz = kf_phasor_jacobian(model, theory, probes, speed, X, F, sample_rate, Q=Q, R=R, kms=kms,
                                     kf_rotor=kf_rotor, transfers=Ts)
-        za = _phasors(kms, _forced_states(kms[0], speed, F), np.asarray(X, dtype=complex), speed, smoother, Ts)[0]
+        Xp = forced_states(kms[0].A, kms[0].B, F, speed)
+        za = _phasors(kms, Xp, np.asarray(X, dtype=complex), speed, smoother, Ts)[0]
     if dz is not None:
         G = theory_sensitivity_analytic(model, speed, theory, za, dz, F, rtol=rtol, force_map=force_map)
         how = 'analytic derivative'
