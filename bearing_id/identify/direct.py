@@ -309,9 +309,13 @@ class Weighting:
 AUG_FD_STEP = 1e-6        # central-difference step of the augmented-model Jacobian, in units of the block scale
 
 
-def augmented_response(model, speed: float, cases, coeffs: dict, augment) -> np.ndarray:
-    """Predicted phasors y complex (nrow,) [m] (rows of :func:`probe_rows`) through an augmented-model hook."""
-    P, run = probe_rows(model, cases)
+def augmented_response(model, speed: float, cases, coeffs: dict, augment, rows=None) -> np.ndarray:
+    """
+    Predicted phasors y complex (nrow,) [m] (rows of :func:`probe_rows`) through an augmented-model hook.
+
+    ``rows``: the (P, run) of :func:`probe_rows` if already built.
+    """
+    P, run = probe_rows(model, cases) if rows is None else rows
     F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
     Q = np.linalg.solve(augment.dynamic_stiffness(speed, speed, coeffs), F)
     return (P @ Q)[np.arange(run.size), run]
@@ -324,8 +328,10 @@ def response_and_jacobian_augmented(model, speed: float, cases, beta: np.ndarray
     The hook is ``augment.dynamic_stiffness(speed, omega, coeffs)``; d y / d beta by central differences (step
     ``AUG_FD_STEP`` x ``scale`` per unknown).
     """
+    rows = probe_rows(model, cases)
+
     def y_of(b):
-        return augmented_response(model, speed, cases, beta_to_coeffs(b, nodes), augment)
+        return augmented_response(model, speed, cases, beta_to_coeffs(b, nodes), augment, rows)
 
     y = y_of(beta)
     dy = np.zeros((y.size, beta.size), dtype=complex)
