@@ -5,12 +5,12 @@ Speed benchmark, like for like (issue 13): every comparison in one run, min/medi
     params/rig.yaml), 20,480 samples each at 10,240 Hz from the midspan probe pair (node 6, x and y), one speed;
     ``bearing-id identify --method paper`` as a process, and in-process (``bearing_id.cli.main`` timed in a fresh
     interpreter after the modules are imported, caches cold: files read, 1X vectors, Kalman filter, least squares,
-    theory check, table printed).  Against the paper's 4.4 s and
-    against the same pipeline built on filterpy's Kalman-filter loop (the time-domain route, ``kf_route='time'``, with
-    ``kalman.fast_filter`` replaced by ``kalman.reference_filter``: filterpy, one predict/update per sample).
-(b) The Kalman filter alone on the same two runs (model built): ``kalman.fast_filter`` against filterpy's loop
-    (``kalman.reference_filter``) and against a plain steady-state numpy loop (fixed gain, one step per sample),
-    the honest baseline; the three must agree (printed).
+    theory check, table printed).  Against the paper's 4.4 s.
+(b) The Kalman filter alone on the same two runs (model built): ``kalman.fast_filter`` against filterpy's
+    time-varying KalmanFilter loop (one predict/update per sample, run here from the steady-state covariance) and
+    against a plain steady-state numpy loop (fixed gain, one step per sample), the honest baseline; the three must
+    agree (printed).  One steady-state Riccati solve: the package's doubling against scipy.linalg.solve_discrete_are
+    (relative Riccati residuals printed).
 (c) 9-speed identification per method (paper, conventional, direct, physical) on two runs x 9 speeds (default plan,
     probes at nodes 3, 6, 9 so that every method applies): as a process, in-process (``cli.main``, file -> printed
     coefficients) and ``identify.identify`` alone on the loaded 1X data (in-process figures: a fresh interpreter,
@@ -72,12 +72,6 @@ def identify_argv(files, method):
     return ['identify', *map(str, files), '--method', method, '--allow-undetermined']
 
 
-FILTERPY_SETUP = """
-from bearing_id import kalman
-kalman.fast_filter = lambda km, y, a, **kw: kalman.reference_filter(km, y, a)
-"""
-
-
 def identify_alone(files, method: str, repeats: int):
     """Time ``identify.identify`` alone on the loaded 1X data, in a fresh interpreter (caches cold)."""
     setup = ('from bearing_id.commands.identify import load_data\nfrom bearing_id.identify import identify\n'
@@ -122,8 +116,8 @@ def plain_loop(km, samples, angle):
     The honest baseline of a time-domain filter (fixed gain, no covariance loop).
     """
     P, K, S = km.steady_state()
-    zp, yp = km.particular(angle)
-    zt = samples - zp
+    zt = samples - km.particular(angle)
+    yp = km.particular(angle, km.E)
     Phi, H, E = km.Phi, km.H, km.E
     N = zt.shape[0]
     est = np.empty((N, E.shape[0]))
@@ -138,6 +132,28 @@ def plain_loop(km, samples, angle):
     return est + yp, nu
 
 
+def filterpy_loop(km, samples, angle):
+    """
+    Run filterpy's KalmanFilter (the paper's eqs 12-18, covariance recursion each step): estimates (N, k).
+
+    Started from x_p(t0) and the steady-state covariance, the known input entering as x_p(t_k+1) - Phi x_p(t_k).
+    """
+    from filterpy.kalman import KalmanFilter
+    n, m, N = km.n, km.m, samples.shape[0]
+    xp = km.particular(angle, np.eye(n))
+    kf = KalmanFilter(dim_x=n, dim_z=m, dim_u=n)
+    kf.F, kf.B, kf.H, kf.Q, kf.R = km.Phi.copy(), np.eye(n), km.H.copy(), km.Q.copy(), km.R.copy()
+    kf.x = xp[0].reshape(n, 1).copy()
+    kf.P = km.steady_state()[0].copy()
+    est = np.empty((N, km.E.shape[0]))
+    for k in range(N):
+        kf.update(samples[k].reshape(m, 1))
+        est[k] = km.E @ kf.x[:, 0]
+        if k + 1 < N:
+            kf.predict(u=(xp[k + 1] - km.Phi @ xp[k]).reshape(n, 1))
+    return est
+
+
 def kf_alone(files, repeats, ref_repeats, n_samples=None):
     from bearing_id.estimation import kalman
     kms, data = kf_models(files)
@@ -145,24 +161,26 @@ def kf_alone(files, repeats, ref_repeats, n_samples=None):
         data = [(y[:n_samples], a[:n_samples]) for y, a in data]
     fast = bl.time_call(lambda: [kalman.fast_filter(km, y, a) for km, (y, a) in zip(kms, data)], repeats, warmup=1)
     plain = bl.time_call(lambda: [plain_loop(km, y, a) for km, (y, a) in zip(kms, data)], max(1, ref_repeats))
-    ref = bl.time_call(lambda: [kalman.reference_filter(km, y, a) for km, (y, a) in zip(kms, data)],
-                       max(1, ref_repeats))
+    ref = bl.time_call(lambda: [filterpy_loop(km, y, a) for km, (y, a) in zip(kms, data)], max(1, ref_repeats))
 
     def rel(a, b):
         return max(float(np.abs(x - y).max() / np.abs(y).max()) for x, y in zip(a, b))
-    d_ref = rel([f.estimates for f in fast.out], [r.estimates for r in ref.out])
+    d_ref = rel([f.estimates for f in fast.out], ref.out)
     d_plain = rel([f.estimates for f in fast.out], [p[0] for p in plain.out])
     return fast, plain, ref, d_ref, d_plain, kms
 
 
 def riccati_alone(km, repeats):
-    """Time one steady-state Riccati solve of the filter ``km``: doubling (the default) and scipy's route."""
+    """Time one steady-state Riccati solve of ``km``: the package's doubling and scipy.linalg.solve_discrete_are."""
+    import scipy.linalg as sla
     from bearing_id.estimation import kalman
     args = (km.Phi, km.H, km.Q, km.R)
-    sda = bl.time_call(lambda: kalman.steady_state_gain(*args, method='sda'), repeats, warmup=1)
-    ref = bl.time_call(lambda: kalman.steady_state_gain(*args, method='scipy'), repeats, warmup=1)
-    d = float(np.abs(sda.out[0] - ref.out[0]).max() / np.abs(ref.out[0]).max())
-    return sda, ref, d
+    sda = bl.time_call(lambda: kalman.steady_state_gain(*args), repeats, warmup=1)
+    ref = bl.time_call(lambda: sla.solve_discrete_are(km.Phi.T, km.H.T, km.Q, km.R), repeats, warmup=1)
+
+    def res(P):
+        return float(np.abs(kalman.riccati_residual(*args, P)).max() / np.abs(P).max())
+    return sda, ref, res(sda.out[0]), res(ref.out)
 
 
 def main(argv=None):
@@ -171,7 +189,7 @@ def main(argv=None):
     ap.add_argument('--ref-repeats', type=int, default=5, help='repeats of the slow references (filterpy, plain loop)')
     ap.add_argument('--process-repeats', type=int, default=5, help='repeats of every command run as a process')
     ap.add_argument('--quick', action='store_true',
-                    help='smoke run: 1 repeat, the KF references on 2048 samples, no filterpy pipeline, 3 speeds, '
+                    help='smoke run: 1 repeat, the KF references on 2048 samples, 3 speeds, '
                          'two methods, no diagnose')
     ap.add_argument('--fresh', action='store_true', help='simulate the inputs again (else cached in out/bench_data)')
     ap.add_argument('--skip', default='', help='comma list of sections to skip: a,b,c,d')
@@ -191,23 +209,15 @@ def main(argv=None):
     if 'a' not in skip:
         proc = bl.time_process(bl.cli(*identify_argv(files, 'paper')), args.process_repeats)
         inproc = bl.cli_in_child(identify_argv(files, 'paper'), args.repeats)
-        inproc_time = bl.cli_in_child(identify_argv(files, 'paper') + ['--kf-route', 'time'], args.repeats)
-        fp = None if args.quick else bl.cli_in_child(identify_argv(files, 'paper') + ['--kf-route', 'time'],
-                                                     args.ref_repeats, setup=FILTERPY_SETUP)
         print(f"\n## (a) the paper's job end to end, file -> coefficients: 2 runs x {N_SAMPLES} samples at "
               f'{SAMPLE_RATE:.0f} Hz, {PAPER_RPM:.0f} rpm, probes 6x/6y ({bl.load_note()})\n')
 
-        def vs(t):          # speed-ups on wall (the paper's figure is a wall time) and on CPU vs the filterpy run
-            return (f'{PAPER_S / t.wall_min:.3g}x', '-' if fp is None else
-                    f'{fp.wall_min / t.wall_min:.3g}x wall, {fp.cpu_min / t.cpu_min:.3g}x CPU')
+        def vs(t):          # speed-up on wall (the paper's figure is a wall time)
+            return (f'{PAPER_S / t.wall_min:.3g}x',)
         rows = [bl.timing_row('`bearing-id identify --method paper`, process', proc, TARGET_PROCESS, extra=vs(proc)),
-                bl.timing_row('in-process (cli.main; imports done, caches cold), transfer route (default)', inproc,
-                              TARGET_PAPER_JOB,
-                              extra=vs(inproc)),
-                bl.timing_row('in-process, time-domain route (fast filter)', inproc_time, None, extra=vs(inproc_time))]
-        if fp is not None:
-            rows.append(bl.timing_row("in-process, time-domain route on filterpy's loop", fp, None, extra=vs(fp)))
-        print(bl.table(bl.TIMING_HEADER + ['vs paper 4.4 s', 'vs filterpy pipeline', 'target', 'met'], rows))
+                bl.timing_row('in-process (cli.main; imports done, caches cold)', inproc, TARGET_PAPER_JOB,
+                              extra=vs(inproc))]
+        print(bl.table(bl.TIMING_HEADER + ['vs paper 4.4 s', 'target', 'met'], rows))
         failures += [r[0] for r in rows if r[-1] == 'NO']
 
     # ------------------------------------------------------------------ (b) the Kalman filter alone
@@ -221,20 +231,20 @@ def main(argv=None):
                               extra=('1x', '')),
                 bl.timing_row('plain steady-state numpy loop (fixed gain)', plain, None,
                               extra=(f'{plain.wall_min / fast.wall_min:.0f}x slower', f'{d_plain:.1e}')),
-                bl.timing_row('filterpy KalmanFilter loop (kalman.reference_filter)', ref, None,
+                bl.timing_row('filterpy KalmanFilter loop (time-varying covariance)', ref, None,
                               extra=(f'{ref.wall_min / fast.wall_min:.0f}x slower', f'{d_ref:.1e}'))]
         print(bl.table(bl.TIMING_HEADER + ['vs fast_filter', 'max rel. diff of estimates', 'target', 'met'], rows))
         if not (d_ref <= 1e-9 and d_plain <= 1e-9):
             failures.append('KF estimates disagree')
-        sda, sp, d_p = riccati_alone(kms[0], args.repeats)
+        sda, sp, r_sda, r_sp = riccati_alone(kms[0], args.repeats)
         print(f'\nOne steady-state Riccati solve of that filter ({n} states; the job needs one per run, each run has '
               'its own probe noise):\n')
-        rows = [bl.timing_row('kalman.steady_state_gain, doubling (default)', sda, None, extra=('1x', '')),
-                bl.timing_row("scipy.linalg.solve_discrete_are + Newton refinement (method='scipy')", sp, None,
-                              extra=(f'{sp.wall_min / sda.wall_min:.1f}x slower', f'{d_p:.1e}'))]
-        print(bl.table(bl.TIMING_HEADER + ['vs doubling', 'max rel. diff of P', 'target', 'met'], rows))
-        if not d_p <= 1e-9:
-            failures.append('Riccati solutions disagree')
+        rows = [bl.timing_row('kalman.steady_state_gain (doubling)', sda, None, extra=('1x', f'{r_sda:.1e}')),
+                bl.timing_row('scipy.linalg.solve_discrete_are (dual problem)', sp, None,
+                              extra=(f'{sp.wall_min / sda.wall_min:.1f}x slower', f'{r_sp:.1e}'))]
+        print(bl.table(bl.TIMING_HEADER + ['vs doubling', 'rel. Riccati residual', 'target', 'met'], rows))
+        if not r_sda <= 1e-10:
+            failures.append('Riccati residual of the doubling above 1e-10')
 
     # ------------------------------------------------------------------ (c) 9-speed identify per method
     speeds = [600, 1800, 3000] if args.quick else None

@@ -1,34 +1,64 @@
 """
-Issue 12 item 4: the direct/physical forward model's fast path (one factorisation per speed, Woodbury updates).
+The direct/physical forward model against a dense solve of the assembled dynamic stiffness.
 
-Reference: :func:`bearing_id.identify.direct.response_and_jacobian` (a dense solve of the full dynamic stiffness per
-evaluation).  :class:`~bearing_id.identify.direct.SpeedResponse` must give the same probe phasors and Jacobian to
-1e-9 relative, dense and sparse factorisation, with and without a pedestal in series with a film, at coefficients
-far from the reference point (up to x3 and with sign-changed cross terms); and whole fits must agree.
+:class:`bearing_id.identify.direct.SpeedResponse` factorises once per speed and updates in beta by Woodbury.
+
+Oracle (plain numpy, no package route of the fit): Z(beta) = ``rotor.assembly.dynamic_stiffness`` with the bearings
+inserted by the assembly (a film in series with a pedestal included), y = P Z^-1 F per run, and -- Z being linear in
+beta -- the exact derivative dy/dbeta_k = -P Z^-1 dZ_k Z^-1 F with dZ_k = Z(e_k) - Z(0) taken from the assembly too.
+
+Tolerance (derived, not tuned): both routes are backward-stable solves, so each one's relative forward error is at
+most ~eps x the condition of what it solves.  The dense oracle solves with Z(beta): eps cond(Z); the Woodbury route
+solves with Z_ref = Z(beta_ref) and then with the capacitance I + D H (H = (Z_ref^-1)_SS, D = Z - Z_ref on the film
+DOFs S): eps cond(Z_ref) cond(I + D H).  The test allows eps (cond(Z) + cond(Z_ref) cond(I + D H)) relative to the
+largest entry, all three conditions computed here from the oracle's own matrices (the errors measured were below
+1 % of that bound).  Cases: dense and sparse factorisation, with and without a pedestal, coefficients up to x3 from
+the reference point and with sign-changed cross terms, runs with different probe sets (rows of unequal length).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from bearing_id.config.params import load_rig, Probe
-from bearing_id.conventions import dof_index
 from bearing_id.identify import direct
-from bearing_id.rotor.assembly import RotorModel
+from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
 from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
 
 EXAMPLES = Path(__file__).resolve().parent.parent / 'params' / 'examples'
+EPS = np.finfo(float).eps
 
 
-def _cases(model, rig, speed, rng):
+def _cases(model, rig, rng):
+    """Three runs of random synchronous forces; the last run reads one probe fewer (unequal rows per run)."""
     probes = tuple(rig.probes) + (Probe('extra', 3, 'x'),)
     cases = []
-    for _ in range(3):
+    for r in range(3):
         F = np.zeros(model.ndof, dtype=complex)
         F[rng.integers(0, 4 * model.n_nodes, 3)] = rng.standard_normal(3) + 1j * rng.standard_normal(3)
-        cases.append(direct.Case(F, probes, np.zeros(len(probes), complex), np.ones(len(probes))))
+        pr = probes if r < 2 else probes[:-1]
+        cases.append(direct.Case(F, pr, np.zeros(len(pr), complex), np.ones(len(pr))))
     return cases
+
+
+def dense_response(model, speed, cases, beta, nodes):
+    """Oracle: (y (nrow,), dy (nrow, 8 nb)) from the assembled Z(beta), rows run by run as direct.probe_rows."""
+    Z = dynamic_stiffness(model, speed, speed, direct.beta_to_coeffs(beta, nodes))
+    Z_empty = dynamic_stiffness(model, speed, speed, direct.beta_to_coeffs(np.zeros_like(beta), nodes))
+    dZ = []
+    for k in range(beta.size):
+        e = np.zeros(beta.size)
+        e[k] = 1.0
+        dZ.append(dynamic_stiffness(model, speed, speed, direct.beta_to_coeffs(e, nodes)) - Z_empty)
+    y, dy = [], []
+    for c in cases:
+        P = probe_matrix(model, c.probes)
+        q = np.linalg.solve(Z, c.F)
+        G = np.linalg.solve(Z.T, P.T).T                          # P Z^-1
+        y.append(P @ q)
+        dy.append(np.stack([-(G @ (d @ q)) for d in dZ], axis=1))
+    return np.concatenate(y), np.vstack(dy), Z
 
 
 def _rel(a, b):
@@ -46,46 +76,24 @@ def test_speed_response_equals_the_dense_solve(which, sparse):
     rng = np.random.default_rng(3)
     fn = bearing_fn(rig)
     for speed in (150.0, 420.0):
-        cases = _cases(model, rig, speed, rng)
+        cases = _cases(model, rig, rng)
         beta_ref = direct.coeffs_to_beta(fn(speed), nodes)
         fast = direct.SpeedResponse(model, speed, cases, nodes, beta_ref, sparse=sparse)
+        Z_ref = dynamic_stiffness(model, speed, speed, direct.beta_to_coeffs(beta_ref, nodes))
+        H = np.linalg.inv(Z_ref)[np.ix_(fast.S, fast.S)]
         for factor in (1.0, 1.3, 3.0, -1.0):
             beta = beta_ref * (1 + 0.2 * rng.standard_normal(beta_ref.size)) * (factor if factor > 0 else 1.0)
             if factor < 0:                              # cross terms of the opposite sign
                 beta = beta.copy()
                 for i in range(len(nodes)):
                     beta[8 * i + 1:8 * i + 3] *= -1
-            ys, dys = direct.response_and_jacobian(model, speed, cases, beta, nodes)
-            yf, dyf = fast(beta)
-            for a, b in zip(yf, ys):
-                assert _rel(a, b) <= 1e-9
-            for a, b in zip(dyf, dys):
-                assert _rel(a, b) <= 1e-9
-
-
-def test_whole_fit_agrees_with_the_reference():
-    rig = load_rig()
-    model = RotorModel.from_params(rig)
-    nodes = tuple(b.node for b in rig.bearings)
-    speed = 300.0
-    th = bearing_fn(rig)(speed)
-    truth = {n: (1.2 * K, 0.85 * C) for n, (K, C) in th.items()}
-    probes = tuple(Probe(f'p{n}{d}', n, d) for n in (3, 4, 6, 8, 9) for d in ('x', 'y'))
-    cases = []
-    for node in (4, 8):
-        for k in range(2):                               # a synchronous force in x, then y, at each disc
-            F = np.zeros(model.ndof, dtype=complex)
-            F[dof_index(node, 'xy'[k], model.n_nodes)] = 10.0
-            cases.append(direct.Case(F, probes, np.zeros(len(probes), complex), np.ones(len(probes))))
-    ys, _ = direct.response_and_jacobian(model, speed, cases, direct.coeffs_to_beta(truth, nodes), nodes)
-    cases = [direct.Case(c.F, c.probes, y, np.full(y.size, 1e-3 * np.max(np.abs(y)))) for c, y in zip(cases, ys)]
-    a = direct.fit_speed(model, speed, cases, nodes, theory=th, fast=True)
-    b = direct.fit_speed(model, speed, cases, nodes, theory=th, fast=False)
-    assert np.max(np.abs(a.K - b.K)) <= 1e-7 * np.max(np.abs(b.K))
-    assert np.max(np.abs(a.C - b.C)) <= 1e-7 * np.max(np.abs(b.C))
-    assert b.K_determined.all() and b.C_determined.all()
-    Kt = np.stack([truth[n][0] for n in nodes])
-    assert np.max(np.abs(a.K - Kt)) <= 1e-6 * np.max(np.abs(Kt))   # noise-free data: the truth back
+            y_ref, dy_ref, Z = dense_response(model, speed, cases, beta, nodes)
+            cap = np.eye(fast.S.size) + (Z - Z_ref)[np.ix_(fast.S, fast.S)] @ H
+            tol = EPS * (np.linalg.cond(Z) + np.linalg.cond(Z_ref) * np.linalg.cond(cap))
+            y, dy = fast(beta)
+            assert y.shape == y_ref.shape and dy.shape == dy_ref.shape
+            assert _rel(y, y_ref) <= tol, (_rel(y, y_ref), tol)
+            assert _rel(dy, dy_ref) <= tol, (_rel(dy, dy_ref), tol)
 
 
 @pytest.mark.parametrize('sparse_ndof', [10_000, 0])
@@ -103,37 +111,3 @@ def test_gate_orbits_fast_equals_the_reference(sparse_ndof, monkeypatch):
         assert a.keys() == b.keys()
         for n in a:
             assert abs(a[n] - b[n]) <= 1e-9 * b[n]
-
-
-@pytest.mark.parametrize('which', ['paper_rig', 'plant_like'])
-def test_stacked_response_and_weighted_stack_equal_the_per_run_path(which):
-    """
-    Issue 13: SpeedResponse.stacked and WeightedStack (the fit's path) against their references.
-
-    __call__ and the dense solve to 1e-9 relative, weighted_stack to 1e-15 (the same arithmetic).
-    """
-    rig = load_rig(None if which == 'paper_rig' else EXAMPLES / f'{which}.yaml')
-    model = RotorModel.from_params(rig)
-    nodes = tuple(b.node for b in rig.bearings)
-    rng = np.random.default_rng(5)
-    fn = bearing_fn(rig)
-    speed = 300.0
-    cases = _cases(model, rig, speed, rng)
-    cases = [direct.Case(c.F, c.probes, 1e-6 * (rng.standard_normal(len(c.X)) + 1j * rng.standard_normal(len(c.X))),
-                         1e-8 * (1 + rng.random(len(c.X)))) for c in cases]
-    beta_ref = direct.coeffs_to_beta(fn(speed), nodes)
-    fast = direct.SpeedResponse(model, speed, cases, nodes, beta_ref)
-    assert fast.uniform
-    scale = direct.default_scale(nodes, fn(speed))
-    stack = direct.WeightedStack(cases, scale)
-    for factor in (1.0, 1.5, 0.7):
-        beta = beta_ref * factor * (1 + 0.1 * rng.standard_normal(beta_ref.size))
-        ys, dys = direct.response_and_jacobian(model, speed, cases, beta, nodes)
-        y1, d1 = fast(beta)
-        ysf, dysf = fast.stacked(beta)
-        for r in range(len(cases)):
-            assert _rel(ysf[r], ys[r]) < 1e-9 and _rel(dysf[r], dys[r]) < 1e-9
-            assert _rel(ysf[r], y1[r]) < 1e-12 and _rel(dysf[r], d1[r]) < 1e-12
-        r_ref, J_ref = direct.weighted_stack(cases, list(ysf), list(dysf), scale)
-        r_f, J_f = stack(ysf, dysf)
-        assert _rel(r_f, r_ref) < 1e-15 and _rel(J_f, J_ref) < 1e-15

@@ -120,44 +120,26 @@ def test_model_form_misfit_is_declared_only_when_the_bearing_model_is_wrong(rig,
     assert res[0].extra['misfit'] == misfit and res[0].misfit == misfit
 
 
-def test_warm_start_gives_the_cold_answer_to_the_solver_tolerance(rig, model, clean):
+def test_warm_start_gives_the_cold_answer_within_a_hundredth_of_its_sigma(rig, model, clean):
     """
     A warm start (p0 = the fit on fewer speeds, as the identifier node does) lands on the cold fit's solution.
 
-    The solver stops on xtol = 1e-12 (relative step in the log-parameters); on this well-conditioned problem both
-    starts converge to the same minimum, so parameters, coefficients and their std agree to 1e-8 relative (measured
-    ~1e-10), far inside the parameters' own 1-sigma (~0.5 %), and the chi-square to 1e-9.
+    Both starts minimise the same chi2 on this well-conditioned problem; two routes to one quantity agree within 0.01
+    of its stated 1-sigma (issue 21): parameters within 0.01 x their 1-sigma (value x rel_std), the coefficients
+    within 0.01 x K_std / C_std, the stated 1-sigma themselves within 1 %, and the chi-square within 0.01 (at the
+    minimum, 0.01 sigma in each of the 4 parameters raises it by at most (4 x 0.01)^2 = 0.0016).
     """
     data = noisy(clean, seed=8)
     cold, res_c = fit_physical(model, rig, data)
     fewer, _ = fit_physical(model, rig, data.select(range(len(SPEEDS) - 1)))
     for start in (fewer.values, cold.values * 1.02, cold.nominal):
         warm, res_w = fit_physical(model, rig, data, p0=start)
-        np.testing.assert_allclose(warm.values, cold.values, rtol=1e-8, atol=0)
-        np.testing.assert_allclose(warm.rel_std, cold.rel_std, rtol=1e-8, atol=0)
-        assert warm.chi2 == pytest.approx(cold.chi2, rel=1e-9)
+        assert np.all(np.abs(warm.values - cold.values) <= 0.01 * cold.std)
+        np.testing.assert_allclose(warm.rel_std, cold.rel_std, rtol=0.01, atol=0)
+        assert abs(warm.chi2 - cold.chi2) <= 0.01
         for a, b in zip(res_w, res_c):
-            for sym in ('K', 'C', 'K_std', 'C_std'):
-                np.testing.assert_allclose(getattr(a, sym), getattr(b, sym), rtol=1e-8, atol=0)
-    # p0 = the nominal values is the default start: the very same numbers
-    same, _ = fit_physical(model, rig, data, p0=cold.nominal)
-    assert np.array_equal(same.values, cold.values)
+            for sym in ('K', 'C'):
+                assert np.all(np.abs(getattr(a, sym) - getattr(b, sym)) <= 0.01 * getattr(b, sym + '_std'))
+                np.testing.assert_allclose(getattr(a, sym + '_std'), getattr(b, sym + '_std'), rtol=0.01, atol=0)
     with pytest.raises(ValueError, match='p0'):
         fit_physical(model, rig, data, p0=cold.values[:2])
-
-
-def test_fast_forward_model_gives_the_reference_fit(rig, model, clean):
-    """
-    The one-factorisation-per-speed forward model (``fast_path``, default) against the dense solve per evaluation.
-
-    The forward model itself agrees to 1e-9 (test/test_direct_fast.py); the fits then take the same steps, so the
-    parameters and their std agree far inside the solver's own tolerance (1e-8 relative, as warm against cold).
-    """
-    data = noisy(clean, seed=9)
-    fast, res_f = fit_physical(model, rig, data)
-    ref, res_r = fit_physical(model, rig, data, fast_path=False)
-    np.testing.assert_allclose(fast.values, ref.values, rtol=1e-8, atol=0)
-    np.testing.assert_allclose(fast.rel_std, ref.rel_std, rtol=1e-8, atol=0)
-    for a, b in zip(res_f, res_r):
-        np.testing.assert_allclose(a.K, b.K, rtol=1e-8, atol=0)
-        np.testing.assert_allclose(a.C, b.C, rtol=1e-8, atol=0)

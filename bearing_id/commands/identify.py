@@ -47,10 +47,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="paper method: the KF's probe noise std in metres, R = value^2 for every probe (default: "
                         "each window's residual around its plain 1X fit; the identifier node's "
                         'kf_measurement_noise)')
-    p.add_argument('--kf-route', choices=('transfer', 'time'), default=None,
-                   help="paper method: the KF bearing-node 1X vectors from the steady-state filter's transfer "
-                        "function (transfer, default) or from the time-domain filter's estimates (time, the "
-                        'reference)')
     p.add_argument('--reduce', action='store_true',
                    help='paper method: Kalman filter on a Craig-Bampton reduced model (bearing, probe and force DOFs '
                         'kept; its 1X receptance error per speed in the notes) -- for large rotors')
@@ -126,10 +122,6 @@ def run(args) -> int:
         if not (math.isfinite(args.R) and args.R ** 2 > 0):
             raise ParamError(f'--R must be a probe noise std > 0 in metres, got {args.R!r}')
         opts['R'] = args.R ** 2
-    if args.kf_route is not None:
-        if args.method != 'paper':
-            raise ParamError('--kf-route applies to --method paper only')
-        opts['kf_route'] = args.kf_route
     if args.reduce:
         if args.method != 'paper':
             raise ParamError('--reduce applies to --method paper only')

@@ -1,5 +1,5 @@
 """
-Kalman filter on the FE rotor's state space (Kang et al. 2020, section 3.1, eqs 5-18), reference and fast paths.
+Kalman filter on the FE rotor's state space (Kang et al. 2020, section 3.1, eqs 5-18): the steady-state filter.
 
 Model (eqs 5-11)
     Continuous state x = [q; q'] (2 ndof), x' = A x + B f(t), measurement z_k = H x(t_k) + v_k (probe DOFs), with
@@ -16,8 +16,9 @@ Known sinusoidal input, exact discretisation
 Start rule
     Unless ``x0`` is given the filter starts from the model's steady state at the first sample,
     x_hat(0|-1) = x_p(t_0) (the machine was already running at this speed), with the steady-state prior covariance
-    P(0|-1) = P_ss from the discrete algebraic Riccati equation.  With that start the time-varying filter (filterpy
-    reference) and the steady-state fast filter are the same filter; :func:`reference_filter` accepts any other P0.
+    P(0|-1) = P_ss from the discrete algebraic Riccati equation.  With that start the paper's time-varying filter
+    (eqs 12-18) is the steady-state filter computed here (test/test_kalman.py runs filterpy's KalmanFilter as the
+    oracle); its gain sequence starts at, and stays at, the steady-state gain.
 
 Noise
     Q (process) and R (measurement) are configurable; a scalar means that times the identity, so the paper's
@@ -28,14 +29,14 @@ Outputs (:class:`KFResult`)
     nu_k = z_k - H x_hat(k|k-1), the innovation covariance S, the normalised innovation squared
     NIS_k = nu_k^T S^-1 nu_k, its mean and the two-sided 95 % chi-square band of that mean for a consistent filter.
 
-NaN/inf samples are refused (ValueError naming the count): the fast path is an LTI filter on evenly spaced samples.
+The filter is LTI, so it runs as a chunked linear map (:class:`_ChunkedLTI`: one matrix product per chunk of samples
+instead of one step per sample); NaN/inf samples are refused (ValueError naming the count).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
 
-from filterpy.kalman import KalmanFilter
 import numpy as np
 import scipy.linalg as sla
 from scipy.special import chdtri
@@ -51,6 +52,9 @@ def expm(A) -> np.ndarray:
     """
     Return exp(A) of a square matrix computed on its balanced form T^-1 A T (``scipy.linalg.matrix_balance``).
 
+    The filter's Phi = expm(A dt) (exact discretisation of x' = A x; the known input enters through the particular
+    solution, :func:`input_phasors`, not through a zero-order hold).
+
     T is diagonal with powers of 2 (an exact similarity), exp(A) = T exp(T^-1 A T) T^-1: the rotor's state matrix
     mixes units (entries from 1 to 1e11 s^-2) and its unbalanced 1-norm overstates the scaling the eigenvalues need.
     """
@@ -58,21 +62,15 @@ def expm(A) -> np.ndarray:
     return t[:, None] * sla.expm(Ab) / t[None, :]
 
 
-def discretise(A, B, dt: float):
+def forced_states(A, B, forces, omega: float) -> np.ndarray:
     """
-    Exact discretisation: (Phi, Gamma) with Phi = expm(A dt) and Gamma = int_0^dt expm(A s) ds B.
+    Return forced-response state phasors (n, k) = (j omega I - A)^-1 B F^T.
 
-    Gamma is the zero-order-hold input matrix (for inputs held constant over a step); the Kalman filter here does NOT
-    use it for the sinusoidal excitation (see :func:`input_phasors`).
+    forces : complex (k, n_inputs) force phasors [N] (one per run or ratio); omega [rad/s].
     """
     A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    n, nu = B.shape
-    blk = np.zeros((n + nu, n + nu))
-    blk[:n, :n] = A * dt
-    blk[:n, n:] = B * dt
-    E = expm(blk)
-    return E[:n, :n], E[:n, n:]
+    rhs = np.asarray(B) @ np.atleast_2d(np.asarray(forces, dtype=complex)).T
+    return np.linalg.solve(1j * float(omega) * np.eye(A.shape[0]) - A, rhs)
 
 
 def input_phasors(A, B, forces: dict, speed: float) -> dict:
@@ -81,26 +79,26 @@ def input_phasors(A, B, forces: dict, speed: float) -> dict:
 
     forces : {frequency ratio r: complex force phasor (n_inputs,)} [N]; speed [rad/s].
     """
-    A = np.asarray(A, dtype=float)
-    n = A.shape[0]
-    out = {}
-    for r, F in (forces or {}).items():
-        w = float(r) * float(speed)
-        out[float(r)] = np.linalg.solve(1j * w * np.eye(n) - A, np.asarray(B) @ np.asarray(F, dtype=complex))
-    return out
+    return {float(r): forced_states(A, B, F, float(r) * float(speed))[:, 0] for r, F in (forces or {}).items()}
 
 
 def particular_state(Xp: dict, angle, rows=None) -> np.ndarray:
-    """x_p at each angle: sum_r Re{Xp_r[rows] exp(j r angle)} -> (N, len(rows)) (all rows if None)."""
+    """
+    Return x_p at each angle: sum_r Re{Xp_r[rows] exp(j r angle)} -> (N, len(rows)) (all rows if None).
+
+    Xp {ratio r: complex phasor (n,)} (the particular solution's state phasors, or any projection of them, e.g.
+    {r: H Xp_r}); angle (N,) [rad].  Re{X e^{j r a}} = cos(r a) Re X - sin(r a) Im X.
+    """
     angle = np.asarray(angle, dtype=float).reshape(-1)
     if not Xp:
-        n = 0 if rows is None else len(rows)
-        return np.zeros((angle.size, n))
+        return np.zeros((angle.size, 0 if rows is None else len(rows)))
     first = next(iter(Xp.values()))
     sel = np.arange(first.size) if rows is None else np.asarray(rows, dtype=int)
     out = np.zeros((angle.size, sel.size))
     for r, X in Xp.items():
-        out += np.real(np.exp(1j * r * angle)[:, None] * X[sel][None, :])
+        x = np.asarray(X)[sel]
+        ra = r * angle
+        out += np.cos(ra)[:, None] * x.real[None, :] - np.sin(ra)[:, None] * x.imag[None, :]
     return out
 
 
@@ -165,39 +163,20 @@ def _dare_sda(Phi, H, Q, R, max_iter=80):
     return None
 
 
-def _dare_scipy(Phi, H, Q, R, newton_steps=3):
-    """scipy.linalg.solve_discrete_are on the dual (Phi^T, H^T), then Newton (Hewer) refinement steps."""
-    P = sla.solve_discrete_are(Phi.T, H.T, Q, R)
-    P = 0.5 * (P + P.T)
-    n = Phi.shape[0]
-    for _ in range(newton_steps):
-        res = riccati_residual(Phi, H, Q, R, P)
-        if np.max(np.abs(res)) <= 1e-13 * max(np.max(np.abs(P)), 1e-300):
-            break
-        S = H @ P @ H.T + R
-        Kg = np.linalg.solve(S, H @ P).T
-        Fc = Phi @ (np.eye(n) - Kg @ H)
-        P = P + sla.solve_discrete_lyapunov(Fc, res)
-        P = 0.5 * (P + P.T)
-    return P
-
-
-def steady_state_gain(Phi, H, Q, R, method: str = 'sda'):
+def steady_state_gain(Phi, H, Q, R):
     """
     Steady-state prior covariance P, Kalman gain K = P H^T S^-1 and innovation covariance S = H P H^T + R.
 
     P solves the filter DARE  P = Phi P Phi^T - Phi P H^T (H P H^T + R)^-1 H P Phi^T + Q (the dual of the control
-    DARE with (Phi^T, H^T)).  ``method='sda'`` (default): structure-preserving doubling, about 10 ms for the 88-state
-    rotor; ``'scipy'``: scipy.linalg.solve_discrete_are on the dual problem followed by Newton refinement (plain
-    solve_discrete_are leaves a relative Riccati residual of about 1e-6 here with Q = 1e-16 I, too coarse for a
-    filter that must equal the time-varying one to 1e-9).  Falls back to 'scipy' if doubling does not converge.
-    Raises RuntimeError if the final relative residual exceeds 1e-10.
+    DARE with (Phi^T, H^T)), by structure-preserving doubling (:func:`_dare_sda`): about 8 ms for the 88-state rotor,
+    where scipy.linalg.solve_discrete_are takes ~33 ms and leaves a relative Riccati residual of ~6e-7 with
+    Q = 1e-16 I (benchmarks/bench_speed.py (b); test/test_kalman.py ties the two).  Raises RuntimeError if the
+    doubling does not converge or the final relative residual exceeds 1e-10 (check Q, R scaling and detectability).
     """
-    P = _dare_sda(Phi, H, Q, R) if method == 'sda' else None
-    if method not in ('sda', 'scipy'):
-        raise ValueError(f"method must be 'sda' or 'scipy', got {method!r}")
+    P = _dare_sda(Phi, H, Q, R)
     if P is None:
-        P = _dare_scipy(Phi, H, Q, R)
+        raise RuntimeError('the discrete Riccati equation did not converge by doubling; check Q, R scaling and '
+                           'detectability of (Phi, H)')
     S = H @ P @ H.T + R
     S = 0.5 * (S + S.T)
     K = np.linalg.solve(S, H @ P).T
@@ -270,18 +249,17 @@ class KalmanModel:
         return KalmanModel(self.A, self.B, self.H, self.E, self.Phi, Qn, Rn, self.dt, self.speed, self.Xp,
                            self.out_names, self.meas_names)
 
-    def particular(self, angle):
-        """(x_p at the measured rows (N, m), x_p at the output rows (N, k)) for the angles [rad]."""
-        ang = np.asarray(angle, dtype=float)
+    def particular(self, angle, rows=None) -> np.ndarray:
+        """
+        Return ``rows`` x_p (N, k) at the angles (N,) [rad]: the model's forced response seen through ``rows`` (k, n).
+
+        ``rows`` defaults to H (the measured channels); E gives the outputs, the identity the full state.
+        """
+        M = self.H if rows is None else np.atleast_2d(rows)
+        ang = np.asarray(angle, dtype=float).reshape(-1)
         if not self.Xp:
-            return np.zeros((ang.size, self.m)), np.zeros((ang.size, self.E.shape[0]))
-        zp = np.zeros((ang.size, self.m))
-        yp = np.zeros((ang.size, self.E.shape[0]))
-        for r, X in self.Xp.items():
-            ph = np.exp(1j * r * ang)[:, None]
-            zp += np.real(ph * (self.H @ X)[None, :])
-            yp += np.real(ph * (self.E @ X)[None, :])
-        return zp, yp
+            return np.zeros((ang.size, M.shape[0]))
+        return particular_state({r: M @ X for r, X in self.Xp.items()}, ang)
 
 
 def kalman_model(A, B, H, dt: float, *, Q=1e-16, R, forces=None, speed: float = 0.0, E=None, out_names=(),
@@ -490,22 +468,6 @@ class _ChunkedLTI:
         return Y, s_end
 
 
-def _fast_operator(km: KalmanModel, L: int = CHUNK) -> _ChunkedLTI:
-    key = ('filter', L)
-    op = km._chunked.get(key)
-    if op is None:
-        P, K, S = km.steady_state()
-        n = km.n
-        IKH = np.eye(n) - K @ km.H
-        F = km.Phi @ IKH
-        G = km.Phi @ K
-        C = np.vstack([-km.H, km.E @ IKH])
-        D = np.vstack([np.eye(km.m), km.E @ K])
-        op = _ChunkedLTI(F, G, C, D, L)
-        km._chunked[key] = op
-    return op
-
-
 def innovation_chunk(m: int) -> int:
     """
     Chunk length of the innovation operator for ``m`` measured channels (samples per chunk).
@@ -516,50 +478,60 @@ def innovation_chunk(m: int) -> int:
     return CHUNK if m <= 2 else CHUNK // 2
 
 
-def _innovation_operator(km: KalmanModel, L: int | None = None) -> _ChunkedLTI:
-    L = innovation_chunk(km.m) if L is None else L
-    key = ('innovations', L)
-    op = km._chunked.get(key)
+def _operator(km: KalmanModel, outputs: str) -> _ChunkedLTI:
+    """
+    Return the steady-state filter as a chunked LTI map (cached on ``km``), from the prior deviation e(k|k-1).
+
+    Input: the pseudo-measurements zt_k = z_k - H x_p(t_k); state: e(k|k-1) = x_hat(k|k-1) - x_p(t_k), with
+    e(k+1|k) = Phi (I - K H) e(k|k-1) + Phi K zt_k.  Outputs: the innovations nu_k = zt_k - H e(k|k-1)
+    ('innovations'), followed by E e(k|k) ('estimates') or e(k|k) itself ('states'), e(k|k) = (I - K H) e(k|k-1)
+    + K zt_k.  One operator per kind and model; the innovations alone are cheaper to build and to run.
+    """
+    op = km._chunked.get(outputs)
     if op is None:
         P, K, S = km.steady_state()
         IKH = np.eye(km.n) - K @ km.H
-        op = _ChunkedLTI(km.Phi @ IKH, km.Phi @ K, -km.H, np.eye(km.m), L)
-        km._chunked[key] = op
+        C, D = -km.H, np.eye(km.m)
+        if outputs != 'innovations':
+            M = km.E if outputs == 'estimates' else np.eye(km.n)
+            C, D = np.vstack([C, M @ IKH]), np.vstack([D, M @ K])
+        L = innovation_chunk(km.m) if outputs == 'innovations' else CHUNK
+        op = _ChunkedLTI(km.Phi @ IKH, km.Phi @ K, C, D, L)
+        km._chunked[outputs] = op
     return op
 
 
-def innovations(km: KalmanModel, samples, angle, *, x0=None):
-    """
-    Innovations of the steady-state filter alone: (nu (N, m) [m], nis (N,), nis_mean, nis_band).
-
-    The same numbers as :func:`fast_filter` (and the filterpy reference) give, without the state estimates: the
-    chunked operator has only the m innovation outputs, so it is cheaper to build and to run.
-    """
-    z, a = _check_inputs(km, samples, angle)
-    P, K, S = km.steady_state()
-    zp = _particular_rows(km, a)
-    nu, _ = _innovation_operator(km).run(z - zp, _initial_deviation(km, a[0], x0))
-    nis = np.sum((nu @ np.linalg.inv(S)) * nu, axis=1)        # nu_k^T S^-1 nu_k (a product, not a 3-operand einsum)
-    nm = float(np.mean(nis)) if nis.size else float('nan')
-    return nu, nis, nm, nis_band(max(nis.size, 1), km.m)
-
-
-def _particular_rows(km: KalmanModel, a) -> np.ndarray:
-    """H x_p at the angles a (N,) -> (N, m), with cos/sin (no complex exponential array)."""
-    zp = np.zeros((a.size, km.m))
-    for r, X in km.Xp.items():
-        hx = km.H @ X
-        ra = r * a
-        zp += np.cos(ra)[:, None] * hx.real[None, :] - np.sin(ra)[:, None] * hx.imag[None, :]
-    return zp
+def _nis(nu, S) -> np.ndarray:
+    """Normalised innovation squared nu_k^T S^-1 nu_k (N,) for innovations nu (N, m)."""
+    return np.sum((nu @ np.linalg.inv(S)) * nu, axis=1)
 
 
 def _initial_deviation(km: KalmanModel, a0: float, x0):
     """e(0|-1) = x0 - x_p(t0) (zero for the default steady-state start)."""
     if x0 is None:
         return np.zeros(km.n)
-    xp0 = particular_state(km.Xp, [a0])[0] if km.Xp else np.zeros(km.n)
-    return np.asarray(x0, dtype=float) - xp0
+    return np.asarray(x0, dtype=float) - km.particular([a0], np.eye(km.n))[0]
+
+
+def _run(km: KalmanModel, samples, angle, x0, outputs: str):
+    """Check the inputs and run the chunked filter (:func:`_operator` ``outputs``) from x0: (Y (N, ...), angle (N,))."""
+    z, a = _check_inputs(km, samples, angle)
+    zt = z - km.particular(a)
+    Y, _ = _operator(km, outputs).run(zt, _initial_deviation(km, a[0], x0))
+    return Y, a
+
+
+def innovations(km: KalmanModel, samples, angle, *, x0=None):
+    """
+    Innovations of the steady-state filter alone: (nu (N, m) [m], nis (N,), nis_mean, nis_band).
+
+    The numbers :func:`fast_filter` gives, without the state estimates (the operator has only the m innovation
+    outputs).
+    """
+    nu, _ = _run(km, samples, angle, x0, 'innovations')
+    nis = _nis(nu, km.steady_state()[2])
+    nm = float(np.mean(nis)) if nis.size else float('nan')
+    return nu, nis, nm, nis_band(max(nis.size, 1), km.m)
 
 
 def fast_filter(km: KalmanModel, samples, angle, *, x0=None, return_states: bool = False) -> KFResult:
@@ -567,77 +539,20 @@ def fast_filter(km: KalmanModel, samples, angle, *, x0=None, return_states: bool
     Steady-state Kalman filter (gain from the DARE), vectorised.
 
     samples (N, m) [m] measured channels in the order of km.H; angle (N,) keyphasor angle [rad]; x0 (n,) initial
-    prior state (default: the model's steady state x_p(t0), see module docstring).  Equal to :func:`reference_filter`
-    started from the steady-state covariance.
+    prior state (default: the model's steady state x_p(t0), see module docstring).  With the default start this is
+    the paper's time-varying filter started at its steady-state covariance.
     """
-    z, a = _check_inputs(km, samples, angle)
-    P, K, S = km.steady_state()
-    zp, yp = km.particular(a)
-    zt = z - zp
-    op = _fast_operator(km)
-    e0 = _initial_deviation(km, a[0], x0)
-    Y, _ = op.run(zt, e0)
-    nu = Y[:, :km.m]
-    est = Y[:, km.m:] + yp
-    Sinv = np.linalg.inv(S)
-    nis = np.einsum('ki,ij,kj->k', nu, Sinv, nu)
-    states = _filtered_states(km, zt, e0, a) if return_states else None
-    return _result(est, nu, S, nis, states, km.out_names)
-
-
-def _filtered_deviations(km: KalmanModel, zt, e0):
-    """e(k|k) (N, n) of the steady-state filter for pseudo-measurements zt (a plain loop; offline use)."""
-    P, K, S = km.steady_state()
-    N = zt.shape[0]
-    out = np.empty((N, km.n))
-    e = e0.copy()
-    Phi, H = km.Phi, km.H
-    for k in range(N):
-        e = e + K @ (zt[k] - H @ e)
-        out[k] = e
-        e = Phi @ e
-    return out
-
-
-def _filtered_states(km, zt, e0, a):
-    """x(k|k) (N, n) = e(k|k) + x_p(t_k)."""
-    e = _filtered_deviations(km, zt, e0)
-    return e + particular_state(km.Xp, a) if km.Xp else e
-
-
-# ------------------------------------------------------------------------------------------------ reference
-def reference_filter(km: KalmanModel, samples, angle, *, x0=None, P0=None) -> KFResult:
-    """
-    Run the paper's time-varying filter (eqs 12-18) with filterpy's KalmanFilter, one predict/update per sample.
-
-    Prior at the first sample: x_hat(0|-1) = x0 (default x_p(t0)), P(0|-1) = P0 (default the steady-state P_ss).
-    Input per step u_k = d_k = x_p(t_{k+1}) - Phi x_p(t_k) through filterpy's B = I.  Slow (reference only).
-    """
-    z, a = _check_inputs(km, samples, angle)
-    n, m, N = km.n, km.m, z.shape[0]
-    xp = particular_state(km.Xp, a) if km.Xp else np.zeros((N, n))
-    kf = KalmanFilter(dim_x=n, dim_z=m, dim_u=n)
-    kf.F = km.Phi.copy()
-    kf.B = np.eye(n)
-    kf.H = km.H.copy()
-    kf.Q = km.Q.copy()
-    kf.R = km.R.copy()
-    kf.x = (xp[0] if x0 is None else np.asarray(x0, dtype=float)).reshape(n, 1).copy()
-    kf.P = (km.steady_state()[0] if P0 is None else np.asarray(P0, dtype=float)).copy()
-    est = np.empty((N, km.E.shape[0]))
-    nu = np.empty((N, m))
-    Ss = np.empty((N, m, m))
-    nis = np.empty(N)
-    for k in range(N):
-        kf.update(z[k].reshape(m, 1))
-        nu[k] = kf.y[:, 0]
-        Ss[k] = kf.S
-        nis[k] = float(kf.y[:, 0] @ np.linalg.solve(kf.S, kf.y[:, 0]))
-        est[k] = km.E @ kf.x[:, 0]
-        if k + 1 < N:
-            d = xp[k + 1] - km.Phi @ xp[k]
-            kf.predict(u=d.reshape(n, 1))
-    return _result(est, nu, Ss, nis, None, km.out_names)
+    Y, a = _run(km, samples, angle, x0, 'states' if return_states else 'estimates')
+    m = km.m
+    nu = Y[:, :m]
+    states = None
+    if return_states:
+        states = Y[:, m:] + km.particular(a, np.eye(km.n))
+        est = states @ km.E.T
+    else:
+        est = Y[:, m:] + km.particular(a, km.E)
+    S = km.steady_state()[2]
+    return _result(est, nu, S, _nis(nu, S), states, km.out_names)
 
 
 # ------------------------------------------------------------------------------------------------ smoother
@@ -647,32 +562,20 @@ def rts_smoother(km: KalmanModel, samples, angle, *, x0=None, return_states: boo
 
     x_hat(k|N) = x_hat(k|k) + Cs (x_hat(k+1|N) - x_hat(k+1|k)), Cs = P(k|k) Phi^T P(k+1|k)^-1 with the steady-state
     covariances; the known input cancels in the bracket, so the recursion runs on the deviation from x_p.
-    ``innovations``/``nis`` are the forward filter's; ``estimates`` are smoothed.
+    ``innovations``/``nis`` are the forward filter's (:func:`fast_filter`); ``estimates`` are smoothed.
     """
-    z, a = _check_inputs(km, samples, angle)
+    Y, a = _run(km, samples, angle, x0, 'states')
     P, K, S = km.steady_state()
-    zp, yp = km.particular(a)
-    zt = z - zp
-    e0 = _initial_deviation(km, a[0], x0)
-    ef = _filtered_deviations(km, zt, e0)
+    nu, ef = Y[:, :km.m], Y[:, km.m:]                             # innovations, e(k|k)
     Ppost = (np.eye(km.n) - K @ km.H) @ P
     Cs = np.linalg.solve(P.T, (Ppost @ km.Phi.T).T).T            # Ppost Phi^T P^-1 (P symmetric)
-    N = z.shape[0]
     es = np.empty_like(ef)
     es[-1] = ef[-1]
     g = ef - ef @ (Cs @ km.Phi).T                                 # (I - Cs Phi) e(k|k)
-    for k in range(N - 2, -1, -1):
+    for k in range(ef.shape[0] - 2, -1, -1):
         es[k] = g[k] + Cs @ es[k + 1]
-    # forward innovations: nu_k = zt_k - H e(k|k-1), with e(k|k-1) = Phi e(k-1|k-1), e(0|-1) = e0
-    prior = np.vstack([e0[None, :], ef[:-1] @ km.Phi.T])
-    nu = zt - prior @ km.H.T
-    Sinv = np.linalg.inv(S)
-    nis = np.einsum('ki,ij,kj->k', nu, Sinv, nu)
-    est = es @ km.E.T + yp
-    states = None
-    if return_states:
-        states = es + particular_state(km.Xp, a) if km.Xp else es
-    return _result(est, nu, S, nis, states, km.out_names)
+    xs = es + km.particular(a, np.eye(km.n))
+    return _result(xs @ km.E.T, nu, S, _nis(nu, S), xs if return_states else None, km.out_names)
 
 
 # ------------------------------------------------------------------------------------------------ streaming
@@ -688,8 +591,7 @@ class StreamingKF:
     def __init__(self, km: KalmanModel, band_tol_rel: float = 0.05):
         self.km = km
         self.band_tol_rel = float(band_tol_rel)
-        self._op = _fast_operator(km)
-        self._Sinv = np.linalg.inv(km.steady_state()[2])
+        self._op = _operator(km, 'estimates')
         self._e = np.zeros(km.n)           # e(k|k-1) for the next sample
         self.n_samples = 0
 
@@ -709,8 +611,7 @@ class StreamingKF:
                              f'+- {100 * self.band_tol_rel:.3g} %); rebuild the model for this speed')
         km = self.km
         z, a = _check_inputs(km, samples, angle)
-        zp, yp = km.particular(a)
-        Y, self._e = self._op.run(z - zp, self._e)
+        Y, self._e = self._op.run(z - km.particular(a), self._e)
         nu = Y[:, :km.m]
         self.n_samples += z.shape[0]
-        return Y[:, km.m:] + yp, nu, np.einsum('ki,ij,kj->k', nu, self._Sinv, nu)
+        return Y[:, km.m:] + km.particular(a, km.E), nu, _nis(nu, km.steady_state()[2])

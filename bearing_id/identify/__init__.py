@@ -12,8 +12,9 @@ Methods and the agreed call signature (all four take the same positional argumen
     rig     : params.RigParams (bearing geometry and nominal oil for the theory/prior).
     data    : harmonics.HarmonicData -- measured 1X phasors per run and speed:
               data.speeds (ns,) rad/s, data.X complex (nr, ns, nch) [m], data.X_std (nr, ns, nch) [m] (1-sigma of the
-              real and of the imaginary part), data.probes, data.runs; optionally data.recordings (the raw
-              rig.Recording list, needed by the KF route of the paper method).
+              real and of the imaginary part), data.probes, data.runs; data.plain (each window's plain 1X fit)
+              or data.recordings (the raw Recording list) for the paper method's Kalman filter, the recordings
+              also for its NIS.
     probes  : tuple of params.Probe, one per channel of data.X (same order).
     runs    : tuple of params.Run, one per run of data.X (the known excitation).
     options : dict of method options (None = defaults); unknown keys are an error.

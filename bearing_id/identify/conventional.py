@@ -21,8 +21,7 @@ Interpolation-bias check (stated rules)
       chi-square test against the propagated noise of the interpolated displacements
       (:func:`bearing_id.identify.lsq.solve_coefficients`, :func:`bearing_id.identify.determined.fit_quality`); a
       misfit (the straight line does not fit the data within their noise) Birge-scales every std and flags the
-      result ``misfit``.  (Before issue 11: residual-based / propagated std > CONSISTENCY_FLAG = 3 made every
-      coefficient undetermined; the constant is kept for reference.)
+      result ``misfit``.
 
 Determined: the one rule of :mod:`bearing_id.identify.determined` (in :func:`bearing_id.identify.lsq.build_result`),
 with the interpolation-bias flags as the method's own veto.  ``probe_pairs`` lives in :mod:`.lsq` (re-exported here).
@@ -37,8 +36,6 @@ from .lsq import (bearing_dofs, bearing_force_map, build_result, coefficient_lab
 from .result import IdentResult
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
 from ..rotor.supports import bearing_fn
-
-CONSISTENCY_FLAG = 3.0      # historical (see the module docstring); the misfit test replaces it
 
 
 def interpolate(model, probes, X, X_std=None, pairs=None):
@@ -57,13 +54,15 @@ def interpolate(model, probes, X, X_std=None, pairs=None):
     return z, (zs if X_std is not None else None)
 
 
-def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=None, *, rtol=DEFAULT_RTOL):
+def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=None, *, rtol=DEFAULT_RTOL,
+                       force_map=None):
     """
     (bias (8 nb,), z_B error): the method's own error on the theory model's noise-free response at ``speed``.
 
     bias = |theta_conventional - theta_theory| / group size (:func:`bearing_id.identify.design.coefficient_scales`),
     theta = [K; Omega C] as in :func:`bearing_id.identify.paper.coeffs_to_theta`; z_B error = ||z_interp - z_B|| /
-    ||z_B|| of the interpolated bearing displacements.  forces complex (nr, ndof) [N].
+    ||z_B|| of the interpolated bearing displacements.  forces complex (nr, ndof) [N]; ``force_map`` as in
+    :func:`bearing_id.identify.lsq.solve_coefficients`.
     """
     nodes = tuple(model.bearing_nodes)
     S = probe_matrix(model, probes)
@@ -71,8 +70,7 @@ def interpolation_bias(model, probes, speed: float, theory: dict, forces, pairs=
     q = np.linalg.solve(dynamic_stiffness(model, speed, speed, theory), forces.T).T      # every run, one solve
     z_true = q[:, bearing_dofs(model)].reshape(len(q), len(nodes), 2)
     z_int, _ = interpolate(model, probes, q @ S.T, None, pairs)
-    sol = solve_coefficients(model, speed, z_int, forces, rtol=rtol,
-                             forces_of=bearing_force_map(model, speed, forces)[0])
+    sol = solve_coefficients(model, speed, z_int, forces, rtol=rtol, force_map=force_map)
     bias = np.abs(sol.theta - coeffs_to_theta(theory, speed, nodes)) / coefficient_scales(theory, speed, nodes)
     return bias, float(np.linalg.norm(z_int - z_true) / max(np.linalg.norm(z_true), 1e-300))
 
@@ -98,14 +96,14 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
     for s, w in enumerate(data.speeds):
         w = float(w)
         F = forces_at(model, runs, w)
-        fmap = bearing_force_map(model, w, np.asarray(F, complex))
+        fmap = bearing_force_map(model, w, F)
         sol = solve_coefficients(model, w, zB_all[:, s], F, z_B_std=zs_all[:, s],
-                                 rtol=opts.get('rtol', DEFAULT_RTOL), forces_of=fmap[0], force_lin=fmap[1])
+                                 rtol=opts.get('rtol', DEFAULT_RTOL), force_map=fmap)
         notes = [f'bearing displacements interpolated from probe nodes {used} (straight line along the shaft)']
         theory = bfn(w)
         thr = opts.get('max_rel_std') or DEFAULT_MAX_REL_STD
         bias, zerr = interpolation_bias(model, probes, w, theory, F, opts.get('pairs'),
-                                        rtol=opts.get('rtol', DEFAULT_RTOL))
+                                        rtol=opts.get('rtol', DEFAULT_RTOL), force_map=fmap)
         flag = bias > thr
         # the bias depends on the coefficients (mode shapes): evaluated at the theory AND at the estimate, the larger
         bias_abs = bias * coefficient_scales(theory, w, model.bearing_nodes)
@@ -113,7 +111,7 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
             K_e, C_e = theta_to_KC(sol.theta, w, len(model.bearing_nodes))
             est = {n: (K_e[i], C_e[i]) for i, n in enumerate(model.bearing_nodes)}
             b_e, _ = interpolation_bias(model, probes, w, est, F, opts.get('pairs'),
-                                        rtol=opts.get('rtol', DEFAULT_RTOL))
+                                        rtol=opts.get('rtol', DEFAULT_RTOL), force_map=fmap)
             bias_abs = np.fmax(bias_abs, b_e * coefficient_scales(est, w, model.bearing_nodes))
         except (np.linalg.LinAlgError, ValueError):
             pass
@@ -135,4 +133,4 @@ def identify_conventional(model, rig, data, probes, runs, options=None) -> list[
     return out
 
 
-__all__ = ['probe_pairs', 'interpolate', 'interpolation_bias', 'identify_conventional', 'CONSISTENCY_FLAG']
+__all__ = ['probe_pairs', 'interpolate', 'interpolation_bias', 'identify_conventional']

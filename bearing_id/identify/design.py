@@ -36,11 +36,10 @@ import numpy as np
 
 from .determined import judge
 from .lsq import (analyse, coefficient_jacobian, coefficient_labels, coefficient_scales, coeffs_to_theta,
-                  DEFAULT_MAX_REL_STD, Identifiability, ls_system, NULL_FRACTION, probe_pairs, STRUCTURAL_RTOL,
-                  whitened_jacobian)
+                  DEFAULT_MAX_REL_STD, forces_at, Identifiability, ls_system, NULL_FRACTION, probe_pairs,
+                  STRUCTURAL_RTOL, whitened_jacobian)
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm
-from ..excitation import harmonic_forces
 from ..rotor.assembly import film_dofs, harmonic_response
 
 
@@ -89,21 +88,6 @@ class DesignReport:
         return '\n'.join(lines)
 
 
-def _film_deflection(model, q, node) -> list:
-    """Return [x, y] of the film deflection at a bearing: the shaft node, minus its pedestal when it has one."""
-    i, j = film_dofs(model, node)
-    d = q[i:i + 2] if j is None else q[i:i + 2] - q[j:j + 2]
-    return [d[0], d[1]]
-
-
-def _forces(runs, speed, n_nodes, ndof=None):
-    out = []
-    for r in runs:
-        F = harmonic_forces(r.excitation, speed, n_nodes, ndof).get(1.0)
-        out.append(F if F is not None else np.zeros(ndof or 4 * n_nodes, dtype=complex))
-    return out
-
-
 def _score(model, speed, coeffs, probes, forces, noise_rel, max_rel_std):
     Jw, _ = whitened_jacobian(model, speed, coeffs, probes, forces, noise_rel)
     a = analyse(Jw, max_rel_std=max_rel_std)
@@ -124,7 +108,7 @@ def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT
     disc_nodes = disc_nodes if disc_nodes is not None else sorted(model.discs)
     have = {(p.node, p.direction) for p in probes}
     out = []
-    rank, logdet, a = _score(model, speed, coeffs, probes, _forces(runs, speed, model.n_nodes, model.ndof), noise_rel,
+    rank, logdet, a = _score(model, speed, coeffs, probes, forces_at(model, runs, speed), noise_rel,
                              max_rel_std)
     for _ in range(max_steps):
         if rank >= a.unknowns:
@@ -139,7 +123,7 @@ def advise(model, speed, coeffs, probes, runs, noise_rel, *, max_rel_std=DEFAULT
         for kind, c in cand:
             pr = probes + [c] if kind == 'probe' else probes
             rn = runs + [c] if kind == 'force' else runs
-            r2, ld2, a2 = _score(model, speed, coeffs, pr, _forces(rn, speed, model.n_nodes, model.ndof), noise_rel,
+            r2, ld2, a2 = _score(model, speed, coeffs, pr, forces_at(model, rn, speed), noise_rel,
                                  max_rel_std)
             key = (r2, ld2)
             if best is None or key > best[0]:
@@ -179,16 +163,15 @@ def check_design(model, probes, runs, speeds, bearing_fn, *, noise_rel=None, sam
     for w in np.atleast_1d(speeds):
         w = float(w)
         coeffs = bearing_fn(w)
-        forces = _forces(runs, w, model.n_nodes, model.ndof)
+        forces = forces_at(model, runs, w)
         Jw, scale = whitened_jacobian(model, w, coeffs, probes, forces, noise_rel)
         data = analyse(Jw, labels, max_rel_std=max_rel_std)
         methods = {'direct': data}
-        # the eqs 33-37 system itself, on the model's bearing displacements (its own algebraic rank)
-        zb = []
-        for F in forces:
-            q = harmonic_response(model, w, w, F, coeffs)
-            zb.append([_film_deflection(model, q, n) for n in nodes])
-        A, _ = ls_system(np.array(zb), np.zeros((len(forces), len(nodes), 2), dtype=complex))
+        # the eqs 33-37 system itself, on the model's bearing (film) displacements (its own algebraic rank)
+        q = harmonic_response(model, w, w, np.asarray(forces, dtype=complex).T, coeffs).T
+        zb = np.stack([q[:, i:i + 2] - (q[:, j:j + 2] if j is not None else 0.0)
+                       for i, j in (film_dofs(model, n) for n in nodes)], axis=1)
+        A, _ = ls_system(zb, np.zeros(zb.shape, dtype=complex))
         s = np.linalg.svd(A * scale[None, :], compute_uv=False)
         ls_rank = int(np.count_nonzero(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
         methods['paper'] = (f'rank {min(ls_rank, data.rank)} of {data.unknowns} (eqs 33-37 system rank {ls_rank}; '

@@ -119,77 +119,19 @@ def _bearing_dofs(model, nodes) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------ forward model
-def response_and_jacobian(model, speed: float, cases, beta: np.ndarray, nodes, *, Z0=None):
-    """
-    Predicted probe phasors and their derivatives w.r.t. beta at one speed.
-
-    Parameters
-    ----------
-    model
-        rotor.assembly.RotorModel (no bearings).
-    speed
-        rad/s (the excitation frequency is the speed: 1X).
-    cases
-        list of :class:`Case`.
-    beta
-        (8 nb,) bearing coefficients in SI (see :func:`coeffs_to_beta`).
-    nodes
-        1-based bearing nodes (nb,).
-    Z0
-        optional precomputed rotor dynamic stiffness at this speed.
-
-    Returns
-    -------
-    y : list of complex (nch_r,) predicted phasors [m];  dy : list of complex (nch_r, 8 nb) d y / d beta.
-
-    """
-    if Z0 is None:
-        Z0 = dynamic_stiffness(model, speed, speed, {})
-    Z = Z0.copy()
-    bd = _bearing_dofs(model, nodes)
-    peds = [film_dofs(model, n)[1] for n in nodes]           # pedestal x DOF per bearing or None
-    w = speed
-    for i in range(len(nodes)):
-        a = bd[i]
-        blk = beta[8 * i:8 * i + 4].reshape(2, 2) + 1j * w * beta[8 * i + 4:8 * i + 8].reshape(2, 2)
-        Z[np.ix_(a, a)] += blk
-        if peds[i] is not None:                               # film in series with a pedestal: acts on q_a - q_p
-            p = np.array([peds[i], peds[i] + 1])
-            Z[np.ix_(p, p)] += blk
-            Z[np.ix_(a, p)] -= blk
-            Z[np.ix_(p, a)] -= blk
-    flat = bd.reshape(-1)                                     # (2 nb,) bearing DOFs
-    E = np.zeros((Z.shape[0], flat.size), dtype=complex)
-    E[flat, np.arange(flat.size)] = 1.0
-    for i, j in enumerate(peds):
-        if j is not None:
-            E[[j, j + 1], [2 * i, 2 * i + 1]] = -1.0
-    F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
-    sol = np.linalg.solve(Z, np.concatenate([F, E], axis=1))  # q for every run, Z^-1 columns at bearing DOFs
-    Q, Ginv = sol[:, :F.shape[1]], sol[:, F.shape[1]:]
-    ys, dys = [], []
-    for r, c in enumerate(cases):
-        P = probe_matrix(model, c.probes)
-        q = Q[:, r]
-        PG = P @ Ginv                                         # (nch, 2 nb)
-        d = np.zeros((P.shape[0], 8 * len(nodes)), dtype=complex)
-        for i in range(len(nodes)):
-            qb = q[bd[i]]                                     # (2,) bearing-node displacement (film deflection)
-            if peds[i] is not None:
-                qb = qb - q[peds[i]:peds[i] + 2]
-            for row in range(2):
-                col_g = PG[:, 2 * i + row]
-                for col in range(2):
-                    k = 2 * row + col
-                    d[:, 8 * i + k] = -col_g * qb[col]
-                    d[:, 8 * i + 4 + k] = -col_g * qb[col] * (1j * w)
-        ys.append(P @ q)
-        dys.append(d)
-    return ys, dys
-
-
 SPARSE_NDOF = 200         # above this many DOFs :class:`SpeedResponse` factorises Z with a sparse LU (splu)
 WOODBURY_COND = 1e10      # above this condition of the m x m capacitance :class:`SpeedResponse` re-factorises
+
+
+def probe_rows(model, cases):
+    """
+    Every run's probe rows stacked: (P (nrow, ndof) real, run (nrow,) int) with nrow = sum of the runs' channels.
+
+    Row i of P is the measurement row of one channel of run ``run[i]`` (:func:`bearing_id.rotor.assembly.probe_matrix`);
+    the predicted phasors of all runs are then y_i = (P Q)[i, run[i]] with Q (ndof, nr) the runs' responses.
+    """
+    P = [probe_matrix(model, c.probes) for c in cases]
+    return np.vstack(P), np.concatenate([np.full(p.shape[0], r) for r, p in enumerate(P)])
 
 
 def _film_blocks(model, nodes):
@@ -208,21 +150,22 @@ def _film_blocks(model, nodes):
 
 class SpeedResponse:
     """
-    Fast :func:`response_and_jacobian` at one speed: one factorisation per speed, Woodbury updates in beta.
+    Predicted probe phasors of every run at one speed and their Jacobian in beta: one factorisation per speed.
 
     Z(beta) = Z_ref + P_S D(beta - beta_ref) P_S^T, where S are the m DOFs the films act on (bearing nodes and their
-    pedestals, m <= 4 nb) and D (m, m) is linear in beta.  Z_ref = Z(beta_ref) is factorised once (sparse LU above
-    :data:`SPARSE_NDOF` DOFs -- the FE dynamic stiffness is banded apart from the pedestal rows; dense below) and
-    W = Z_ref^-1 [F, P_S] computed once; then for any beta, with H = (Z_ref^-1)_SS and
-    K = (I + D H)^-1 D (m x m), Z^-1 X = Z_ref^-1 X - W_S K (Z_ref^-1 X)_S (Sherman-Morrison-Woodbury), and only
-    the probe rows and the S rows of it are formed.  Per call: O(nch m + m^3) instead of a dense (ndof, ndof) solve.
-    Equal to :func:`response_and_jacobian` (the reference) to 1e-9 relative (test/test_direct_fast.py); when the
-    capacitance I + D H is ill-conditioned (cond > :data:`WOODBURY_COND`, beta far from beta_ref) it re-factorises at
-    that beta.
+    pedestals, m <= 4 nb) and D (m, m) is linear in beta (a film in series with a pedestal acts on q_a - q_p).
+    Z_ref = Z(beta_ref) is factorised once (sparse LU above :data:`SPARSE_NDOF` DOFs -- the FE dynamic stiffness is
+    banded apart from the pedestal rows; dense below) and W = Z_ref^-1 [F, P_S] computed once; then for any beta,
+    with H = (Z_ref^-1)_SS and K = (I + D H)^-1 D (m x m), Z^-1 X = Z_ref^-1 X - W_S K (Z_ref^-1 X)_S
+    (Sherman-Morrison-Woodbury), and only the probe rows and the S rows of it are formed.  Per call O(nrow m + m^3)
+    instead of a dense (ndof, ndof) solve.  The Jacobian is exact (Z is linear in beta):
+    dq/dbeta_k = -Z^-1 dZ_k q.  When the capacitance I + D H is ill-conditioned (cond > :data:`WOODBURY_COND`,
+    beta far from beta_ref) it re-factorises at that beta.  test/test_direct_fast.py checks it against a dense solve
+    of the assembled dynamic stiffness and finite differences of it.
     """
 
     def __init__(self, model, speed: float, cases, nodes, beta_ref, *, Z0=None, sparse: bool | None = None):
-        self.model, self.speed, self.cases = model, float(speed), list(cases)
+        self.speed = float(speed)
         self.nodes = tuple(int(n) for n in nodes)
         self.Z0 = dynamic_stiffness(model, speed, speed, {}) if Z0 is None else Z0
         self.sparse = (self.Z0.shape[0] > SPARSE_NDOF) if sparse is None else bool(sparse)
@@ -235,35 +178,18 @@ class SpeedResponse:
                 if self.peds[i] is not None:
                     Es[self.pos[int(self.peds[i]) + r], 2 * i + r] = -1.0
         self.Es = Es
-        self.F = np.stack([np.asarray(c.F, dtype=complex) for c in self.cases], axis=1)
-        self.P = [probe_matrix(model, c.probes) for c in self.cases]
-        # D(dbeta) is linear: its (m m, 8 nb) complex matrix, built column by column from D() itself
-        self._Dmap = self._d_map()
-        # positions in S of each bearing's (x, y) and of its pedestal's (or of the bearing's again: no pedestal)
+        self.F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
+        self.P, self.run = probe_rows(model, cases)
+        self._Dmap = self._d_map()                            # D(dbeta) = (Dmap @ dbeta).reshape(m, m)
+        # positions in S of each bearing's (x, y) and of its pedestal's (or -1: no pedestal)
         self._qa = np.array([[self.pos[int(self.bd[i, r])] for r in range(2)] for i in range(nb)])
         self._qp = np.array([[self.pos[int(self.peds[i]) + r] for r in range(2)] if self.peds[i] is not None
                              else [-1, -1] for i in range(nb)])
         self._has_ped = bool(np.any(self._qp >= 0))
         self._factor(np.asarray(beta_ref, float))
 
-    def D(self, dbeta) -> np.ndarray:
-        """Return the (m, m) complex change of Z on S for a change ``dbeta`` (8 nb,) of the coefficients."""
-        m = self.S.size
-        D = np.zeros((m, m), dtype=complex)
-        w = self.speed
-        for i in range(len(self.nodes)):
-            blk = dbeta[8 * i:8 * i + 4].reshape(2, 2) + 1j * w * dbeta[8 * i + 4:8 * i + 8].reshape(2, 2)
-            a = [self.pos[int(d)] for d in self.bd[i]]
-            D[np.ix_(a, a)] += blk
-            if self.peds[i] is not None:
-                p = [self.pos[int(self.peds[i])], self.pos[int(self.peds[i]) + 1]]
-                D[np.ix_(p, p)] += blk
-                D[np.ix_(a, p)] -= blk
-                D[np.ix_(p, a)] -= blk
-        return D
-
     def _d_map(self) -> np.ndarray:
-        """Return the (m m, 8 nb) complex matrix of the linear map dbeta -> D(dbeta).ravel() (:meth:`D`)."""
+        """Return the (m m, 8 nb) complex matrix of the linear map dbeta -> D(dbeta).ravel()."""
         m, nb = self.S.size, len(self.nodes)
         out = np.zeros((m, m, 8 * nb), dtype=complex)
         for i in range(nb):
@@ -281,7 +207,7 @@ class SpeedResponse:
 
     def _capacitance(self, beta):
         """Return (H, K = (I + D H)^-1 D) at ``beta``, or None when I + D H is too ill-conditioned (re-factorise)."""
-        nr, m = self.nr, self.S.size
+        nr, m = self.F.shape[1], self.S.size
         D = (self._Dmap @ (beta - self.beta_ref)).reshape(m, m)
         H = self.WS[:, nr:]
         cap = np.eye(m) + D @ H
@@ -296,10 +222,10 @@ class SpeedResponse:
 
     def _factor(self, beta_ref) -> None:
         self.beta_ref = beta_ref.copy()
-        Z = self.Z0.astype(complex, copy=True)
         S = self.S
-        Z[np.ix_(S, S)] += self.D(beta_ref)
         nr, m = self.F.shape[1], S.size
+        Z = self.Z0.astype(complex, copy=True)
+        Z[np.ix_(S, S)] += (self._Dmap @ beta_ref).reshape(m, m)
         rhs = np.zeros((Z.shape[0], nr + m), dtype=complex)
         rhs[:, :nr] = self.F
         rhs[S, nr + np.arange(m)] = 1.0
@@ -310,132 +236,111 @@ class SpeedResponse:
                 raise np.linalg.LinAlgError(str(e)) from None
         else:
             W = np.linalg.solve(Z, rhs)
-        self.nr = nr
         self.WS = W[S]                                        # (m, nr + m): rows at S of Z_ref^-1 [F, P_S]
-        self.PW = [P @ W for P in self.P]                     # (nch_r, nr + m) each
+        PW = self.P @ W                                       # (nrow, nr + m)
         sel = np.zeros((nr + m, nr + 2 * len(self.nodes)))   # [Z_ref^-1 F, Z_ref^-1 E] from [.. F, .. P_S]
         sel[:nr, :nr] = np.eye(nr)
         sel[nr:, nr:] = self.Es
-        self._sel = sel
         self._XS = self.WS @ sel                              # (m, nr + 2 nb) rows at S of Z_ref^-1 [F, E]
-        self._PWsel = [PW @ sel for PW in self.PW]
-        if len({PW.shape[0] for PW in self.PW}) == 1:
-            self._PWsel_st = np.stack(self._PWsel)            # (nr, nch, nr + 2 nb)
-            self._PWm_st = np.stack([PW[:, nr:] for PW in self.PW])      # (nr, nch, m)
+        self._PX = PW @ sel                                   # (nrow, nr + 2 nb) probe rows of the same
+        self._PWm = PW[:, nr:]                                # (nrow, m)
 
     def __call__(self, beta):
-        """Return (ys, dys) as :func:`response_and_jacobian` at ``beta`` (8 nb,)."""
+        """
+        Return (y, dy) at ``beta`` (8 nb,): y complex (nrow,) predicted phasors [m], dy complex (nrow, 8 nb) dy/dbeta.
+
+        Rows in the order of :func:`probe_rows` (run by run, each run's channels in order).
+        """
         beta = np.asarray(beta, float)
-        nr, nb = self.nr, len(self.nodes)
+        nr, nb = self.F.shape[1], len(self.nodes)
         hk = self._capacitance(beta)
         if hk is None:
             self._factor(beta)
             return self(beta)
         H, Kc = hk                                            # H = (Z_ref^-1)_SS, Kc = (I + D H)^-1 D
-        XS = self._XS                                         # (m, nr + 2 nb) rows at S of Z_ref^-1 [F, E]
-        corr = Kc @ XS
-        XS_new = XS - H @ corr                                # rows at S of Z^-1 [F, E]
-        qS = XS_new[:, :nr]                                   # (m, nr)
+        corr = Kc @ self._XS
+        qS = (self._XS - H @ corr)[:, :nr]                    # rows at S of Z^-1 F (m, nr)
         qb = qS[self._qa]                                     # (nb, 2, nr) film deflections at the bearings
         if self._has_ped:
             qb = qb - np.where((self._qp >= 0)[:, :, None], qS[np.maximum(self._qp, 0)], 0.0)
-        jw = 1j * self.speed
-        ys, dys = [], []
-        for r, PW in enumerate(self.PW):
-            PX = self._PWsel[r] - PW[:, nr:] @ corr           # (nch, nr + 2 nb): P Z^-1 [F, E]
-            PG = PX[:, nr:].reshape(-1, nb, 2, 1)
-            blockk = -(PG * qb[None, :, None, :, r]).reshape(PG.shape[0], nb, 4)
-            d = np.concatenate([blockk, blockk * jw], axis=2).reshape(PG.shape[0], 8 * nb)
-            ys.append(PX[:, r])
-            dys.append(d)
-        return ys, dys
-
-    def stacked(self, beta):
-        """
-        Return :meth:`__call__` stacked over the runs: ys complex (nr, nch), dys complex (nr, nch, 8 nb).
-
-        All runs must have the same number of channels (:attr:`uniform`); the same numbers, fewer array operations.
-        """
-        beta = np.asarray(beta, float)
-        nr, nb = self.nr, len(self.nodes)
-        hk = self._capacitance(beta)
-        if hk is None:
-            self._factor(beta)
-            return self.stacked(beta)
-        H, Kc = hk
-        corr = Kc @ self._XS
-        qS = (self._XS - H @ corr)[:, :nr]
-        qb = qS[self._qa]                                     # (nb, 2, nr)
-        if self._has_ped:
-            qb = qb - np.where((self._qp >= 0)[:, :, None], qS[np.maximum(self._qp, 0)], 0.0)
-        PX = self._PWsel_st - self._PWm_st @ corr             # (nr, nch, nr + 2 nb)
-        nch = PX.shape[1]
-        ys = PX[np.arange(nr), :, np.arange(nr)]              # (nr, nch)
-        PG = PX[:, :, nr:].reshape(nr, nch, nb, 2, 1)
-        blockk = -(PG * qb.transpose(2, 0, 1)[:, None, :, None, :]).reshape(nr, nch, nb, 4)
-        dys = np.empty((nr, nch, nb, 8), dtype=complex)
-        dys[..., :4] = blockk
-        dys[..., 4:] = blockk * (1j * self.speed)
-        return ys, dys.reshape(nr, nch, 8 * nb)
-
-    @property
-    def uniform(self) -> bool:
-        """All runs have the same number of channels (:meth:`stacked` applies)."""
-        return len({P.shape[0] for P in self.P}) == 1
+        PX = self._PX - self._PWm @ corr                      # (nrow, nr + 2 nb): P Z^-1 [F, E]
+        nrow = PX.shape[0]
+        y = PX[np.arange(nrow), self.run]
+        PG = PX[:, nr:].reshape(nrow, nb, 2, 1)               # P Z^-1 at the bearing rows
+        qrow = qb.transpose(2, 0, 1)[self.run]                # (nrow, nb, 2) the row's run's film deflection
+        blockk = -(PG * qrow[:, :, None, :]).reshape(nrow, nb, 4)
+        dy = np.empty((nrow, nb, 8), dtype=complex)
+        dy[..., :4] = blockk
+        dy[..., 4:] = blockk * (1j * self.speed)
+        return y, dy.reshape(nrow, 8 * nb)
 
 
-class WeightedStack:
+def _sigma(c: Case) -> np.ndarray:
+    X = np.asarray(c.X, dtype=complex)
+    s = np.asarray(c.X_std, dtype=float)
+    floor = 1e-12 * max(float(np.max(np.abs(X))), 1e-30)
+    return np.maximum(np.where(np.isfinite(s), s, np.inf), floor)
+
+
+class Weighting:
     """
-    :func:`weighted_stack` of fixed ``cases`` and ``scale`` on stacked predictions (:meth:`SpeedResponse.stacked`).
+    Weighted real residual of predicted phasors (rows of :func:`probe_rows`) against the measured ones of ``cases``.
 
-    The 1-sigma (:func:`_sigma`) and the measured phasors are formed once; the same numbers as
-    :func:`weighted_stack` (the reference; test/test_direct_fast.py).  Needs cases of equal channel count.
+    r = [Re e; Im e] with e = (y - X) / sigma per row (sigma = the measured 1-sigma of Re and Im, floored at 1e-12 of
+    the run's largest |X|); the Jacobian columns are multiplied by ``scale`` (d r / d theta for beta = theta scale).
     """
 
-    def __init__(self, cases, scale):
-        self.X = np.stack([np.asarray(c.X, dtype=complex) for c in cases])      # (nr, nch)
-        self.sg = np.stack([_sigma(c) for c in cases])                         # (nr, nch)
-        self.scale = np.asarray(scale, dtype=float)
+    def __init__(self, cases, scale=None):
+        self.X = np.concatenate([np.asarray(c.X, dtype=complex) for c in cases])      # (nrow,)
+        self.sg = np.concatenate([_sigma(c) for c in cases])                          # (nrow,)
+        self.scale = None if scale is None else np.asarray(scale, dtype=float)
 
-    def __call__(self, ys, dys):
-        """Return (r, J) as :func:`weighted_stack` for ys (nr, nch), dys (nr, nch, n)."""
-        e = (ys - self.X) / self.sg
-        dd = dys * self.scale[None, None, :] / self.sg[:, :, None]
-        nr, nch, n = dd.shape
-        r = np.empty((nr, 2, nch))
-        r[:, 0], r[:, 1] = e.real, e.imag
-        J = np.empty((nr, 2, nch, n))
-        J[:, 0], J[:, 1] = dd.real, dd.imag
-        return r.reshape(-1), J.reshape(-1, n)
+    def residual(self, y) -> np.ndarray:
+        """Return r (2 nrow,) for predictions y complex (nrow,)."""
+        e = (y - self.X) / self.sg
+        return np.concatenate([e.real, e.imag])
+
+    def __call__(self, y, dy):
+        """Return (r (2 nrow,), J (2 nrow, n)) for y (nrow,) and dy (nrow, n) = d y / d beta."""
+        dd = dy * (self.scale[None, :] / self.sg[:, None])
+        return self.residual(y), np.vstack([dd.real, dd.imag])
 
 
 AUG_FD_STEP = 1e-6        # central-difference step of the augmented-model Jacobian, in units of the block scale
 
 
+def augmented_response(model, speed: float, cases, coeffs: dict, augment, rows=None) -> np.ndarray:
+    """
+    Predicted phasors y complex (nrow,) [m] (rows of :func:`probe_rows`) through an augmented-model hook.
+
+    ``rows``: the (P, run) of :func:`probe_rows` if already built.
+    """
+    P, run = probe_rows(model, cases) if rows is None else rows
+    F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
+    Q = np.linalg.solve(augment.dynamic_stiffness(speed, speed, coeffs), F)
+    return (P @ Q)[np.arange(run.size), run]
+
+
 def response_and_jacobian_augmented(model, speed: float, cases, beta: np.ndarray, nodes, augment, scale):
     """
-    Do as :func:`response_and_jacobian` but through an augmented-model hook.
+    Return (y, dy) as :meth:`SpeedResponse.__call__` but through an augmented-model hook.
 
     The hook is ``augment.dynamic_stiffness(speed, omega, coeffs)``; d y / d beta by central differences (step
     ``AUG_FD_STEP`` x ``scale`` per unknown).
     """
-    P = [probe_matrix(model, c.probes) for c in cases]
-    F = np.stack([np.asarray(c.F, dtype=complex) for c in cases], axis=1)
+    rows = probe_rows(model, cases)
 
-    def ys_of(b):
-        Q = np.linalg.solve(augment.dynamic_stiffness(speed, speed, beta_to_coeffs(b, nodes)), F)
-        return [P[r] @ Q[:, r] for r in range(len(cases))]
+    def y_of(b):
+        return augmented_response(model, speed, cases, beta_to_coeffs(b, nodes), augment, rows)
 
-    ys = ys_of(beta)
-    dys = [np.zeros((p.shape[0], beta.size), dtype=complex) for p in P]
+    y = y_of(beta)
+    dy = np.zeros((y.size, beta.size), dtype=complex)
     for k in range(beta.size):
         h = AUG_FD_STEP * float(scale[k])
         db = np.zeros_like(beta)
         db[k] = h
-        yp, ym = ys_of(beta + db), ys_of(beta - db)
-        for r in range(len(cases)):
-            dys[r][:, k] = (yp[r] - ym[r]) / (2 * h)
-    return ys, dys
+        dy[:, k] = (y_of(beta + db) - y_of(beta - db)) / (2 * h)
+    return y, dy
 
 
 # ------------------------------------------------------------------------------------------------ information analysis
@@ -460,25 +365,6 @@ def information_analysis(J: np.ndarray):
     cond = float(smax / s[n - 1]) if rank == n else math.inf
     cond_r = float(smax / s[rank - 1]) if rank else math.inf
     return {'rank': rank, 'condition': cond, 'condition_range': cond_r, 'singular': s, 'cov_pinv': cov, 'leakage': leak}
-
-
-def _sigma(c: Case) -> np.ndarray:
-    X = np.asarray(c.X, dtype=complex)
-    s = np.asarray(c.X_std, dtype=float)
-    floor = 1e-12 * max(float(np.max(np.abs(X))), 1e-30)
-    return np.maximum(np.where(np.isfinite(s), s, np.inf), floor)
-
-
-def weighted_stack(cases, ys, dys, scale):
-    """Weighted real residual (Re and Im of (y - X) / sigma per case) and its Jacobian times ``scale`` (columns)."""
-    r, J = [], []
-    for c, y, d in zip(cases, ys, dys):
-        sg = _sigma(c)
-        e = (y - np.asarray(c.X, dtype=complex)) / sg
-        dd = d * scale[None, :] / sg[:, None]
-        r += [e.real, e.imag]
-        J += [dd.real, dd.imag]
-    return np.concatenate(r), np.vstack(J)
 
 
 PROFILE_SIGMAS = 3.0      # the profile check looks at value +- this many linearised sigma
@@ -530,7 +416,7 @@ def profile_widening(fun_jac, theta, cov, k: int, chi2_min: float, birge: float 
 def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, start: dict | None = None,
               prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = 'direct',
               max_nfev: int = 200, max_rel_std: float | None = MAX_REL_STD, augment=None,
-              profile_check: bool = True, fast: bool = True) -> IdentResult:
+              profile_check: bool = True) -> IdentResult:
     """
     Output-error fit of the 8 nb bearing coefficients at one speed.
 
@@ -567,9 +453,6 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
         central differences in the scaled unknowns (relative step 1e-6).
     profile_check
         run the nonlinearity check (profile chi2, module docstring) on the determined coefficients (default True).
-    fast
-        the forward model through :class:`SpeedResponse` (one factorisation per speed; default True) instead of
-        a dense solve per evaluation (:func:`response_and_jacobian`, the reference; False).
 
     Returns
     -------
@@ -595,24 +478,16 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     theta0 = beta0 / scale
     theta_p = coeffs_to_beta(theory, nodes) / scale if theory is not None else None
     sw = math.sqrt(prior_weight)
-    Z0 = dynamic_stiffness(model, speed, speed, {})
-    fast_rj = SpeedResponse(model, speed, cases, nodes, beta0, Z0=Z0) if fast and augment is None else None
+    response = SpeedResponse(model, speed, cases, nodes, beta0) if augment is None else None
+    weigh = Weighting(cases, scale)
 
-    def rj(beta):
-        if fast_rj is not None:
-            return fast_rj(beta)
-        return response_and_jacobian(model, speed, cases, beta, nodes, Z0=Z0)
-
-    stack = WeightedStack(cases, scale) if fast_rj is not None and fast_rj.uniform else None
+    def predict(beta):
+        if response is not None:
+            return response(beta)
+        return response_and_jacobian_augmented(model, speed, cases, beta, nodes, augment, scale)
 
     def fun_jac(theta):
-        if augment is not None:
-            ys, dys = response_and_jacobian_augmented(model, speed, cases, theta * scale, nodes, augment, scale)
-        elif stack is not None:
-            ys, dys = fast_rj.stacked(theta * scale)
-        else:
-            ys, dys = rj(theta * scale)
-        r, J = stack(ys, dys) if stack is not None and augment is None else weighted_stack(cases, ys, dys, scale)
+        r, J = weigh(*predict(theta * scale))
         if sw > 0:
             r = np.concatenate([r, sw * (theta - theta_p)])
             J = np.vstack([J, sw * np.eye(n)])
@@ -635,9 +510,8 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
                         gtol=1e-12, max_nfev=max_nfev)
     theta = sol.x
     beta = theta * scale
-    ys, dys = (response_and_jacobian_augmented(model, speed, cases, beta, nodes, augment, scale)
-               if augment is not None else rj(beta))
-    r_data, J_data = weighted_stack(cases, ys, dys, scale)
+    y, dy = predict(beta)
+    r_data, J_data = weigh(y, dy)
     info = information_analysis(J_data)
     redundancy = int(r_data.size - info['rank'])
     dof = max(redundancy, 1)
@@ -677,8 +551,8 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
             verdict = judge(theta * scale, sigma_data, estimable=estimable, pull=pull, veto=veto)
     determined = verdict.determined
     std = std_theta * scale
-    num = math.sqrt(sum(float(np.sum(np.abs(y - c.X) ** 2)) for c, y in zip(cases, ys)))
-    den = math.sqrt(sum(float(np.sum(np.abs(c.X) ** 2)) for c in cases))
+    num = float(np.linalg.norm(y - weigh.X))
+    den = float(np.linalg.norm(weigh.X))
     for i in range(nb):
         res.K[i] = beta[8 * i:8 * i + 4].reshape(2, 2)
         res.C[i] = beta[8 * i + 4:8 * i + 8].reshape(2, 2)
@@ -741,7 +615,7 @@ def cases_from_data(model, data, probes, runs, i_speed: int, augment=None) -> li
 
 
 OPTIONS = {'prior_weight': 0.0, 'theory': None, 'bearing_model': None, 'max_nfev': 200, 'max_rel_std': MAX_REL_STD,
-           'augment': None, 'fast': True}
+           'augment': None}
 
 
 def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
@@ -764,8 +638,7 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
         default the nominal theory of ``rig`` with ``bearing_model``), ``bearing_model`` ('short'/'finite'/None =
         the rig's), ``max_nfev``, ``max_rel_std`` (None: an optional extra bound on the 1-sigma relative
         to the block scale, on top of the one rule), ``augment`` (augmented-model hook, see :func:`fit_speed`
-        and :func:`cases_from_data`; None = nominal model), ``fast`` (True: :class:`SpeedResponse`, one
-        factorisation per speed; False: the dense reference solve per evaluation).
+        and :func:`cases_from_data`; None = nominal model).
 
     Returns
     -------
@@ -791,11 +664,10 @@ def identify_direct(model, rig, data, probes=None, runs=None, options=None, **kw
         out.append(fit_speed(model, float(W), cases, nodes, theory=th, prior_weight=float(opts['prior_weight']),
                              bearings=names, max_nfev=int(opts['max_nfev']),
                              max_rel_std=(None if opts['max_rel_std'] is None else float(opts['max_rel_std'])),
-                             augment=opts['augment'], fast=bool(opts['fast'])))
+                             augment=opts['augment']))
     return out
 
 
-__all__ = ['Case', 'coeffs_to_beta', 'beta_to_coeffs', 'default_scale', 'response_and_jacobian', 'SpeedResponse',
-           'WeightedStack',
-           'response_and_jacobian_augmented',
-           'information_analysis', 'weighted_stack', 'fit_speed', 'cases_from_data', 'identify_direct']
+__all__ = ['Case', 'coeffs_to_beta', 'beta_to_coeffs', 'default_scale', 'probe_rows', 'SpeedResponse', 'Weighting',
+           'augmented_response', 'response_and_jacobian_augmented', 'information_analysis', 'fit_speed',
+           'cases_from_data', 'identify_direct']

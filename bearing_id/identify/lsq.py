@@ -3,7 +3,7 @@ Least-squares helpers shared by the paper, conventional and design modules (one 
 
 Import graph inside :mod:`bearing_id.identify` (checked by test/test_honest_numbers.py)::
 
-    determined, result  <-  lsq     <-  paper, conventional, design
+    determined, result  <-  direct  <-  lsq  <-  paper, conventional, design
     determined, result  <-  direct  <-  physical
 
 Contents
@@ -17,8 +17,9 @@ Contents
 Rules of :func:`solve_coefficients` (eqs 33-37 solved by SVD)
     * LS rank: singular values above ``rtol`` (default 1e-8) x the largest; a coefficient is LS-estimable when at
       most 1 % of its unit vector lies in the null space.
-    * Std: with the 1-sigma of the bearing-node phasors ``z_B_std`` it is propagated through the whole solve (central
-      differences); without it, residual-based sigma^2 (A^T A)^+ when there are more equations than unknowns.
+    * Std: with the 1-sigma of the bearing-node phasors ``z_B_std`` it is propagated through the whole solve (its
+      exact derivative, :func:`solve_derivatives`); without it, residual-based sigma^2 (A^T A)^+ when there are more
+      equations than unknowns.
     * Misfit (more equations than unknowns and z_B_std given): the equation residual e = A(z) theta - d(z) is linear
       in z_B for fixed theta, so its covariance is M Sigma_z M^T (M = de/dz); the OLS residual r = P e (P the
       projector on the complement of range(A)) has covariance P M Sigma_z M^T P, and chi2 = r^T (P M Sigma M^T P)^+ r
@@ -33,10 +34,11 @@ import math
 import numpy as np
 
 from .determined import fit_quality, judge
+from .direct import Case, coeffs_to_beta, SpeedResponse
 from .result import eq38_error, IdentResult
 from ..conventions import COEFF_ORDER, dof_index, probe_row
 from ..excitation import harmonic_forces
-from ..rotor.assembly import dynamic_stiffness, film_dofs, probe_matrix
+from ..rotor.assembly import dynamic_stiffness
 
 DEFAULT_RTOL = 1e-8
 STRUCTURAL_RTOL = 1e-9
@@ -134,25 +136,6 @@ def svd_solve(A, d, rtol):
     return theta, U, s, Vh, r, n
 
 
-def svd_solve_many(systems, rtol) -> list:
-    """
-    Return [theta] of :func:`svd_solve` for a list of (A, d) of one shape: the SVDs stacked in one call.
-
-    The stacked SVD runs the same LAPACK routine on each matrix, and each theta is formed as in :func:`svd_solve`:
-    the same numbers (test/test_lsq_fast.py), without a Python-level SVD call per system.
-    """
-    As = np.stack([A for A, _ in systems])
-    Us, ss, Vhs = np.linalg.svd(As, full_matrices=False)
-    out = []
-    for (A, d), U, s, Vh in zip(systems, Us, ss, Vhs):
-        r = int(np.count_nonzero(s > rtol * s[0])) if s.size and s[0] > 0 else 0
-        out.append(Vh[:r].T @ ((U[:, :r].T @ d) / s[:r]))
-    return out
-
-
-_svd_solve = svd_solve      # old private name
-
-
 def bearing_force_map(model, speed: float, forces):
     """
     Return eqs 30-32 as an affine map z_B -> f_B (the function, and its linear part Lin (2 nb, 2 nb) complex).
@@ -181,32 +164,22 @@ def bearing_force_map(model, speed: float, forces):
 
 
 def solve_coefficients(model, speed: float, z_B, forces, *, z_B_std=None, rtol: float = DEFAULT_RTOL,
-                       forces_of=None, force_lin=None, propagation: str = 'fd') -> LSSolution:
+                       force_map=None) -> LSSolution:
     """
     Eqs 30-37 at one ``speed`` [rad/s]: bearing coefficients from bearing-node phasors of every run.
 
     z_B complex (n_runs, nb, 2) [m]; forces complex (n_runs, ndof) [N]; z_B_std (n_runs, nb, 2) 1-sigma of the Re
     and of the Im part of z_B [m] (optional, for the propagated std and the misfit statistic).  See the module
     docstring for the rules.  This is the one solve shared by the paper and the conventional methods.
-    ``forces_of`` (optional): z_B -> f_B, a faster equivalent of :func:`bearing_forces` at this speed and these
-    forces (e.g. the paper method's precomputed affine map), used for every evaluation.
-    ``propagation``: 'fd' (default) propagates z_B_std by the central differences above (the reference);
-    'analytic' (with ``force_lin``, the linear part Lin (2 nb, 2 nb) of that affine map, :func:`bearing_force_map`,
-    and full column rank; else 'fd') by :func:`solve_derivatives`, the exact derivative -- the central differences
-    carry a truncation error of ~3e-6 relative here (the solve is strongly nonlinear in the small entries of z_B),
-    so the two differ by that (test/test_lsq_fast.py ties the analytic one to Richardson-extrapolated differences).
+    ``force_map``: (forces_of, Lin) of :func:`bearing_force_map` at this speed and these forces, if already built.
+    The std is propagated through the exact derivative of the solve (:func:`solve_derivatives`, Golub-Pereyra;
+    exact for a locally constant rank, which eqs 33-36 keep: their rank is structural).
     """
     z_B = np.asarray(z_B, dtype=complex)
     forces = np.asarray(forces, dtype=complex)
-    if forces_of is None:
-        def forces_of(z):
-            return bearing_forces(model, speed, z, forces)
-
-    def system(z):
-        return ls_system(z, forces_of(z))
-
-    A, d = system(z_B)
+    forces_of, Lin = force_map if force_map is not None else bearing_force_map(model, speed, forces)
     f_B = forces_of(z_B)
+    A, d = ls_system(z_B, f_B)
     theta, U, s, Vh, r, n = svd_solve(A, d, rtol)
     res = A @ theta - d
     dn = np.linalg.norm(d)
@@ -223,45 +196,18 @@ def solve_coefficients(model, speed: float, z_B, forces, *, z_B_std=None, rtol: 
         sig2 = float(res @ res) / dof
         var_res = sig2 * np.sum((Vh[:r] / s[:r, None]) ** 2, axis=0)
     consistency, chi2, chi_dof = math.nan, math.nan, 0
-    if propagation not in ('analytic', 'fd'):
-        raise ValueError(f"propagation must be 'analytic' or 'fd', got {propagation!r}")
-    analytic = propagation == 'analytic' and force_lin is not None and r == n
     if z_B_std is not None:
-        zs = np.asarray(z_B_std, dtype=float)
-        h = 1e-6 * max(np.max(np.abs(z_B)), 1e-30)
-        vp = np.zeros(n)
-        Mcols = []
-        derivs = solve_derivatives(A, d, theta, U, s, Vh, r, z_B.shape, force_lin) if analytic else None
-        for e, idx in enumerate(np.ndindex(z_B.shape) if analytic else ()):
-            for u in range(2):
-                if not zs[idx] > 0:
-                    continue
-                vp += (derivs[0][:, e, u] * zs[idx]) ** 2
-                if dof > 0:
-                    Mcols.append(derivs[1][:, e, u] * zs[idx])
-        steps = []                             # the perturbed systems, solved together (one stacked SVD)
-        for idx in (np.ndindex(z_B.shape) if not analytic else ()):
-            for unit in (1.0, 1j):
-                if not zs[idx] > 0:
-                    continue
-                z1 = z_B.copy()
-                z1[idx] += unit * h
-                z2 = z_B.copy()
-                z2[idx] -= unit * h
-                steps.append((idx, system(z1), system(z2)))
-        if steps:
-            sols = svd_solve_many([Ad for _, s1, s2 in steps for Ad in (s1, s2)], rtol)
-        for k, (idx, (A1, d1), (A2, d2)) in enumerate(steps):
-            g = (sols[2 * k] - sols[2 * k + 1]) / (2 * h)
-            vp += (g * zs[idx]) ** 2
-            if dof > 0:
-                Mcols.append(((A1 @ theta - d1) - (A2 @ theta - d2)) / (2 * h) * zs[idx])
+        zs = np.repeat(np.asarray(z_B_std, dtype=float).reshape(-1, 1), 2, axis=1)      # (ne, 2): Re and Im
+        zs = np.where(zs > 0, zs, 0.0)
+        G, Dres = solve_derivatives(A, d, theta, U, s, Vh, r, z_B.shape, Lin)
+        vp = np.sum((G * zs[None]) ** 2, axis=(1, 2))
+        Mcols = (Dres * zs[None]).reshape(m, -1)[:, zs.reshape(-1) > 0] if dof > 0 else None
         var = vp
         if var_res is not None and np.any(vp > 0):
             ok = vp > 0
             consistency = float(np.median(np.sqrt(var_res[ok] / vp[ok])))
-        if dof > 0 and Mcols:
-            M = np.stack(Mcols, axis=1)
+        if Mcols is not None and Mcols.size:
+            M = Mcols
             Ur = U[:, :r]
             PM = M - Ur @ (Ur.T @ M)                       # P M, P = I - Ur Ur^T
             u_, sv_, _ = np.linalg.svd(PM, full_matrices=False)
@@ -285,10 +231,9 @@ def solve_derivatives(A, d, theta, U, s, Vh, r: int, shape, Lin):
     Differentiate the eqs 33-37 solve per bearing-node phasor entry: (G (n, ne, 2), Dres (m, ne, 2)).
 
     For entry e of z_B (flattened ``shape`` (nr, nb, 2)) moved by a unit u (index 0: real 1, 1: imaginary j), with
-    f_B moving by Lin (eqs 30-32 are affine in z_B): G = d theta, the Golub-Pereyra derivative of the SVD solution
-    (exact for full column rank: d theta = A+ (dd - dA theta) + A+ A+^T dA^T res + (I - A+ A) dA^T A+^T theta), and
-    Dres = d (A theta - d) at fixed theta = dA theta - dd (A and d are linear in z_B and f_B): what the central
-    differences of :func:`solve_coefficients` approximate (their truncation O(h^2), rounding ~1e-10 relative).
+    f_B moving by Lin (eqs 30-32 are affine in z_B): G = d theta, the Golub-Pereyra derivative of the (rank-truncated)
+    SVD solution, d theta = A+ (dd - dA theta) + A+ A+^T dA^T res + (I - A+ A) dA^T A+^T theta (exact while the rank
+    stays constant), and Dres = d (A theta - d) at fixed theta = dA theta - dd (A and d are linear in z_B and f_B).
     """
     nr, nb = shape[:2]
     q = 2 * nb
@@ -362,29 +307,19 @@ def coefficient_jacobian(model, speed: float, coeffs: dict, probes, forces) -> t
     (J, X): J complex (n_runs * nch, 8 nb) d X / d beta [m per N/m] and X complex (n_runs * nch,) [m].
 
     forces : list of complex (ndof,) 1X force phasors [N], one per run; probes : params.Probe list.
-    beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.
+    beta = [K (per bearing xx, xy, yx, yy); Omega C (same)], bearings in ``model.bearing_nodes`` order.  The forward
+    model and its exact Jacobian are the direct method's (:class:`bearing_id.identify.direct.SpeedResponse`, a film
+    in series with a pedestal included), rows run by run.
     """
-    nodes = list(model.bearing_nodes)
+    nodes = tuple(model.bearing_nodes)
     nb = len(nodes)
-    Z = dynamic_stiffness(model, speed, speed, coeffs)
-    S = probe_matrix(model, probes)
-    F = np.array(forces, dtype=complex).T                     # (ndof, nr)
-    Q = np.linalg.solve(Z, F)                                  # (ndof, nr)
-    W = np.linalg.solve(Z.T, S.T).T                            # S Z^-1 (nch, ndof)
-    nch, nr = S.shape[0], F.shape[1]
-    J = np.zeros((nr, nch, 8 * nb), dtype=complex)
-    for b, n in enumerate(nodes):
-        ix, jp = film_dofs(model, n)
-        Wb, Qb = W[:, ix:ix + 2], Q[ix:ix + 2, :]
-        if jp is not None:                                     # film in series with a pedestal: q_shaft - q_pedestal
-            Wb, Qb = Wb - W[:, jp:jp + 2], Qb - Q[jp:jp + 2, :]
-        for i in range(2):
-            for j in range(2):
-                col = -Wb[:, i][None, :] * Qb[j, :][:, None]   # (nr, nch)
-                J[:, :, 4 * b + 2 * i + j] = col
-                J[:, :, 4 * nb + 4 * b + 2 * i + j] = 1j * col
-    X = (S @ Q).T                                              # (nr, nch)
-    return J.reshape(nr * nch, 8 * nb), X.reshape(nr * nch)
+    nch = len(probes)
+    cases = [Case(np.asarray(F, dtype=complex), tuple(probes), np.zeros(nch, complex), np.ones(nch)) for F in forces]
+    beta = coeffs_to_beta(coeffs, nodes)
+    X, dX = SpeedResponse(model, speed, cases, nodes, beta)(beta)
+    dX = dX.reshape(len(X), nb, 2, 4)                      # per bearing: K entries, then C entries (per N s/m)
+    return np.concatenate([dX[:, :, 0].reshape(len(X), 4 * nb), dX[:, :, 1].reshape(len(X), 4 * nb) / speed],
+                          axis=1), X
 
 
 @dataclass
@@ -603,7 +538,8 @@ def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, 
 
 
 __all__ = ['DEFAULT_RTOL', 'STRUCTURAL_RTOL', 'NULL_FRACTION', 'DEFAULT_MAX_REL_STD', 'bearing_dofs',
-           'bearing_forces', 'ls_system', 'LSSolution', 'svd_solve', 'svd_solve_many', 'solve_coefficients',
+           'bearing_forces', 'ls_system', 'LSSolution', 'svd_solve', 'bearing_force_map', 'solve_coefficients',
+           'solve_derivatives',
            'theta_to_KC', 'coeffs_to_theta', 'noise_rel_of', 'forces_at', 'coefficient_labels', 'coefficient_scales',
            'coefficient_jacobian', 'Identifiability', 'analyse', 'whitened_jacobian', 'probe_pairs', 'node_xy_channels',
            'build_result']

@@ -8,10 +8,10 @@ The paper's method (Kang et al., Sensors 2020, sections 3.1-3.2, eqs 5-37), done
    fit (data-based); Q = 1e-16 I by default (the paper's 1e-16 ... 1e-18).
 2. 1X harmonic vectors of the estimates, per run: z_B (n_runs, nb, 2).  The steady-state filter is LTI, so on a
    steady window its 1X response is a closed form, the filter's transfer function at the running speed:
-   z_B = E Xp + T(Omega) (X - H Xp) with X the probes' 1X fit of the same window (``kf_route='transfer'``, the
-   default, :func:`kf_bearing_vectors`); the time-domain filter and a 1X fit of its estimates (``kf_route='time'``)
-   is the reference it equals once the filter's start transient has died out (test/test_kf_transfer.py).  The mean
-   NIS is computed from the time-domain innovations on both routes.
+   z_B = E Xp + T(Omega) (X - H Xp) with X the probes' 1X fit of the same window (:func:`kf_bearing_vectors`) --
+   what a 1X fit of the time-domain filter's estimates gives once the filter's start transient has died out
+   (test/test_kf_transfer.py runs filterpy's filter on a steady window to check it), without that transient.  The
+   filter does run on the samples for its consistency check: the mean NIS comes from its time-domain innovations.
 3. Eqs 19-37: with H_R(Omega) = K_R - Omega^2 M + j Omega (C_R + Omega G) the rotor WITHOUT bearings, the DOFs are
    reordered into b = (x, y) of the bearing nodes and u = everything else (all other translations AND every
    rotation, including the bearing nodes' rotations); eq 30  z_u = H_uu^-1 (F_u - H_ub z_B);  eqs 31-32
@@ -24,7 +24,7 @@ Static offset: a probe's DC (its gap) is no state of the model; each window's DC
 
 Rank and uncertainty (stated rules; the shared solve and result are in :mod:`.lsq`)
     * LS rank: singular values above ``rtol`` (default 1e-8) x the largest.
-    * Std: the 1-sigma of z_B propagated through the whole solve (finite differences); without it the residual-based
+    * Std: the 1-sigma of z_B propagated through the whole solve (its exact derivative); without it the residual-based
       covariance sigma^2 (A^T A)^+ when there are more equations than unknowns.  With more runs than the paper's two
       the eqs 33-37 residual is a chi-square test against the z_B noise (:func:`bearing_id.identify.lsq.
       solve_coefficients`); a misfit Birge-scales the std and flags the result.
@@ -37,12 +37,12 @@ Rank and uncertainty (stated rules; the shared solve and result are in :mod:`.ls
     * How much of the answer is the theory (the data check above is necessary, not sufficient: with one probe
       location the KF's bearing-node estimates are pulled toward the model it was given, whatever the data rank).
       The scaled Jacobian G = d identified / d theory of the 1X route above is computed analytically
-      (:func:`theory_sensitivity_analytic`: the derivative of z_B through Xp, expm (Frechet, in the eigenbasis of A)
-      and the Riccati solution (a Stein equation in the eigenbasis of the closed loop), chained with the derivative
-      of the eqs 30-37 solve; no Riccati equation is re-solved).  The reference, kept and tied to it by a test, is
-      :func:`theory_sensitivity`: each theory coefficient moved by a step of its bearing group's size and the KF +
-      eqs 30-37 re-run (the old production route, forward differences with THEORY_STEP = 1 %: a secant, within
-      ~0.2 % of the tangent here; ``options['sensitivity'] = 'fd'`` selects it).  Per coefficient
+      (:func:`kf_phasor_jacobian`: the derivative of z_B through Xp, expm (Frechet, in the eigenbasis of A) and the
+      Riccati solution (a Stein equation in the eigenbasis of the closed loop), chained with the derivative of the
+      eqs 30-37 solve, :func:`ls_jacobian`; no Riccati equation is re-solved).  Where that derivative is not
+      available -- the RTS smoother's transfer, or an eigenvector basis too ill-conditioned to use -- each theory
+      coefficient is moved by THEORY_STEP = 1 % of its bearing group's size and the KF + eqs 30-37 re-run
+      (:func:`theory_sensitivity`, forward differences: a secant, within ~0.2 % of the tangent).  Per coefficient
       d(identified)/d(theory) = its row norm of G = the pull of the theory on it (determined only when <= 0.1);
       above THEORY_FLAG = 0.5 the coefficient follows the KF's theory more than the data, named in the notes.  The
       theory fraction ||G||_F^2 / 16 (0 = the data alone, 1 = the theory handed back, > 1 theory errors amplified) is
@@ -57,14 +57,12 @@ import numpy as np
 from scipy.linalg import matrix_balance
 
 from .harmonics import PlainFit
-from .lsq import _svd_solve  # noqa: F401  (old private name, kept for callers)
 from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result, coefficient_labels, coefficient_scales,
                   coeffs_to_theta, DEFAULT_RTOL, forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients,
                   solve_derivatives, svd_solve, theta_to_KC)
 from .result import IdentResult
-from ..estimation.kalman import fast_filter, innovations, rotor_kalman_model, rts_smoother
-from ..excitation import harmonic_forces
-from ..rotor.assembly import bearing_matrices, harmonic_response
+from ..estimation.kalman import forced_states, innovations, rotor_kalman_model
+from ..rotor.assembly import bearing_matrices
 from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
 from ..rotor.supports import bearing_fn
 from ..signals.harmonics import harmonic_vectors
@@ -73,80 +71,6 @@ DEFAULT_Q = 1e-16
 
 
 # ------------------------------------------------------------------------------------------------ KF route
-KF_ROUTES = ('transfer', 'time')
-
-
-def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=None, smoother=False,
-                       remove_dc: bool = True, details: dict | None = None, route: str = 'time', kf_rotor=None):
-    """
-    KF (theory coefficients) bearing-node 1X vectors at speed index ``s``.
-
-    Returns (z_B (nr, nb, 2), z_B_std (nr, nb, 2), NIS means (nr,), the KalmanModel of the first run).
-    R default: each probe's residual variance around its plain 1X fit, per run [m^2] (the rig's and a real probe's
-    noise differ between runs; one R for all runs put the NIS of the louder run outside its band).
-
-    route : 'time' (default here, the reference): the time-domain steady-state filter
-    (:func:`bearing_id.estimation.kalman. fast_filter`, or the RTS smoother) over the window, then the 1X fit of its
-    estimates; 'transfer': the filter's closed-form 1X response z_B = E Xp + T (X - H Xp) (:func:`kf_transfer`) to the
-    plain 1X fit X of the same window (``data.plain``, :class:`bearing_id.identify.harmonics.PlainFit`), its std
-    propagated from the fit's (var Re/Im z = sum |T|^2 var X), and the NIS from the time-domain innovations alone
-    (:func:`bearing_id.estimation.kalman.innovations`). The two are equal on a steady window once the filter's start
-    transient has died out (test/test_kf_transfer.py); the transfer route has no start transient (the filter's steady
-    state) and needs no time series: the live identifier runs it on the plain fits its window vectors carry.
-
-    Static offset: a displacement probe reads gap + vibration; the gap (DC) is no state of the rotor model, so a
-    filter fed it sees a constant innovation the size of the gap (NIS 1e5 instead of ~m).  With ``remove_dc`` (default)
-    each window's DC is estimated by the 1X-plus-offset least-squares fit over whole revolutions
-    (:func:`bearing_id.signals.harmonics.harmonic_vectors`, unbiased by the 1X) and subtracted from the samples before
-    filtering. ``details`` (a dict, optional) receives 'dc' (nr, nch) [m] removed, 'nis_band' and 'R' (m, m) per run,
-    and 'X' (nr, nch) the probes' 1X fit, 'kms' the per-run KalmanModels (the transfer route).
-    """
-    if route not in KF_ROUTES:
-        raise ValueError(f'route must be one of {KF_ROUTES}, got {route!r}')
-    if route == 'transfer':
-        return _kf_vectors_transfer(model, theory, probes, data, s, Q=Q, R=R, smoother=smoother,
-                                    remove_dc=remove_dc, details=details, kf_rotor=kf_rotor)
-    if not data.recordings:
-        raise ValueError("the paper method's Kalman filter needs the time series (recordings), not only 1X vectors")
-    w = float(data.speeds[s])
-    nb = len(model.bearing_nodes)
-    zs, zsd, nis, dcs, bands, Rs = [], [], [], [], [], []
-    km = km0 = None
-    kfm = model if kf_rotor is None else kf_rotor
-    for r, run in enumerate(data.runs):
-        rec = data.recordings[r]
-        i0, i1 = data.windows[r][s]
-        y, a = np.asarray(rec.samples[i0:i1], dtype=float), rec.angle[i0:i1]
-        fit0 = harmonic_vectors(y, a) if remove_dc else None
-        if remove_dc:
-            dc = np.asarray(fit0.offset, dtype=float)
-            y = y - dc[None, :]
-            dcs.append(dc)
-        forces = harmonic_forces(run.excitation, w, model.n_nodes)
-        if R is None:      # each run's own probe noise (the noise is a fraction of each run's signal)
-            if fit0 is None:
-                fit0 = harmonic_vectors(y, a)
-            km = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q,
-                                    R=np.maximum(fit0.residual_rms ** 2, 1e-30))
-            km0 = km0 or km
-        elif km is None:
-            km = km0 = rotor_kalman_model(kfm, w, theory, probes, rec.sample_rate, forces=forces, Q=Q, R=R)
-        else:
-            km = km.with_forces(forces, w)
-        Rs.append(km.R)
-        out = (rts_smoother if smoother else fast_filter)(km, y, a)
-        fit = harmonic_vectors(out.estimates, a)
-        zs.append(fit.X[0].reshape(nb, 2))
-        zsd.append(np.maximum(fit.std_re[0], fit.std_im[0]).reshape(nb, 2))
-        nis.append(out.nis_mean)
-        bands.append(tuple(out.nis_band))
-    if details is not None:
-        details['dc'] = np.array(dcs) if dcs else None
-        details['nis_band'] = bands
-        details['R'] = Rs
-    return np.array(zs), np.array(zsd), nis, km0
-
-
 def _kf_models(model, speed: float, theory, probes, sample_rate: float, Q, Rs, kf_rotor=None) -> list:
     """
     One KalmanModel per run (R per run in ``Rs``), sharing the state space and Phi (one expm per speed).
@@ -173,18 +97,29 @@ def _sample_rate(data, required: bool = True) -> float | None:
     return float(fs) if fs else None
 
 
-def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remove_dc, details, jacobian=False,
-                         kf_rotor=None):
+def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=None, smoother=False,
+                       remove_dc: bool = True, details: dict | None = None, jacobian=False, kf_rotor=None):
     """
-    Transfer route of :func:`kf_bearing_vectors`; with ``jacobian`` details['dz'] = d z_B / d theta_th too.
+    KF (theory coefficients) bearing-node 1X vectors at speed index ``s``: (z_B, z_B_std (nr, nb, 2), NIS means, km).
 
-    The filter's input is each window's plain 1X fit (``data.plain``, or fitted here from the recordings), R its
-    residual variance unless ``R`` is given: the live identifier carries these fits with its vectors, so both routes
-    give the same z_B.  The NIS needs the time series: computed when the data carry their recordings (offline; each
-    window's static offset removed with ``remove_dc``), else None.
+    z_B = E Xp + T (X - H Xp) per run (:func:`kf_bearing_phasors`): the steady-state filter's closed-form 1X response
+    (:func:`kf_transfer`; the RTS smoother's with ``smoother``) to each window's plain 1X fit X (``data.plain``, or
+    fitted here from the recordings), its std propagated from the fit's (var Re/Im z = sum |T|^2 var X).  R default:
+    each probe's residual variance around that fit, per run [m^2] (the rig's and a real probe's noise differ between
+    runs; one R for all runs put the NIS of the louder run outside its band).  The live identifier carries these fits
+    with its vectors, so it gets the same z_B without the time series.
+
+    The NIS needs the time series: computed when the data carry their recordings (offline), from the steady-state
+    filter's time-domain innovations (:func:`bearing_id.estimation.kalman.innovations`), else None.  Static offset: a
+    displacement probe reads gap + vibration; the gap (DC) is no state of the rotor model, so a filter fed it sees a
+    constant innovation the size of the gap (NIS 1e5 instead of ~m).  With ``remove_dc`` (default) each window's DC,
+    estimated by the 1X-plus-offset least-squares fit over whole revolutions
+    (:func:`bearing_id.signals.harmonics.harmonic_vectors`, unbiased by the 1X), is subtracted from the samples first.
+    ``details`` (a dict, optional) receives 'dc' (nr, nch) [m] removed, 'nis_band' and 'R' (m, m) per run, 'X'
+    (nr, nch) the probes' 1X fit, 'kms' the per-run KalmanModels, 'Xp' the forced states and, with ``jacobian``,
+    'dz' = d z_B / d theta_th (:func:`kf_phasor_jacobian`; None for the smoother or an ill-conditioned eigenbasis).
     """
     w = float(data.speeds[s])
-    nb = len(model.bearing_nodes)
     nr = len(data.runs)
     fs = _sample_rate(data)
     timed = bool(data.recordings) and bool(data.windows)
@@ -212,34 +147,25 @@ def _kf_vectors_transfer(model, theory, probes, data, s, *, Q, R, smoother, remo
     Rs = [np.maximum(p.noise_var, 1e-30) if R is None else R for p in plains]
     kms = _kf_models(model, w, theory, probes, fs, Q, Rs, kf_rotor)
     F = forces_at(model, data.runs, w)
+    Xp = forced_states(kms[0].A, kms[0].B, F, w)
+    Ts = {}
     dz = None
-    transfers = {}
     if jacobian and not smoother:
-        jac = kf_phasor_jacobian(model, theory, probes, w, X, F, fs, Q=Q, R=Rs, kms=kms, kf_rotor=kf_rotor,
-                                 transfers=transfers)
-        if jac is not None:
-            zB, dz = jac
-    Ts = dict(transfers)
-    for km in kms:
-        if id(km) not in Ts:
-            Ts[id(km)] = kf_transfer(km, w, smoother=smoother)
-    Xp = _forced_states(kms[0], w, F)
-    zs, zsd, nis, bands = [], [], [], []
+        dz = kf_phasor_jacobian(model, theory, probes, w, X, F, fs, Q=Q, R=Rs, kms=kms, kf_rotor=kf_rotor,
+                                transfers=Ts)
+    zB, Ts = _phasors(kms, Xp, X, w, smoother, Ts)
+    zsd, nis, bands = [], [], []
     for r in range(nr):
         km, T = kms[r], Ts[id(kms[r])]
-        if dz is None:
-            zs.append((km.E @ Xp[:, r] + T @ (X[r] - km.H @ Xp[:, r])).reshape(nb, 2))
         Tr, Ti = T.real ** 2, T.imag ** 2
         vre = Tr @ plains[r].var_re + Ti @ plains[r].var_im
         vim = Ti @ plains[r].var_re + Tr @ plains[r].var_im
-        zsd.append(np.sqrt(np.maximum(vre, vim)).reshape(nb, 2))
+        zsd.append(np.sqrt(np.maximum(vre, vim)).reshape(zB.shape[1:]))
         if timed:              # the filter's consistency on the window's samples (innovations alone)
             kmf = replace(km, speed=w, Xp={1.0: Xp[:, r]})          # same matrices and gain, this run's forcing
             _, _, nm, band = innovations(kmf, ys[r], angs[r])
             nis.append(nm)
             bands.append(tuple(band))
-    if dz is None:
-        zB = np.array(zs)
     if details is not None:
         details['dc'] = np.array(dcs) if dcs else None
         details['nis_band'] = bands if timed else None
@@ -275,6 +201,21 @@ def kf_transfer(km, speed: float, *, smoother: bool = False) -> np.ndarray:
     return km.E @ T
 
 
+def _phasors(kms, Xp, X, speed: float, smoother: bool, transfers: dict | None = None):
+    """
+    Return (z_B (nr, nb, 2), {id(KalmanModel): T}): z_B,r = E Xp_r + T (X_r - H Xp_r), T of each distinct model.
+
+    ``transfers``: the :func:`kf_transfer` already known (e.g. from :func:`kf_phasor_jacobian`), completed here.
+    """
+    Ts = dict(transfers or {})
+    out = []
+    for r, km in enumerate(kms):
+        if id(km) not in Ts:
+            Ts[id(km)] = kf_transfer(km, speed, smoother=smoother)
+        out.append(km.E @ Xp[:, r] + Ts[id(km)] @ (X[r] - km.H @ Xp[:, r]))
+    return np.array(out).reshape(len(kms), -1, 2), Ts
+
+
 def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_rate: float, *, Q=DEFAULT_Q, R,
                        smoother: bool = False, kf_rotor=None) -> np.ndarray:
     """
@@ -282,23 +223,15 @@ def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_ra
 
     z_B,r = E Xp_r + T (X_r - H Xp_r): Xp_r the theory model's forced state response to run r, T
     :func:`kf_transfer`, X (nr, nch) the measured probe phasors [m], forces complex (nr, ndof) 1X phasors [N]
-    (:func:`forces_at`).  R: the probe noise (one for all runs, or a list with one per run).
-    Equals the time-domain filter's fitted 1X (:func:`kf_bearing_vectors` with ``route='time'``) on a steady window
-    once the filter's start transient has died out (exactly, when it starts in its periodic steady state).  The state
-    space, expm and each distinct R's Riccati equation are solved once per call.
+    (:func:`forces_at`).  R: the probe noise (one for all runs, or a list with one per run).  On a steady window this
+    is the time-domain filter's fitted 1X once the filter's start transient has died out (exactly, when it starts in
+    its periodic steady state).  The state space, expm and each distinct R's Riccati equation are solved once per
+    call.
     """
-    nb = len(model.bearing_nodes)
     X = np.asarray(X, dtype=complex)
     forces = np.asarray(forces, dtype=complex)
     kms = _kf_models(model, speed, theory, probes, sample_rate, Q, _per_run(R, len(forces)), kf_rotor)
-    Xp = _forced_states(kms[0], speed, forces)
-    out = np.zeros((len(forces), nb, 2), dtype=complex)
-    Ts = {}
-    for r, km in enumerate(kms):
-        if id(km) not in Ts:
-            Ts[id(km)] = kf_transfer(km, speed, smoother=smoother)
-        out[r] = (km.E @ Xp[:, r] + Ts[id(km)] @ (X[r] - km.H @ Xp[:, r])).reshape(nb, 2)
-    return out
+    return _phasors(kms, forced_states(kms[0].A, kms[0].B, forces, speed), X, speed, smoother)[0]
 
 
 def _per_run(R, nr: int) -> list:
@@ -313,13 +246,6 @@ def _per_run(R, nr: int) -> list:
 def _rkey(R):
     a = np.asarray(R, dtype=float)
     return (a.shape, a.tobytes())
-
-
-def _forced_states(km, speed: float, forces) -> np.ndarray:
-    """Particular-solution state phasors Xp (n, nr) = (j speed I - A)^-1 B F_r for forces (nr, ndof) [N]."""
-    n = km.n
-    rhs = km.B @ np.asarray(forces, dtype=complex).T
-    return np.linalg.solve(1j * float(speed) * np.eye(n) - km.A, rhs)
 
 
 def _exp_divided_differences(x) -> np.ndarray:
@@ -364,9 +290,9 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     """
     Analytic derivative of the steady-state KF's bearing-node 1X phasors with respect to the theory coefficients.
 
-    Returns (z_B complex (nr, nb, 2) [m] -- equal to :func:`kf_bearing_phasors`; dz complex (nr, nb, 2, 8 nb)
-    [m per N/m]: d z_B / d theta_th, theta_th = [K; Omega C] of :func:`coeffs_to_theta`), or None when an
-    eigenvector basis is too ill-conditioned (condition > EIG_COND_MAX; the caller falls back to finite differences).
+    Returns dz complex (nr, nb, 2, 8 nb) [m per N/m]: d z_B / d theta_th (z_B of :func:`kf_bearing_phasors`,
+    theta_th = [K; Omega C] of :func:`coeffs_to_theta`), or None when an eigenvector basis is too ill-conditioned
+    (condition > EIG_COND_MAX; the caller falls back to finite differences, :func:`theory_sensitivity`).
 
     Filter only (no smoother).  With y = X - H Xp, M = I - zeta^-1 (I - K H) Phi, zeta = exp(j speed dt),
     w = M^-1 K y and z_B = E (Xp + w), each theory coefficient moves A by a rank-one dA = u v^T (the bearing block of
@@ -382,8 +308,7 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     Y = Fc^T Y Fc + psi h^T is solved in the eigenbasis of Fc, and <Z, L_exp(A dt, E)> = <L_exp(A^T dt, Z), E> in
     the eigenbasis of A (Daleckii-Krein: divided differences of exp at the eigenvalues), so that each rank-one
     direction costs O(n^2): one eigendecomposition of A per speed and one of Fc per distinct R (each balanced first,
-    :func:`_eig_balanced`), no Riccati re-solve.
-    The finite-difference route (:func:`theory_sensitivity` on :func:`kf_bearing_phasors`) is the reference.
+    :func:`_eig_balanced`), no Riccati re-solve.  test/test_kf_transfer.py checks it against central differences.
     ``kms``: the per-run KalmanModels of this speed and theory (:func:`_kf_models`), to reuse their gains;
     ``kf_rotor``: the ReducedRotor they filter on (None: the full model); ``transfers`` (a dict, optional) receives
     {id(KalmanModel): T} the :func:`kf_transfer` of each distinct model, T = E M^-1 K (filter).
@@ -412,8 +337,7 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
     ut = Uai @ Udir                                   # U^-1 u_k  (n, 8 nb)
     vt = Ua[vidx, :].T                                # U^T v_k   (n, 8 nb)
     Zs = 1j * speed * Id - A
-    Xp = np.linalg.solve(Zs, km0.B @ forces.T)        # (n, nr)
-    zB = np.zeros((nr, 2 * nb), dtype=complex)
+    Xp = forced_states(km0.A, km0.B, forces, speed)   # (n, nr)
     dz = np.zeros((nr, 2 * nb, 8 * nb), dtype=complex)
     lin = {}
     for r in range(nr):
@@ -439,7 +363,6 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
         K, S, Mm, Psi, Gam, V, den, Lr, Rr = lin[key]
         y = X[r] - H @ Xp[:, r]
         w = np.linalg.solve(Mm, K @ y)
-        zB[r] = E @ (Xp[:, r] + w)
         h = H.T @ np.linalg.solve(S, y - H @ (Phi @ w) / zeta)
         d1 = (Gam @ Udir) * Xp[vidx, r][None, :]                  # via dXp (per entry)
         a = V.T @ Psi.T                                           # (n, p)
@@ -452,7 +375,7 @@ def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_ra
         ZD = Zt * Dl[None]
         d2 = dt * np.einsum('ak,iak->ik', ut, np.stack([ZD[i] @ vt for i in range(ZD.shape[0])]))
         dz[r] = (d1 + d2) @ kof                                   # entries -> coefficients
-    return zB.reshape(nr, nb, 2), dz.reshape(nr, nb, 2, 8 * nb)
+    return dz.reshape(nr, nb, 2, 8 * nb)
 
 
 def _bearing_directions(model, speed: float, nodes, red=None):
@@ -501,7 +424,7 @@ def ls_jacobian(model, speed: float, z_B, forces, rtol=DEFAULT_RTOL, force_map=N
     flattened.  Eqs 30-32 are affine in z_B (f_B = F_b - Sc z_B with the Schur complement Sc of the rotor without
     bearings), eqs 33-36 linear in (z_B, f_B); the least-squares derivative is the Golub-Pereyra formula
     d theta = A+ (dd - dA theta) + A+ A+^T dA^T r + (I - A+ A) dA^T A+^T theta with A+ the rank-truncated
-    pseudo-inverse of :func:`svd_solve` (r = d - A theta; exact for full column rank).  ``force_map``: the
+    pseudo-inverse of :func:`svd_solve` (r = d - A theta; exact while the rank stays constant).  ``force_map``: the
     (forces_of, Lin) of :func:`bearing_force_map` if already built.
     """
     z_B = np.asarray(z_B, dtype=complex)
@@ -519,63 +442,52 @@ THEORY_STEP = 0.01      # theory perturbation of the finite-difference sensitivi
 
 
 def theory_sensitivity(model, speed: float, theory: dict, z_B_of, forces, *, rtol=DEFAULT_RTOL,
-                       step: float = THEORY_STEP, central: bool = False) -> np.ndarray:
+                       step: float = THEORY_STEP, force_map=None) -> np.ndarray:
     """
-    Scaled Jacobian G (8 nb, 8 nb) of the identified coefficients with respect to the theory fed to the KF (FD).
+    Scaled Jacobian G (8 nb, 8 nb) of the identified coefficients with respect to the KF's theory (finite differences).
 
-    The finite-difference reference of :func:`theory_sensitivity_analytic`.
+    The route where :func:`kf_phasor_jacobian` does not apply (the RTS smoother's transfer, or an eigenvector basis
+    too ill-conditioned to use).
     z_B_of : theory {node: (K, C)} -> bearing-node phasors (nr, nb, 2) (e.g. :func:`kf_bearing_phasors`).
     forces : complex (nr, ndof) 1X phasors [N].  Each theory coefficient k (order of :func:`coeffs_to_theta`) is
-    moved by ``step`` x its bearing group's size s_k (:func:`bearing_id.identify.design.coefficient_scales`), the
-    KF and the eqs 30-37 solve are re-run, and G[i, k] = (d theta_i / s_i) / (d theta_th_k / s_k) (forward
-    differences, or central with ``central=True``: truncation error O(step) and O(step^2) respectively).
-    G = 0: the data alone fix the result; G = I: the method hands back the theory it was given.
+    moved by ``step`` x its bearing group's size s_k (:func:`bearing_id.identify.lsq.coefficient_scales`), the KF
+    and the eqs 30-37 solve are re-run, and G[i, k] = (d theta_i / s_i) / (d theta_th_k / s_k) (a secant: truncation
+    error O(step)).  G = 0: the data alone fix the result; G = I: the method hands back the theory it was given.
+    ``force_map``: (forces_of, Lin) of :func:`bearing_force_map` if already built.
     """
     nodes = tuple(model.bearing_nodes)
     nb = len(nodes)
     th0 = coeffs_to_theta(theory, speed, nodes)
     sc = coefficient_scales(theory, speed, nodes)
+    forces_of = (force_map or bearing_force_map(model, speed, forces))[0]
 
     def theta_of(co):
         z = z_B_of(co)
-        A, d = ls_system(z, bearing_forces(model, speed, z, forces))
+        A, d = ls_system(z, forces_of(z))
         return svd_solve(A, d, rtol)[0]
 
-    def moved(k, h):
-        th = th0.copy()
-        th[k] += h * sc[k]
-        K, C = theta_to_KC(th, speed, nb)
-        return theta_of({n: (K[i], C[i]) for i, n in enumerate(nodes)})
-
-    base = None if central else theta_of(theory)
+    base = theta_of(theory)
     G = np.zeros((8 * nb, 8 * nb))
     for k in range(8 * nb):
-        if central:
-            G[:, k] = (moved(k, step) - moved(k, -step)) / sc / (2 * step)
-        else:
-            G[:, k] = (moved(k, step) - base) / sc / step
+        th = th0.copy()
+        th[k] += step * sc[k]
+        K, C = theta_to_KC(th, speed, nb)
+        G[:, k] = (theta_of({n: (K[i], C[i]) for i, n in enumerate(nodes)}) - base) / sc / step
     return G
 
 
-def theory_sensitivity_analytic(model, speed: float, theory: dict, probes, X, forces, sample_rate: float, *,
-                                Q=DEFAULT_Q, R, rtol=DEFAULT_RTOL):
+def theory_sensitivity_analytic(model, speed: float, theory: dict, z_B, dz, forces, *, rtol=DEFAULT_RTOL,
+                                force_map=None) -> np.ndarray:
     """
-    Scaled Jacobian G (8 nb, 8 nb) of :func:`theory_sensitivity`, analytic (no Riccati equation re-solved).
+    Scaled Jacobian G (8 nb, 8 nb) of :func:`theory_sensitivity` by the chain rule (no Riccati equation re-solved).
 
-    G = diag(1/s) (d theta / d z_B) (d z_B / d theta_th) diag(s): :func:`ls_jacobian` times
-    :func:`kf_phasor_jacobian` (the KF route of :func:`kf_bearing_phasors`, filter only).  Returns (G, z_B) or
-    None when an eigenvector basis is too ill-conditioned (use the finite-difference reference then).
+    G = diag(1/s) (d theta / d z_B) (d z_B / d theta_th) diag(s): :func:`ls_jacobian` at the KF's bearing-node phasors
+    ``z_B`` (nr, nb, 2) times their derivative ``dz`` (nr, nb, 2, 8 nb) from :func:`kf_phasor_jacobian`.
     """
-    nodes = tuple(model.bearing_nodes)
-    jac = kf_phasor_jacobian(model, theory, probes, speed, X, forces, sample_rate, Q=Q, R=R)
-    if jac is None:
-        return None
-    zB, dz = jac
-    _, Jre, Jim = ls_jacobian(model, speed, zB, forces, rtol)
+    _, Jre, Jim = ls_jacobian(model, speed, z_B, forces, rtol, force_map=force_map)
     dzf = dz.reshape(-1, dz.shape[-1])
-    Graw = Jre @ dzf.real + Jim @ dzf.imag
-    sc = coefficient_scales(theory, speed, nodes)
-    return Graw * sc[None, :] / sc[:, None], zB
+    sc = coefficient_scales(theory, speed, tuple(model.bearing_nodes))
+    return (Jre @ dzf.real + Jim @ dzf.imag) * sc[None, :] / sc[:, None]
 
 
 def theory_fractions(G: np.ndarray) -> tuple[np.ndarray, float]:
@@ -596,40 +508,31 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     Signature as in :mod:`bearing_id.identify`.
 
     options : 'bearing_fn' (theory, default the nominal bearings of ``rig``), 'Q' (default 1e-16), 'R' (default:
-    the probe residual variance), 'smoother' (RTS instead of the filter; default False), 'rtol' (1e-8),
-    'max_rel_std' (design threshold, 0.05), 'z_B' (complex (n_runs, n_speeds, nb, 2): bypass the KF with given
-    bearing-node phasors, e.g. the exact ones, to test the algebra), 'z_B_std' (same shape, real), 'z_B_kf'
-    ({'Q': ..., 'R': ..., 'sample_rate': Hz[, 'smoother': bool]}: the given z_B came from a KF with these settings
-    and the theory of 'bearing_fn' -- e.g. a time-domain filter run elsewhere -- so the theory-dominance check is run
-    on them; without it given z_B are taken as measured and no theory check is made), 'remove_dc' (default True: each
-    window's static offset is removed before the KF, see :func:`kf_bearing_vectors`), 'kf_route' ('transfer'
-    (default): the steady-state filter's closed-form 1X response; 'time': the time-domain filter and a 1X fit of its
-    estimates, the reference -- see :func:`kf_bearing_vectors`), 'sensitivity' ('analytic' (default):
-    :func:`theory_sensitivity_analytic`, falling back to finite differences for the smoother or an ill-conditioned
-    eigenbasis; 'fd': the finite-difference reference :func:`theory_sensitivity`), 'reduce' (None (default): the
-    filter on the full FE model; True, an int (fixed-interface modes) or {'n_modes': k} / {'cutoff_hz': f}: the
-    filter on a Craig-Bampton reduction keeping the bearing, probe and force DOFs (:mod:`bearing_id.rotor.reduction`,
-    default cutoff :data:`REDUCE_CUTOFF_FRACTION` x the sample rate), its 1X receptance error per speed in the notes
-    and ``extra['reduction']``; with 'check': True in the dict the filter is re-run on the reduction with twice the
-    cutoff and the change of the bearing vectors reported as its KF-level truncation error ('kf_truncation'); the
-    eqs 30-37 solve stays on the full model).
+    the probe residual variance), 'smoother' (the RTS smoother's transfer instead of the filter's; default False),
+    'rtol' (1e-8), 'max_rel_std' (design threshold, 0.05), 'z_B' (complex (n_runs, n_speeds, nb, 2): bypass the KF
+    with given bearing-node phasors, e.g. the exact ones, to test the algebra), 'z_B_std' (same shape, real),
+    'z_B_kf' ({'Q': ..., 'R': ..., 'sample_rate': Hz[, 'smoother': bool]}: the given z_B came from a KF with these
+    settings and the theory of 'bearing_fn' -- e.g. a time-domain filter run elsewhere -- so the theory-dominance
+    check is run on them; without it given z_B are taken as measured and no theory check is made), 'remove_dc'
+    (default True: each window's static offset is removed before the KF, see :func:`kf_bearing_vectors`), 'reduce'
+    (None (default): the filter on the full FE model; True, an int (fixed-interface modes) or {'n_modes': k} /
+    {'cutoff_hz': f}: the filter on a Craig-Bampton reduction keeping the bearing, probe and force DOFs
+    (:mod:`bearing_id.rotor.reduction`, default cutoff :data:`REDUCE_CUTOFF_FRACTION` x the sample rate), its 1X
+    receptance error per speed in the notes and ``extra['reduction']``; with 'check': True in the dict the filter is
+    re-run on the reduction with twice the cutoff and the change of the bearing vectors reported as its KF-level
+    truncation error ('kf_truncation'); the eqs 30-37 solve stays on the full model).
 
     Determined: the one rule of :mod:`bearing_id.identify.determined` (:func:`bearing_id.identify.lsq.build_result`),
     with the KF's d(identified)/d(theory) as the prior pull.
     """
     opts = dict(options or {})
     allowed = {'bearing_fn', 'Q', 'R', 'smoother', 'rtol', 'max_rel_std', 'z_B', 'z_B_std', 'z_B_kf', 'remove_dc',
-               'kf_route', 'sensitivity', 'reduce'}
+               'reduce'}
     bad = set(opts) - allowed
     if bad:
         raise ValueError(f'identify_paper: unknown option(s) {sorted(bad)}; allowed {sorted(allowed)}')
-    route = opts.get('kf_route', 'transfer')
-    if route not in KF_ROUTES:
-        raise ValueError(f'identify_paper: kf_route must be one of {KF_ROUTES}, got {route!r}')
-    sens_mode = opts.get('sensitivity', 'analytic')
-    if sens_mode not in ('analytic', 'fd'):
-        raise ValueError(f"identify_paper: sensitivity must be 'analytic' or 'fd', got {sens_mode!r}")
     rtol = opts.get('rtol', DEFAULT_RTOL)
+    Q, smooth = opts.get('Q', DEFAULT_Q), bool(opts.get('smoother', False))
     bfn = opts.get('bearing_fn')
     if bfn is None:
         bfn = bearing_fn(rig)
@@ -639,6 +542,7 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
         w = float(w)
         theory = bfn(w)
         F = forces_at(model, runs, w)
+        fmap = bearing_force_map(model, w, F)
         notes = []
         not_det, extra = None, {}
         red_info = None
@@ -663,21 +567,12 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
                 notes.append(f"bearing-node displacements given by a Kalman filter (Q = {kf['Q']:g})")
                 not_det, extra = _theory_check(model, w, theory, probes, data.X[:, s], F, float(kf['sample_rate']),
                                                kf['Q'], kf['R'], bool(kf.get('smoother', False)), rtol, zB, notes,
-                                               mode=sens_mode, kf_rotor=red)
+                                               fmap, kf_rotor=red)
         else:
-            Q, smooth = opts.get('Q', DEFAULT_Q), bool(opts.get('smoother', False))
             det_kf = {}
-            if route == 'transfer':
-                zB, zBs, nis, km = _kf_vectors_transfer(model, theory, probes, data, s, Q=Q, R=opts.get('R'),
-                                                        smoother=smooth, remove_dc=bool(opts.get('remove_dc', True)),
-                                                        details=det_kf, jacobian=sens_mode == 'analytic',
-                                                        kf_rotor=red)
-                Xs = det_kf['X']
-            else:
-                zB, zBs, nis, km = kf_bearing_vectors(model, theory, probes, data, s, Q=Q, R=opts.get('R'),
-                                                      smoother=smooth, remove_dc=bool(opts.get('remove_dc', True)),
-                                                      details=det_kf, route='time', kf_rotor=red)
-                Xs = data.X[:, s]
+            zB, zBs, nis, km = kf_bearing_vectors(model, theory, probes, data, s, Q=Q, R=opts.get('R'),
+                                                  smoother=smooth, remove_dc=bool(opts.get('remove_dc', True)),
+                                                  details=det_kf, jacobian=True, kf_rotor=red)
             dc = det_kf.get('dc')
             if nis is None:
                 nis_note = ('; NIS not computed (no time series here: the live identifier holds 1X vectors only; '
@@ -689,37 +584,26 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
                             + (f'; static offset removed before filtering (largest |DC| '
                                f'{1e6 * np.max(np.abs(dc)):.3g} um)' if dc is not None else
                                '; static offset NOT removed'))
-            notes.append(f'Kalman filter (theory coefficients, Q = {Q:g}'
-                         + ("; 1X vectors from its steady-state transfer function applied to the probes' plain 1X fits"
-                            if route == 'transfer' else '; 1X vectors fitted to its time-domain estimates')
-                         + ')' + nis_note)
-            not_det, extra = _theory_check(model, w, theory, probes, Xs, F, _sample_rate(data),
-                                           Q, list(det_kf['R']), smooth, rtol, zB, notes, mode=sens_mode,
-                                           dz=det_kf.get('dz'), transfer=route == 'transfer', kf_rotor=red)
+            notes.append(f'Kalman filter (theory coefficients, Q = {Q:g}; 1X vectors from its steady-state transfer '
+                         "function applied to the probes' plain 1X fits)" + nis_note)
+            not_det, extra = _theory_check(model, w, theory, probes, det_kf['X'], F, _sample_rate(data), Q,
+                                           list(det_kf['R']), smooth, rtol, zB, notes, fmap, dz=det_kf['dz'],
+                                           own=True, kf_rotor=red)
             # how much the KF moved the bearing displacements away from the theory model's prediction
-            if route == 'transfer':
-                zth = (km.E @ det_kf['Xp']).T.reshape(zB.shape)
-            else:
-                zth = np.array([harmonic_response(model, w, w, f, theory)[_bdofs(model)].reshape(-1, 2) for f in F])
-            dz = np.linalg.norm(zB - zth) / max(np.linalg.norm(zth), 1e-300)
-            notes.append(f"KF bearing displacements differ from the theory model's prediction by {100 * dz:.1f} %")
-            extra.update(nis=None if nis is None else list(nis), nis_band=det_kf['nis_band'], dc_removed=dc,
-                         kf_route=route)
-        if red_info is not None:
-            if red2 is not None and opts.get('z_B') is None:
-                z2 = kf_bearing_phasors(model, theory, probes, w, det_kf['X'] if route == 'transfer' else Xs, F,
-                                        _sample_rate(data), Q=Q, R=list(det_kf['R']),
-                                        smoother=smooth, kf_rotor=red2)
-                za = zB if route == 'transfer' else kf_bearing_phasors(
-                    model, theory, probes, w, Xs, F, _sample_rate(data), Q=Q, R=list(det_kf['R']),
-                    smoother=smooth, kf_rotor=red)
-                dzr = float(np.linalg.norm(za - z2) / max(np.linalg.norm(z2), 1e-300))
+            zth = (km.E @ det_kf['Xp']).T.reshape(zB.shape)
+            moved = np.linalg.norm(zB - zth) / max(np.linalg.norm(zth), 1e-300)
+            notes.append(f"KF bearing displacements differ from the theory model's prediction by {100 * moved:.1f} %")
+            extra.update(nis=None if nis is None else list(nis), nis_band=det_kf['nis_band'], dc_removed=dc)
+            if red2 is not None:
+                z2 = kf_bearing_phasors(model, theory, probes, w, det_kf['X'], F, _sample_rate(data), Q=Q,
+                                        R=list(det_kf['R']), smoother=smooth, kf_rotor=red2)
+                dzr = float(np.linalg.norm(zB - z2) / max(np.linalg.norm(z2), 1e-300))
                 red_info.update(check_states=2 * red2.nr, kf_truncation=dzr)
                 notes.append(f'truncation check: the same filter on {2 * red2.nr} states (twice the cutoff) moves '
                              f'the KF bearing vectors by {100 * dzr:.2g} %')
+        if red_info is not None:
             extra['reduction'] = red_info
-        fmap = extra.pop('_force_map', None) or bearing_force_map(model, w, F)
-        sol = solve_coefficients(model, w, zB, F, z_B_std=zBs, rtol=rtol, forces_of=fmap[0], force_lin=fmap[1])
+        sol = solve_coefficients(model, w, zB, F, z_B_std=zBs, rtol=rtol, force_map=fmap)
         out.append(build_result('paper', model, rig, w, sol, probes=probes, forces=list(F),
                                 X_std_rel=noise_rel_of(data, s), theory=theory, truth=data.truth_at(w),
                                 max_rel_std=opts.get('max_rel_std'), notes=notes, extra={'z_B': zB, **extra},
@@ -728,39 +612,39 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     return out
 
 
-def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoother, rtol, zB_kf, notes, *,
-                  mode='analytic', dz=None, transfer=False, kf_rotor=None):
+def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoother, rtol, zB_kf, notes, force_map, *,
+                  dz=None, own=False, kf_rotor=None):
     """
     Sensitivity of the result to the KF's theory: (mask of theory-dominated coefficients, extra dict); notes.
 
-    X (nr, nch) the probe phasors the transfer is applied to; ``dz`` d z_B / d theta_th already computed with z_B
-    (the transfer route); ``transfer``: zB_kf is the transfer's own output (no fitted-vs-transfer mismatch to report).
+    X (nr, nch) the probe phasors the transfer is applied to; ``own``: zB_kf is this filter's own output
+    (:func:`kf_bearing_vectors`, with ``dz`` = d z_B / d theta_th when it could be formed), else it came from
+    elsewhere (a time-domain filter) and its distance from the transfer's z_B is reported.  The analytic derivative
+    (:func:`kf_phasor_jacobian`, :func:`theory_sensitivity_analytic`) where it applies, else forward differences
+    (:func:`theory_sensitivity`).
     """
 
     def zb_of(co):
         return kf_bearing_phasors(model, co, probes, speed, X, F, sample_rate, Q=Q, R=R, smoother=smoother,
                                   kf_rotor=kf_rotor)
 
-    G, za, how = None, None, 'finite differences'
-    if mode == 'analytic' and not smoother:
-        if dz is not None and transfer:
-            za = zB_kf
-        else:
-            jac = kf_phasor_jacobian(model, theory, probes, speed, X, F, sample_rate, Q=Q, R=R, kf_rotor=kf_rotor)
-            if jac is not None:
-                za, dz = jac
-        if dz is not None:
-            fmap = bearing_force_map(model, speed, F)
-            _, Jre, Jim = ls_jacobian(model, speed, za, F, rtol, force_map=fmap)
-            dzf = dz.reshape(-1, dz.shape[-1])
-            sc = coefficient_scales(theory, speed, tuple(model.bearing_nodes))
-            G = (Jre @ dzf.real + Jim @ dzf.imag) * sc[None, :] / sc[:, None]
-            how = 'analytic derivative'
-    if G is None:
-        za = zB_kf if transfer else zb_of(theory)
-        G = theory_sensitivity(model, speed, theory, zb_of, F, rtol=rtol)
+    if own:
+        za = zB_kf
+    else:
+        kms = _kf_models(model, speed, theory, probes, sample_rate, Q, _per_run(R, len(F)), kf_rotor)
+        Ts = {}
+        if not smoother:
+            dz = kf_phasor_jacobian(model, theory, probes, speed, X, F, sample_rate, Q=Q, R=R, kms=kms,
+                                    kf_rotor=kf_rotor, transfers=Ts)
+        Xp = forced_states(kms[0].A, kms[0].B, F, speed)
+        za = _phasors(kms, Xp, np.asarray(X, dtype=complex), speed, smoother, Ts)[0]
+    if dz is not None:
+        G = theory_sensitivity_analytic(model, speed, theory, za, dz, F, rtol=rtol, force_map=force_map)
+        how = 'analytic derivative'
+    else:
+        G = theory_sensitivity(model, speed, theory, zb_of, F, rtol=rtol, force_map=force_map)
         how = f"finite differences, theory moved by {100 * THEORY_STEP:g} % of each group's size"
-    mism = 0.0 if transfer else float(np.linalg.norm(za - zB_kf) / max(np.linalg.norm(zB_kf), 1e-300))
+    mism = 0.0 if own else float(np.linalg.norm(za - zB_kf) / max(np.linalg.norm(zB_kf), 1e-300))
     sens, frac = theory_fractions(G)
     flag = sens > THEORY_FLAG
     data_dirs = int(np.count_nonzero(np.linalg.svd(G, compute_uv=False) <= THEORY_FLAG))
@@ -775,12 +659,10 @@ def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoothe
                      f'(d identified / d theory > {THEORY_FLAG:g}): '
                      + ', '.join(lab for lab, f in zip(labels, flag) if f) + ' -- not determined by the data')
     if mism > 0.05:
-        notes.append(f"the KF's fitted 1X differs from its steady-state transfer by {100 * mism:.1f} % (a transient "
-                     f'in the window): the theory fraction is approximate')
+        notes.append(f"the given KF bearing vectors differ from the filter's steady-state transfer by {100 * mism:.1f} "
+                     f'% (a transient in the window): the theory fraction is approximate')
     out = {'theory_sensitivity': sens, 'theory_fraction': frac, 'theory_jacobian': G,
            'kf_transfer_mismatch': mism, 'data_directions': data_dirs}
-    if how == 'analytic derivative':
-        out['_force_map'] = fmap                  # reused by the solve (popped before the result is built)
     return flag, out
 
 
@@ -816,12 +698,7 @@ def _reduction(model, data, probes, runs, spec):
     return red, red2
 
 
-def _bdofs(model):
-    return bearing_dofs(model)
-
-
 __all__ = ['bearing_dofs', 'bearing_forces', 'ls_system', 'LSSolution', 'solve_coefficients', 'theta_to_KC',
            'coeffs_to_theta', 'build_result', 'noise_rel_of', 'forces_at', 'kf_bearing_vectors', 'kf_transfer',
            'kf_bearing_phasors', 'kf_phasor_jacobian', 'ls_jacobian', 'theory_sensitivity',
-           'theory_sensitivity_analytic', 'theory_fractions', 'identify_paper', 'KF_ROUTES', 'THEORY_FLAG',
-           'THEORY_STEP']
+           'theory_sensitivity_analytic', 'theory_fractions', 'identify_paper', 'THEORY_FLAG', 'THEORY_STEP']

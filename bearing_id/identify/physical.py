@@ -9,7 +9,7 @@ and radial clearance c [m] (and, as an option, static load W [N]).  The unknowns
 Fit: weighted output-error least squares of the predicted probe phasors P Z(beta(p, Omega))^-1 F_r to the measured
 1X phasors of every run and speed (sigma = their 1-sigma), scipy.optimize.least_squares (trust region, bounds a factor
 10 either side of the nominal).  Jacobian: d y / d p = (d y / d beta)(d beta / d p) with d y / d beta exact
-(:func:`bearing_id.identify.direct.response_and_jacobian`) and d beta / d p by central differences through the
+(:class:`bearing_id.identify.direct.SpeedResponse`) and d beta / d p by central differences through the
 bearing model (relative step 1e-4).
 
 Uncertainty: parameter covariance (J^T J)^+ (J weighted, in log p) at the solution; rank and condition from its SVD
@@ -53,14 +53,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .determined import fit_quality, FitQuality, judge
-from .direct import (cases_from_data, information_analysis, response_and_jacobian, SpeedResponse, weighted_stack,
-                     WeightedStack)
+from .direct import augmented_response, cases_from_data, information_analysis, SpeedResponse, Weighting
 from .result import empty_result, IdentResult
 from .. import bearings as bearing_models
 from ..bearings.finite_table import stated_tolerance
 from ..bearings.short import ocvirk_batch
 from ..conventions import COEFF_ORDER
-from ..rotor.assembly import dynamic_stiffness, probe_matrix, static_bearing_loads
+from ..rotor.assembly import static_bearing_loads
 
 PARAM_NAMES = ('viscosity', 'clearance', 'load')
 FD_STEP = 1e-4               # central-difference step in log-parameter
@@ -300,7 +299,7 @@ class _Parametrisation:
 
 
 def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=False, bearing_model='short',
-                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None, fast_path: bool = True):
+                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None):
     """
     Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
 
@@ -329,9 +328,6 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         :class:`PhysicalFit` on fewer speeds: a warm start), clipped into the bounds; default None = the nominal
         values.  The fit converges to the same solution to the solver's tolerance (xtol = ftol = gtol = 1e-12;
         test/test_identify_physical.py checks warm against cold).
-    fast_path
-        the forward model through :class:`bearing_id.identify.direct.SpeedResponse` (one factorisation per speed,
-        Woodbury updates; default True) instead of a dense solve per evaluation (False, the reference).
 
     Returns
     -------
@@ -346,42 +342,19 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     keep = [i for i, c in enumerate(cases) if c]
     if not keep:
         raise ValueError('physical: no finite synchronous measurements at any speed')
-    Z0 = {i: dynamic_stiffness(model, speeds[i], speeds[i], {}) for i in keep}
-    fast = {}                      # speed index -> direct.SpeedResponse (one factorisation per speed, built lazily)
-
-    def rj(i, beta):
-        if not fast_path:
-            return response_and_jacobian(model, speeds[i], cases[i], beta, par.nodes, Z0=Z0[i])
-        if i not in fast:
-            fast[i] = SpeedResponse(model, speeds[i], cases[i], par.nodes, beta, Z0=Z0[i])
-        return fast[i](beta)
-
-    stacks = {}
+    nb = len(par.nodes)
+    weigh = {i: Weighting(cases[i], np.ones(8 * nb)) for i in keep}
+    responses = {}                 # speed index -> direct.SpeedResponse (one factorisation per speed, built lazily)
 
     def rj_weighted(i, beta):
-        """Weighted residual and d r / d beta of speed i (stacked over the runs on the fast path)."""
-        if fast_path:
-            if i not in fast:
-                fast[i] = SpeedResponse(model, speeds[i], cases[i], par.nodes, beta, Z0=Z0[i])
-            if fast[i].uniform:
-                if i not in stacks:
-                    stacks[i] = WeightedStack(cases[i], ones)
-                return stacks[i](*fast[i].stacked(beta))
-        ys, dys = rj(i, beta)
-        return weighted_stack(cases[i], ys, dys, ones)
-
-    nb = len(par.nodes)
-    ones = np.ones(8 * nb)
-
-    def predict_aug(p, i):
-        Z = augment.dynamic_stiffness(speeds[i], speeds[i], par.coeffs(p, speeds[i]))
-        Q = np.linalg.solve(Z, np.stack([np.asarray(c.F, complex) for c in cases[i]], axis=1))
-        return [probe_matrix(model, c.probes) @ Q[:, r] for r, c in enumerate(cases[i])]
+        """Weighted residual and d r / d beta of speed i."""
+        if i not in responses:
+            responses[i] = SpeedResponse(model, speeds[i], cases[i], par.nodes, beta)
+        return weigh[i](*responses[i](beta))
 
     def residual_jac_aug(p, want_jac=True):
-        r = np.concatenate([weighted_stack(cases[i], predict_aug(p, i),
-                                           [np.zeros((len(c.X), 0)) for c in cases[i]], np.ones(0))[0]
-                            for i in keep])
+        r = np.concatenate([weigh[i].residual(augmented_response(model, speeds[i], cases[i], par.coeffs(p, speeds[i]),
+                                                                 augment)) for i in keep])
         if not want_jac:
             return r, None
         J = np.zeros((r.size, p.size))
@@ -502,12 +475,10 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     for i in keep:
         W = speeds[i]
         beta, G = par.beta_and_grad(p, W)
-        if augment is not None:
-            ys = predict_aug(p, i)
-        else:
-            ys, _ = rj(i, beta)
-        num = sum(float(np.sum(np.abs(y - c.X) ** 2)) for c, y in zip(cases[i], ys))
-        den = sum(float(np.sum(np.abs(c.X) ** 2)) for c in cases[i])
+        y = (augmented_response(model, W, cases[i], par.coeffs(p, W), augment) if augment is not None
+             else responses[i](beta)[0])
+        num = float(np.sum(np.abs(y - weigh[i].X) ** 2))
+        den = float(np.sum(np.abs(weigh[i].X) ** 2))
         num_all += num
         den_all += den
         cov_b = G @ cov @ G.T
@@ -546,7 +517,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
 
 
 OPTIONS = {'params': ('viscosity', 'clearance'), 'load': False, 'bearing_model': 'short', 'max_nfev': 100,
-           'augment': None, 'p0': None, 'fast': True}
+           'augment': None, 'p0': None}
 
 
 def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
@@ -555,8 +526,7 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
 
     Options / keywords: ``params`` (default ('viscosity', 'clearance')), ``load`` (False), ``bearing_model``
     ('short'), ``max_nfev``, ``p0`` (None: start at the nominal parameters; SI values: a warm start, see
-    :func:`fit_physical`), ``fast`` (True: one factorisation per speed; False: the dense reference solves).
-    Returns the per-speed IdentResult list; the fitted parameters are in each result's
+    :func:`fit_physical`).  Returns the per-speed IdentResult list; the fitted parameters are in each result's
     ``extra['fit']`` (a :class:`PhysicalFit`) -- or call :func:`fit_physical` for ``(fit, results)``.
     """
     opts = dict(OPTIONS)
@@ -566,8 +536,7 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
         opts[k] = v
     _, results = fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
                               bearing_model=str(opts['bearing_model']), probes=probes, runs=runs,
-                              max_nfev=int(opts['max_nfev']), augment=opts['augment'], p0=opts['p0'],
-                              fast_path=bool(opts['fast']))
+                              max_nfev=int(opts['max_nfev']), augment=opts['augment'], p0=opts['p0'])
     return results
 
 
