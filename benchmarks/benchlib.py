@@ -260,16 +260,17 @@ def simulated(speeds_rpm, *, dwell: float | None = None, probes: str | None = No
     """
     Return the two run files (run_A.npz, run_B.npz) of ``bearing-id simulate`` with these settings.
 
-    Cached in out/bench_data/<hash of params/rig.yaml, bearing_id/rig.py (the simulator and the file writer) and the
-    settings>/ (``fresh``: simulate again).
+    Cached in out/bench_data/<hash of params/rig.yaml, bearing_id/simulation/rig.py and bearing_id/io/recordings.py
+    (the simulator and the file writer) and the settings>/ (``fresh``: simulate again).
     """
     args = ['--speeds', ','.join(f'{float(s):g}' for s in speeds_rpm)]
     if dwell is not None:
         args += ['--dwell', f'{dwell:g}']
     if probes:
         args += ['--probes', probes]
-    key = hashlib.sha256((ROOT / 'params' / 'rig.yaml').read_bytes() + (ROOT / 'bearing_id' / 'rig.py').read_bytes()
-                         + ' '.join(args).encode()).hexdigest()[:16]
+    sources = [ROOT / 'params' / 'rig.yaml', ROOT / 'bearing_id' / 'simulation' / 'rig.py',
+               ROOT / 'bearing_id' / 'io' / 'recordings.py']
+    key = hashlib.sha256(b''.join(f.read_bytes() for f in sources) + ' '.join(args).encode()).hexdigest()[:16]
     d = DATA / key
     files = [d / 'run_A.npz', d / 'run_B.npz']
     if fresh or not all(f.exists() for f in files):

@@ -404,7 +404,7 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
     Every third-party module imported by bearing_id/ maps to an exec_depend of package.xml.
 
     Rosdep keys as in rosdistro's rosdep/{base,python}.yaml; rosbags and filterpy only as *-pip keys; a key rosdistro
-    lacks (pint, mcap) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
+    lacks (pint, mcap, pydantic 2) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
     """
     import ast
     import xml.etree.ElementTree as ET
@@ -412,10 +412,12 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
             'std_msgs': 'std_msgs', 'diagnostic_msgs': 'diagnostic_msgs', 'ament_index_python': 'ament_index_python',
             'bearing_id_msgs': 'bearing_id_msgs', 'numpy': 'python3-numpy', 'scipy': 'python3-scipy',
             'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib', 'rosbags': 'python3-rosbags-pip',
-            'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip'}
+            'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip',
+            'pydantic': 'python3-pydantic2-pip', 'pydantic_core': 'python3-pydantic2-pip'}
     own = yaml.safe_load((REPO / 'rosdep' / 'bearing_id.yaml').read_text())
     assert own == {'python3-pint-pip': {'*': {'pip': {'packages': ['pint']}}},
-                   'python3-mcap-pip': {'*': {'pip': {'packages': ['mcap']}}}}
+                   'python3-mcap-pip': {'*': {'pip': {'packages': ['mcap']}}},
+                   'python3-pydantic2-pip': {'*': {'pip': {'packages': ['pydantic']}}}}
     imported: dict[str, str] = {}
     for f in sorted((REPO / 'bearing_id').rglob('*.py')):
         for n in ast.walk(ast.parse(f.read_text(), str(f))):
