@@ -14,7 +14,7 @@ packages)::
 
 Part 1 (``--paper``, test/test_rotor_ross.py) -- test/data/ross_reference.json, the paper rig built in ROSS.
 
-The rig is read from params/rig.yaml with bearing_id.config.params (its venv needs numpy, PyYAML, pint and pydantic) so the
+The rig is read from params/rig.yaml with bearing_id.config.params (its venv needs numpy, PyYAML, pint, pydantic) so the
 geometry has one source.  ROSS model, like for like with bearing_id.rotor:
   * ShaftElement: Timoshenko with shear (Cowper's kappa, see SHEAR below), rotary inertia, gyroscopics;
     per-element proportional damping alpha, beta from shaft.damping_alpha/beta (bearing_id uses the shaft matrices
