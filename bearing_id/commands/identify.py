@@ -16,8 +16,9 @@ import numpy as np
 
 from .inputs import attach_excitation, check_probe_nodes, InputError, load_recordings
 from .report import build_report
+from ..config import defaults
 from ..config.params import load_rig, ParamError
-from ..identify import harmonics, identify
+from ..identify import harmonics, identify, METHODS
 from ..identify.paper import bearing_dofs, forces_at
 from ..identify.result import format_results
 from ..plots import plot_bearing_vectors, plot_coefficients
@@ -32,7 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                    'not determine are named and the command exits 1 unless --allow-undetermined.')
     p.add_argument('inputs', nargs='+', help='.npz or .csv recordings (one per run) or one bag directory')
     p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
-    p.add_argument('--method', default='paper', choices=('paper', 'conventional', 'direct', 'physical'))
+    p.add_argument('--method', default=defaults.METHOD, choices=METHODS,
+                   help='auto (default): direct where the data determine every coefficient at every speed (the '
+                        'design check on these data), else physical; the method that ran and why lead the notes')
     p.add_argument('--json', help='write the results to this JSON file')
     p.add_argument('--plot', help='write the coefficients-vs-speed plot (PNG); with --method paper also '
                                   '<name>_bearing_vectors.png: KF bearing-node amplitude/phase vs speed (and the '
@@ -42,7 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                                    'plots, the coefficients vs speed and these tables')
     p.add_argument('--allow-undetermined', action='store_true',
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
-    p.add_argument('--Q', type=float, default=None, help='paper method: KF process noise (default 1e-16)')
+    p.add_argument('--Q', type=float, default=None,
+                   help=f'paper method: KF process noise (default {defaults.KF_PROCESS_NOISE:g})')
     p.add_argument('--R', type=float, default=None, metavar='STD_M',
                    help="paper method: the KF's probe noise std in metres, R = value^2 for every probe (default: "
                         "each window's residual around its plain 1X fit; the identifier node's "
@@ -106,6 +110,11 @@ def bearing_vectors_plot(model, data, results, plot_path):
                                 title='bearing-node 1X displacement: Kalman filter (theory model) vs true')
 
 
+def _only(flag: str, method: str) -> ParamError:
+    return ParamError(f'{flag} applies to --method {method} only (name it: the default, auto, chooses the method '
+                      'from the data)')
+
+
 def run(args) -> int:
     rig = load_rig(args.params)
     data = load_data(args.inputs, rig)      # every input checked before the heavy imports
@@ -114,26 +123,29 @@ def run(args) -> int:
     opts = {}
     if args.Q is not None:
         if args.method != 'paper':
-            raise ParamError('--Q applies to --method paper only')
+            raise _only('--Q', 'paper')
         opts['Q'] = args.Q
     if args.R is not None:
         if args.method != 'paper':
-            raise ParamError('--R applies to --method paper only')
+            raise _only('--R', 'paper')
         if not (math.isfinite(args.R) and args.R ** 2 > 0):
             raise ParamError(f'--R must be a probe noise std > 0 in metres, got {args.R!r}')
         opts['R'] = args.R ** 2
     if args.reduce:
         if args.method != 'paper':
-            raise ParamError('--reduce applies to --method paper only')
+            raise _only('--reduce', 'paper')
         opts['reduce'] = True
     if args.bearing_model is not None:
         if args.method != 'physical':
-            raise ParamError('--bearing-model applies to --method physical only')
+            raise _only('--bearing-model', 'physical')
         opts['bearing_model'] = args.bearing_model
     try:
         results = identify(args.method, model, rig, data, options=opts or None)
     except ValueError as exc:   # the data cannot feed this method (e.g. conventional without two probes per bearing)
         raise ParamError(f'--method {args.method}: {exc}') from exc
+    ran = results[0].method if results else args.method
+    if args.method == 'auto' and results:
+        print(f'method: {ran} (auto: {results[0].notes[0].split(": ", 1)[-1]})')
     print('units: speed rpm, K N/m, C N s/m')
     print(format_results(results, args.allow_undetermined))
     undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined]
@@ -148,11 +160,11 @@ def run(args) -> int:
                                   for row, okr in zip(b[sym], b['determined'][sym])]
             _add_honesty(d, r)
             out.append(d)
-        Path(args.json).write_text(json.dumps({'method': args.method, 'results': out}, indent=1))
+        Path(args.json).write_text(json.dumps({'method': ran, 'requested': args.method, 'results': out}, indent=1))
     if args.plot:
         plot_coefficients(results, args.plot, truth_fn=data.truth or None, theory_fn=bearing_fn(rig),
-                          title=f'method {args.method}')
-        if args.method == 'paper':
+                          title=f'method {ran}')
+        if ran == 'paper':
             p = bearing_vectors_plot(model, data, results, args.plot)
             if p is not None:
                 print(f'bearing-node vectors plot: {p}')
@@ -168,7 +180,10 @@ def run(args) -> int:
         for rpm, names in undet:
             print(f"  {rpm:.0f} rpm: {', '.join(names)}", file=sys.stderr)
         if not args.allow_undetermined:
-            print('exit 1: add probes or directional-force runs (see the design check), or pass '
+            hint = ('' if ran == 'physical' else
+                    '--method physical (a bearing model fitted across all speeds, which unbalance runs at one probe '
+                    'station determine), ')
+            print(f'exit 1: try {hint}add probes or directional-force runs (`bearing-id design` says which), or pass '
                   '--allow-undetermined to print prior-dominated values flagged', file=sys.stderr)
             return 1
     return 0

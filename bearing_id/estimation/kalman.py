@@ -41,6 +41,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.special import chdtri
 
+from ..config import defaults
 from ..conventions import dof_index
 from ..rotor.assembly import probe_matrix, state_space
 
@@ -262,8 +263,8 @@ class KalmanModel:
         return particular_state({r: M @ X for r, X in self.Xp.items()}, ang)
 
 
-def kalman_model(A, B, H, dt: float, *, Q=1e-16, R, forces=None, speed: float = 0.0, E=None, out_names=(),
-                 meas_names=()) -> KalmanModel:
+def kalman_model(A, B, H, dt: float, *, Q=defaults.KF_PROCESS_NOISE, R, forces=None, speed: float = 0.0, E=None,
+                 out_names=(), meas_names=()) -> KalmanModel:
     """
     Build a :class:`KalmanModel` from a continuous (A, B, H) system.
 
@@ -294,7 +295,7 @@ def _dof_rows(items, n_nodes):
 
 
 def rotor_kalman_model(rotor, speed: float, coeffs: dict, measured, sample_rate: float, *, forces=None,
-                       outputs=None, Q=1e-16, R) -> KalmanModel:
+                       outputs=None, Q=defaults.KF_PROCESS_NOISE, R) -> KalmanModel:
     """
     Build the paper's filter model of the FE rotor at ``speed`` [rad/s] with bearing ``coeffs`` {node: (K, C)}.
 

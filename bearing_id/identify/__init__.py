@@ -4,7 +4,7 @@ Bearing-coefficient identification: four methods, one result type, one experimen
 Every method returns ``list[IdentResult]`` (one per speed, :mod:`bearing_id.identify.result`), with K, C (nb, 2, 2)
 in N/m and N s/m, 1-sigma std, ``K_determined`` / ``C_determined`` masks, rank, unknowns, condition and residual.
 
-Methods and the agreed call signature (all four take the same positional arguments)::
+Methods and the agreed call signature (every method takes the same positional arguments)::
 
     identify_<method>(model, rig, data, probes, runs, options=None) -> list[IdentResult]
 
@@ -23,6 +23,8 @@ Methods and the agreed call signature (all four take the same positional argumen
 * ``conventional`` (conventional.py) -- two probes per bearing interpolated to the bearing node, same solve.
 * ``direct``       (direct.py)       -- output-error fit of the impedances to all probes/runs through the FE model.
 * ``physical``     (physical.py)     -- viscosity/clearance per bearing fitted over all speeds at once.
+* ``auto``         (auto.py)         -- the default: ``direct`` where the data determine every coefficient at every
+  speed (the design check on the data's own probes, runs and noise), else ``physical``.
 
 The experiment-design check is :func:`bearing_id.identify.design.check_design`.
 """
@@ -33,7 +35,7 @@ import importlib
 from .plausibility import gate
 from .result import eq38_error, IdentResult
 
-METHODS = ('paper', 'conventional', 'direct', 'physical')
+METHODS = ('auto', 'paper', 'conventional', 'direct', 'physical')
 
 
 def get_method(name: str):

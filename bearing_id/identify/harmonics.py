@@ -25,14 +25,10 @@ import uuid
 
 import numpy as np
 
+from ..config import defaults
 from ..config.params import Run
 from ..signals.harmonics import harmonic_vectors
 from ..signals.windows import SteadyWindowTracker
-
-DEFAULT_SETTLE = 0.25      # fraction of each steady window discarded at its start (the identifier node uses the same)
-DEFAULT_TOL_REL = 0.005    # relative speed tolerance of a steady window and of matching speeds across runs
-DEFAULT_TRANSIENTS = 3     # decaying sinusoids (rotor modes ringing after a speed change) fitted with the 1X
-DEFAULT_MAX_WINDOW = 120.0  # s: a longer steady window is fitted in pieces of this length, then combined (memory)
 
 
 @dataclass
@@ -66,7 +62,7 @@ class HarmonicData:
     def n_runs(self) -> int:
         return self.X.shape[0]
 
-    def truth_at(self, speed: float, tol_rel: float = DEFAULT_TOL_REL):
+    def truth_at(self, speed: float, tol_rel: float = defaults.SPEED_TOLERANCE):
         """Return the true coefficients {node: (K, C)} nearest ``speed`` [rad/s], or None."""
         if not self.truth:
             return None
@@ -202,8 +198,8 @@ class RunStream:
     (a live consumer's provisional look at the open window while its data pause; the stream goes on as if not asked).
     """
 
-    def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = DEFAULT_TOL_REL,
-                 max_duration: float = DEFAULT_MAX_WINDOW):
+    def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = defaults.SPEED_TOLERANCE,
+                 max_duration: float = defaults.MAX_WINDOW):
         if not (math.isfinite(sample_rate) and sample_rate > 0):
             raise ValueError(f'sample_rate must be a positive number of Hz, got {sample_rate}')
         self.run, self.probes, self.fs = run, tuple(probes), float(sample_rate)
@@ -314,8 +310,9 @@ class RunStream:
 STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this many sigma count as a transient
 
 
-def window_vector(win: ClosedWindow, *, settle: float = DEFAULT_SETTLE, min_duration: float = 0.2,
-                  transients: int = DEFAULT_TRANSIENTS) -> WindowVector | None:
+def window_vector(win: ClosedWindow, *, settle: float = defaults.SETTLE_FRACTION,
+                  min_duration: float = defaults.MIN_WINDOW, transients: int = defaults.TRANSIENTS
+                  ) -> WindowVector | None:
     """
     Return the 1X vector of a steady window, or None when the window is too short to use.
 
@@ -379,7 +376,7 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
     return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, plain)
 
 
-def recording_windows(rec, *, tol_rel=DEFAULT_TOL_REL, max_window: float = DEFAULT_MAX_WINDOW
+def recording_windows(rec, *, tol_rel=defaults.SPEED_TOLERANCE, max_window: float = defaults.MAX_WINDOW
                       ) -> list[ClosedWindow]:
     """
     Return the steady windows of one recording: fed whole to a :class:`RunStream`, split at its ``gaps``.
@@ -395,7 +392,7 @@ def recording_windows(rec, *, tol_rel=DEFAULT_TOL_REL, max_window: float = DEFAU
     return wins + stream.close()
 
 
-def window_vectors(wins, vectors, tol_rel: float = DEFAULT_TOL_REL) -> list[WindowVector]:
+def window_vectors(wins, vectors, tol_rel: float = defaults.SPEED_TOLERANCE) -> list[WindowVector]:
     """
     Return one recording's 1X vectors from its windows ``wins`` and their :func:`window_vector` results ``vectors``.
 
@@ -415,9 +412,9 @@ def window_vectors(wins, vectors, tol_rel: float = DEFAULT_TOL_REL) -> list[Wind
     return out
 
 
-def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                      transients: int = DEFAULT_TRANSIENTS, max_window: float = DEFAULT_MAX_WINDOW
-                      ) -> list[WindowVector]:
+def recording_vectors(rec, *, tol_rel=defaults.SPEED_TOLERANCE, settle=defaults.SETTLE_FRACTION,
+                      min_duration=defaults.MIN_WINDOW, transients: int = defaults.TRANSIENTS,
+                      max_window: float = defaults.MAX_WINDOW) -> list[WindowVector]:
     """
     Return the 1X vectors of every steady window of one recording.
 
@@ -428,7 +425,7 @@ def recording_vectors(rec, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, mi
                                  for w in wins], tol_rel)
 
 
-def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list]:
+def common_speeds(per_run, tol_rel: float = defaults.SPEED_TOLERANCE) -> tuple[list, list]:
     """
     Find the speeds present in every run.
 
@@ -454,8 +451,8 @@ def common_speeds(per_run, tol_rel: float = DEFAULT_TOL_REL) -> tuple[list, list
     return speeds, picks
 
 
-def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTLE, min_duration=0.2,
-                    transients: int = DEFAULT_TRANSIENTS) -> HarmonicData:
+def from_recordings(recordings, *, tol_rel=defaults.SPEED_TOLERANCE, settle=defaults.SETTLE_FRACTION,
+                    min_duration=defaults.MIN_WINDOW, transients: int = defaults.TRANSIENTS) -> HarmonicData:
     """
     1X vectors of every run (one Recording per excitation run, same channels) at the speeds common to all runs.
 
@@ -474,7 +471,7 @@ def from_recordings(recordings, *, tol_rel=DEFAULT_TOL_REL, settle=DEFAULT_SETTL
     return stack_vectors(recordings, per_run, tol_rel)
 
 
-def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
+def stack_vectors(recordings, per_run, tol_rel=defaults.SPEED_TOLERANCE) -> HarmonicData:
     """
     Stack the runs' window vectors at the speeds common to all runs into a :class:`HarmonicData`.
 
@@ -506,5 +503,4 @@ def stack_vectors(recordings, per_run, tol_rel=DEFAULT_TOL_REL) -> HarmonicData:
 __all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
            'stationarity_excess', 'combine_vectors', 'recording_windows', 'window_vectors',
            'recording_vectors', 'common_speeds', 'stack_vectors',
-           'from_recordings', 'DEFAULT_SETTLE',
-           'DEFAULT_TOL_REL', 'DEFAULT_TRANSIENTS', 'DEFAULT_MAX_WINDOW']
+           'from_recordings']

@@ -61,13 +61,12 @@ from .lsq import (bearing_dofs, bearing_force_map, bearing_forces, build_result,
                   coeffs_to_theta, DEFAULT_RTOL, forces_at, ls_system, LSSolution, noise_rel_of, solve_coefficients,
                   solve_derivatives, svd_solve, theta_to_KC)
 from .result import IdentResult
+from ..config import defaults
 from ..estimation.kalman import forced_states, innovations, rotor_kalman_model
 from ..rotor.assembly import bearing_matrices
 from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
 from ..rotor.supports import bearing_fn
 from ..signals.harmonics import harmonic_vectors
-
-DEFAULT_Q = 1e-16
 
 
 # ------------------------------------------------------------------------------------------------ KF route
@@ -97,7 +96,7 @@ def _sample_rate(data, required: bool = True) -> float | None:
     return float(fs) if fs else None
 
 
-def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=DEFAULT_Q, R=None, smoother=False,
+def kf_bearing_vectors(model, theory, probes, data, s: int, *, Q=defaults.KF_PROCESS_NOISE, R=None, smoother=False,
                        remove_dc: bool = True, details: dict | None = None, jacobian=False, kf_rotor=None):
     """
     KF (theory coefficients) bearing-node 1X vectors at speed index ``s``: (z_B, z_B_std (nr, nb, 2), NIS means, km).
@@ -216,7 +215,8 @@ def _phasors(kms, Xp, X, speed: float, smoother: bool, transfers: dict | None = 
     return np.array(out).reshape(len(kms), -1, 2), Ts
 
 
-def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_rate: float, *, Q=DEFAULT_Q, R,
+def kf_bearing_phasors(model, theory, probes, speed: float, X, forces, sample_rate: float, *,
+                       Q=defaults.KF_PROCESS_NOISE, R,
                        smoother: bool = False, kf_rotor=None) -> np.ndarray:
     """
     Bearing-node 1X phasors (nr, nb, 2) of the steady-state KF, in the frequency domain (no time series).
@@ -285,7 +285,8 @@ def _eig_balanced(A):
     return lam, t[:, None] * Ub, Ubi / t[None, :], cond
 
 
-def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_rate: float, *, Q=DEFAULT_Q, R,
+def kf_phasor_jacobian(model, theory, probes, speed: float, X, forces, sample_rate: float, *,
+                       Q=defaults.KF_PROCESS_NOISE, R,
                        kms=None, kf_rotor=None, transfers: dict | None = None):
     """
     Analytic derivative of the steady-state KF's bearing-node 1X phasors with respect to the theory coefficients.
@@ -507,8 +508,9 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
 
     Signature as in :mod:`bearing_id.identify`.
 
-    options : 'bearing_fn' (theory, default the nominal bearings of ``rig``), 'Q' (default 1e-16), 'R' (default:
-    the probe residual variance), 'smoother' (the RTS smoother's transfer instead of the filter's; default False),
+    options : 'bearing_fn' (theory, default the nominal bearings of ``rig``), 'Q' (default
+    ``config.defaults.KF_PROCESS_NOISE``), 'R' (default: the probe residual variance), 'smoother' (the RTS
+    smoother's transfer instead of the filter's; default False),
     'rtol' (1e-8), 'max_rel_std' (design threshold, 0.05), 'z_B' (complex (n_runs, n_speeds, nb, 2): bypass the KF
     with given bearing-node phasors, e.g. the exact ones, to test the algebra), 'z_B_std' (same shape, real),
     'z_B_kf' ({'Q': ..., 'R': ..., 'sample_rate': Hz[, 'smoother': bool]}: the given z_B came from a KF with these
@@ -532,7 +534,7 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     if bad:
         raise ValueError(f'identify_paper: unknown option(s) {sorted(bad)}; allowed {sorted(allowed)}')
     rtol = opts.get('rtol', DEFAULT_RTOL)
-    Q, smooth = opts.get('Q', DEFAULT_Q), bool(opts.get('smoother', False))
+    Q, smooth = opts.get('Q', defaults.KF_PROCESS_NOISE), bool(opts.get('smoother', False))
     bfn = opts.get('bearing_fn')
     if bfn is None:
         bfn = bearing_fn(rig)

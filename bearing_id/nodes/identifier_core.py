@@ -40,10 +40,11 @@ import numpy as np
 
 from .specs import ParamSpec
 from .status import DiagItem, OK, WARN
+from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
-from ..identify import get_method, harmonics, identify
-from ..identify.harmonics import (combine_vectors, common_speeds, DEFAULT_MAX_WINDOW, HarmonicData, PlainFit, RunStream,
+from ..identify import get_method, harmonics, identify, METHODS
+from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
                                   WindowVector)
 from ..identify.plausibility import stability_threshold
 from ..io.record import Record
@@ -53,30 +54,28 @@ NAME = 'identifier'
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
-    ParamSpec('method', 'physical', 'identification method (bearing-id identify --method); physical is the one '
-              'unbalance runs at one probe location determine',
-              choices=('paper', 'conventional', 'direct', 'physical')),
+    ParamSpec('method', defaults.METHOD, 'identification method (bearing-id identify --method); auto: direct where '
+              'the data determine every coefficient at every speed, else physical', choices=METHODS),
     ParamSpec('record_dir', '~/.ros/bearing_id_record', 'directory of the append-only record (resumed on restart)'),
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
-    ParamSpec('speed_tolerance', 0.005, 'relative speed change that ends a steady window; also matches speeds '
-              'across runs', '-', lo=1e-5, hi=0.2),
-    ParamSpec('settle_fraction', 0.25, 'fraction of each steady window discarded at its start (transient after a '
-              'speed step)', '-', lo=0.0, hi=0.9),
-    ParamSpec('min_window', 0.2, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
+    ParamSpec('speed_tolerance', defaults.SPEED_TOLERANCE, 'relative speed change that ends a steady window; also '
+              'matches speeds across runs', '-', lo=1e-5, hi=0.2),
+    ParamSpec('settle_fraction', defaults.SETTLE_FRACTION, 'fraction of each steady window discarded at its start '
+              '(transient after a speed step)', '-', lo=0.0, hi=0.9),
+    ParamSpec('min_window', defaults.MIN_WINDOW, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
     ParamSpec('segment_timeout', 0.3, 'the open steady window is used provisionally when no block arrived for this '
               'long (the next contiguous block continues it)', 's',
               lo=0.01, hi=3600.0),
     ParamSpec('max_waiting_blocks', 400, "blocks held while their run's excitation has not arrived yet (the oldest "
               'is dropped and counted beyond this)', 'blocks', lo=1, hi=100000),
-    ParamSpec('max_segment', 120.0, 'a steady window is fitted in pieces of at most this length, then combined '
-              '(bounds memory; the offline route uses the same length)', 's', lo=0.1,
-              hi=86400.0),
+    ParamSpec('max_segment', defaults.MAX_WINDOW, 'a steady window is fitted in pieces of at most this length, then '
+              'combined (bounds memory; the offline route uses the same length)', 's', lo=0.1, hi=86400.0),
     ParamSpec('max_displacement', 1e-3, 'samples above this are implausible (wrong units or garbage)', 'm',
               lo=1e-9, hi=1.0),
-    ParamSpec('kf_process_noise', 1e-16, "method paper: the filter's process noise Q (`bearing-id identify --Q`)",
-              'm^2', lo=0.0, hi=1.0),
+    ParamSpec('kf_process_noise', defaults.KF_PROCESS_NOISE, "method paper: the filter's process noise Q "
+              '(`bearing-id identify --Q`)', 'm^2', lo=0.0, hi=1.0),
     ParamSpec('kf_measurement_noise', 0.0, "method paper: the filter's probe noise std (R = value^2; `bearing-id "
               "identify --R`); 0: each window's residual around its plain 1X fit, as `bearing-id identify` by default",
               'm', lo=0.0, hi=1e-3),
@@ -123,8 +122,9 @@ class IdentifierCore:
     record) is never stacked with another; the latest probe set is the one identified.
     """
 
-    def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = 0.005,
-                 settle: float = 0.25, min_window: float = 0.2, options=None, max_window: float | None = None,
+    def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = defaults.SPEED_TOLERANCE,
+                 settle: float = defaults.SETTLE_FRACTION, min_window: float = defaults.MIN_WINDOW, options=None,
+                 max_window: float | None = None,
                  warm_start: bool = True):
         self.rig = rig
         self.model = RotorModel.from_params(rig)
@@ -132,7 +132,7 @@ class IdentifierCore:
         self.options = options
         self.required = list(required_runs) if required_runs else None
         self.tol_rel, self.settle, self.min_window = float(tol_rel), float(settle), float(min_window)
-        self.max_window = float(DEFAULT_MAX_WINDOW if max_window is None else max_window)
+        self.max_window = float(defaults.MAX_WINDOW if max_window is None else max_window)
         self.sample_rate = float(rig.simulation.sample_rate) if rig.simulation is not None else math.nan
         self.runs: dict = {}                   # id -> Run, in announcement order
         self.run_starts: list = []             # (stamp [s], Run) as announced (resumed from the record too)
@@ -424,11 +424,13 @@ class IdentifierCore:
         kf = opts.pop('kf', None) or {}
         if self.method == 'paper':   # the offline route's filter settings (`bearing-id identify --Q --R`)
             opts.update({k: kf[k] for k in ('Q', 'R') if kf.get(k) is not None})
-        if self.method == 'physical' and self.warm_start and self._warm is not None and 'p0' not in opts:
+        if self.method in ('physical', 'auto') and self.warm_start and self._warm is not None and 'p0' not in opts:
             opts['p0'] = self._warm[1]
+        if self.method == 'auto':          # its options are per method; the warm start is the physical fit's
+            opts = {'physical': opts} if opts else {}
         results = identify(self.method, self.model, self.rig, data, options=opts or None)
         fit = results[0].extra.get('fit') if results else None
-        if self.method == 'physical' and fit is not None and np.all(np.isfinite(fit.values)):
+        if results and results[0].method == 'physical' and fit is not None and np.all(np.isfinite(fit.values)):
             self._warm = (fit.names, np.array(fit.values))
         for r in results:
             self.results[float(r.speed)] = r

@@ -27,6 +27,7 @@ import numpy as np
 
 from .specs import ParamSpec
 from .status import DiagItem, OK, WARN
+from ..config import defaults
 from ..config.params import Probe
 from ..conventions import rad_s_to_rpm
 from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
@@ -39,8 +40,8 @@ ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_va
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
-    ParamSpec('process_noise', 1e-16, 'Q, process noise variance per step times identity (paper: 1e-16 .. 1e-18)',
-              'm^2', lo=0.0, hi=1.0),
+    ParamSpec('process_noise', defaults.KF_PROCESS_NOISE, 'Q, process noise variance per step times identity '
+              '(paper: 1e-16 .. 1e-18)', 'm^2', lo=0.0, hi=1.0),
     ParamSpec('measurement_noise', 1e-7, 'probe noise standard deviation (R = value^2 times identity)', 'm',
               lo=1e-12, hi=1e-3),
     ParamSpec('speed_band', 0.01, 'relative width of the speed bands a model is cached and reused for', '-',
