@@ -22,13 +22,12 @@ Schema v2: a bearing of kind 'table' is interpolated (``k_scale``/``c_scale`` sc
 viscosity/clearance factors do not apply to it); a short/finite bearing whose static load is not along -y
 (``bearing.load_direction``: a load vector, or gravity not along -y) has the coefficients for a load along -y rotated
 by :func:`bearing_id.conventions.load_rotation` (the plain journal bearing is axisymmetric); a finite bearing with
-``cavitation: gumbel`` uses the direct Reynolds solver with the half-Sommerfeld condition when it offers one.
+``cavitation: gumbel`` uses the direct Reynolds solver with the half-Sommerfeld condition.
 """
 from __future__ import annotations
 
 import dataclasses
 from functools import lru_cache
-import inspect
 import math
 
 import numpy as np
@@ -89,9 +88,6 @@ def _rotated(s: BearingSolution, direction: tuple) -> BearingSolution:
 
 
 def _gumbel(D, L, c, mu, W, speed) -> BearingSolution:
-    if 'cavitation' not in inspect.signature(reynolds).parameters:
-        raise ValueError("cavitation: gumbel needs bearings.finite.reynolds(..., cavitation='gumbel'), which this "
-                         'version does not have')
     return reynolds(D, L, c, mu, W, speed, cavitation='gumbel')
 
 
