@@ -17,7 +17,9 @@ from __future__ import annotations
 from decimal import Decimal, localcontext
 import math
 
+from bearing_id import bearings
 from bearing_id.bearings.short import ocvirk, ocvirk_batch, short_eccentricity
+from bearing_id.config.params import load_rig
 import numpy as np
 import pytest
 
@@ -66,33 +68,59 @@ def test_eccentricity_refuses_a_non_positive_sommerfeld_number():
             short_eccentricity(np.array([0.1, bad]), 0.5)
 
 
-def test_ocvirk_batch_broadcasts_and_checks_its_inputs():
+def batch_tol(D, L, c, mu, W, w, name):
     """
-    Arrays of clearance (2, 1) and speed (3,) broadcast to (2, 3) bearings: K, C (2, 3, 2, 2), each entry ocvirk's.
+    Return (largest |entry| difference allowed of a batch entry from ocvirk(D, L, c, mu, W, w), ocvirk's ``name``).
 
-    ocvirk is this computation for one entry; an entry of a batch may differ from it by the rounding of the
-    eccentricity (the bound of the test above, d eps / eps <= eps_mach + 32 eps_mach Lmax / |m|) times the coefficients'
-    sensitivity to it (kappa = |d ln K / d ln S| |m|, central differences over the viscosity, S ~ mu), plus a few
-    roundings of the closed forms, whose terms grow as 1 / (1 - eps^2):
+    ocvirk is the batch computation for one entry; an entry of a batch may differ from it by the rounding of the
+    eccentricity (the bound of the test above, d eps / eps <= eps_mach + 32 eps_mach Lmax / |m|) times the
+    coefficients' sensitivity to it (kappa = |d ln K / d ln S| |m|, central differences over the viscosity, S ~ mu),
+    plus a few roundings of the closed forms, whose terms grow as 1 / (1 - eps^2):
     tol = 64 eps_mach (Lmax kappa + 1 / (1 - eps^2)) (the eps_mach of the stored root is inside the second term).
     """
+    s = ocvirk(D, L, c, mu, W, w)
+    e = s.eccentricity
+    lmax = 1 + abs(math.log(math.pi * s.sommerfeld * (L / D) ** 2)) + abs(math.log(e))
+    h = 1e-4
+    ref = getattr(s, name)
+    up = getattr(ocvirk(D, L, c, mu * math.exp(h), W, w), name)
+    dn = getattr(ocvirk(D, L, c, mu * math.exp(-h), W, w), name)
+    kappa = np.linalg.norm(up - dn) / (2 * h * np.linalg.norm(ref)) * abs(log_slope(e))
+    return 64 * EPS_MACH * (lmax * kappa + 1 / (1 - e * e)) * np.abs(ref).max(), ref
+
+
+def test_ocvirk_batch_broadcasts_and_checks_its_inputs():
+    """Arrays of clearance (2, 1) and speed (3,) broadcast to (2, 3) bearings: K, C (2, 3, 2, 2), each ocvirk's."""
     c = np.array([[80e-6], [120e-6]])
     w = np.array([100.0, 300.0, 900.0])
     K, C = ocvirk_batch(0.05, 0.02, c, 0.03, 250.0, w)
     assert K.shape == C.shape == (2, 3, 2, 2)
     for i in range(2):
         for j in range(3):
-            s = ocvirk(0.05, 0.02, float(c[i, 0]), 0.03, 250.0, float(w[j]))
-            e = s.eccentricity
-            lmax = 1 + abs(math.log(math.pi * s.sommerfeld * 0.4**2)) + abs(math.log(e))
-            for got, ref, name in ((K[i, j], s.K, 'K'), (C[i, j], s.C, 'C')):
-                h = 1e-4
-                up = getattr(ocvirk(0.05, 0.02, float(c[i, 0]), 0.03 * math.exp(h), 250.0, float(w[j])), name)
-                dn = getattr(ocvirk(0.05, 0.02, float(c[i, 0]), 0.03 * math.exp(-h), 250.0, float(w[j])), name)
-                kappa = np.linalg.norm(up - dn) / (2 * h * np.linalg.norm(ref)) * abs(log_slope(e))
-                tol = 64 * EPS_MACH * (lmax * kappa + 1 / (1 - e * e))
-                assert np.abs(got - ref).max() <= tol * np.abs(ref).max(), (i, j, name)
+            for got, name in ((K[i, j], 'K'), (C[i, j], 'C')):
+                tol, ref = batch_tol(0.05, 0.02, float(c[i, 0]), 0.03, 250.0, float(w[j]), name)
+                assert np.abs(got - ref).max() <= tol, (i, j, name)
     for kw in ({'c': -c}, {'w': 0 * w}, {'w': np.array([np.nan, 1.0, 2.0])}):
         args = {'c': c, 'w': w, **kw}
         with pytest.raises(ValueError):
             ocvirk_batch(0.05, 0.02, args['c'], 0.03, 250.0, args['w'])
+
+
+@pytest.mark.parametrize('model', ['short', 'finite'])
+def test_coefficients_at_many_speeds_are_each_speeds(model):
+    """bearings.coefficients_at (the diagnosis' call): the short bearing in one batch, others speed by speed."""
+    rig = load_rig()
+    b = rig.bearings[0]
+    w = np.array([60.0, 200.0, 650.0])
+    K, C = bearings.coefficients_at(b, w, 9.7, viscosity=0.04, clearance=60e-6, model=model)
+    assert K.shape == C.shape == (3, 2, 2)
+    for j in range(3):
+        Kr, Cr = bearings.coefficients(b, w[j], 9.7, viscosity=0.04, clearance=60e-6, model=model)
+        if model == 'short':
+            for got, name in ((K[j], 'K'), (C[j], 'C')):
+                tol, ref = batch_tol(float(b.diameter), float(b.length), 60e-6, 0.04, 9.7, float(w[j]), name)
+                assert np.abs(got - ref).max() <= tol
+        else:                                         # the same call at each speed
+            assert np.array_equal(K[j], Kr) and np.array_equal(C[j], Cr)
+    with pytest.raises(ValueError, match='speed'):
+        bearings.coefficients_at(b, -w, 9.7, model=model)

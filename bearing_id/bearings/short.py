@@ -91,27 +91,26 @@ def short_eccentricity(sommerfeld, L_over_D: float):
     """
     S = np.asarray(sommerfeld, dtype=float)
     sigma = math.pi * S * L_over_D**2
-    bad = ~(np.isfinite(sigma) & (sigma > 0))
-    if np.any(bad):
-        raise ValueError(f'Sommerfeld number must be positive and finite, got {S[bad]}')
+    if not _positive(sigma):
+        raise ValueError(f'Sommerfeld number must be positive and finite, got {S}')
     pi2 = math.pi**2
     ln_sigma = np.log(sigma)
     v = np.minimum(-np.log(math.pi * sigma), -0.5 * ln_sigma)
-    done = np.zeros(v.shape, dtype=bool)
+    live = np.ones_like(v)                                      # 1 while an entry iterates, 0 once it stopped
     for _ in range(50):
-        ln_e = -np.logaddexp(0.0, -v)                           # ln eps
-        e = np.exp(ln_e)
-        em = 1 - e                                              # enters q and dG beside terms of order 1 only
+        t = np.exp(-v)
+        e = 1 / (1 + t)
+        em = t * e                                              # 1 - eps
         q = 16 * e * e + pi2 * em * (1 + e)                     # 16 eps^2 + pi^2 (1 - eps^2)
-        G = ln_sigma - ln_e + 2 * v - 2 * np.log1p(e) + 0.5 * np.log(q)    # ln(1 - eps) = ln eps - v
-        dG = em + 4 * e * e / (1 + e) + (16 - pi2) * e * e * em / q        # dG/dv
-        dv = np.where(done, 0.0, G / dG)
+        G = ln_sigma + np.log1p(t) + 2 * v - 2 * np.log1p(e) + 0.5 * np.log(q)   # ln eps = -ln(1 + t)
+        dG = em + 4 * e * e / (1 + e) + (16 - pi2) * e * e * em / q            # dG/dv
+        dv = live * (G / dG)
         v = v - dv
-        done |= np.abs(dv) <= 1e-10
-        if done.all():
-            e = np.exp(-np.logaddexp(0.0, -v))
-            return float(e) if e.ndim == 0 else e
-    raise RuntimeError(f'short_eccentricity: Newton did not converge for S = {S[~done]}')
+        live = live * (np.abs(dv) > 1e-10)
+        if not live.any():
+            e = 1 / (1 + np.exp(-v))
+            return float(e) if np.ndim(e) == 0 else e
+    raise RuntimeError(f'short_eccentricity: Newton did not converge for S = {S}')
 
 
 def short_attitude_angle(eps):

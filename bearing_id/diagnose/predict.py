@@ -156,14 +156,15 @@ class Problem:
         th = np.asarray(theta, dtype=float)
         return tuple(np.exp(th[:self.nb])), tuple(np.exp(th[self.nb:2 * self.nb]))
 
-    def coeffs(self, theta, speed: float, factors=None, form=None) -> dict:
+    def coeffs(self, theta, speeds, factors=None, form=None) -> list:
         """
-        Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached).
+        Bearing coefficients [{node: (K, C)}, ...] at each of ``speeds`` [rad/s] for nuisance ``theta`` (cached).
 
         ``factors`` : optional (viscosity factors, clearance factors) per bearing multiplying the nuisance ones
         (an effect that re-fits the bearing theory, :class:`effects.BearingModelForm`).   ``form`` : optional
         (model, cavitation) replacing every bearing's model form (default: each bearing's ``model``).  Through
-        :func:`bearing_id.bearings.coefficients` (the finite bearing from its precomputed Sommerfeld table).
+        :func:`bearing_id.bearings.coefficients_at`, all missing speeds of a bearing in one call (the short bearing
+        in one batch, the finite bearing from its precomputed Sommerfeld table).
         """
         # the factors and their rounded logs once per (theta, factors): every window of a prediction asks for them
         fkey = (np.asarray(theta, dtype=float).tobytes(),
@@ -179,27 +180,30 @@ class Problem:
                 self._factor_memo.clear()
             memo = self._factor_memo[fkey] = (vf, cf, lf, tuple(lf))
         vf, cf, lf, lf_key = memo
-        key = (lf_key, float(speed), form)
-        c = self._coeff_cache.get(key)
-        if c is None:
+        if len(self._coeff_cache) > 20000:
+            self._coeff_cache.clear()
+            self._bearing_cache.clear()
+        keys = [(lf_key, float(W), form) for W in speeds]
+        todo = [k[1] for k in keys if k not in self._coeff_cache]
+        if todo:
             if self._loads is None:
                 self._loads = supports.static_loads(self.rig)
-            if len(self._coeff_cache) > 20000:
-                self._coeff_cache.clear()
-                self._bearing_cache.clear()
-            c = {}
+            per_bearing = []
             for i, b in enumerate(self.rig.bearings):
                 # per bearing: a nuisance step on one bearing's factors (a Jacobian column) leaves the others cached
-                bkey = (i, float(lf[i]), float(lf[self.nb + i]), float(speed), form)
-                kc = self._bearing_cache.get(bkey)
-                if kc is None:
-                    model = form[0] if form is not None else b.model
-                    K, C = bearings_mod.coefficients(b, speed, self._loads[b.node], viscosity=b.viscosity * vf[i],
-                                                     clearance=b.clearance * cf[i], model=model)
-                    kc = self._bearing_cache[bkey] = (np.array(K, float), np.array(C, float))
-                c[b.node] = kc
-            self._coeff_cache[key] = c
-        return c
+                bkeys = [(i, float(lf[i]), float(lf[self.nb + i]), W, form) for W in todo]
+                miss = [k for k in bkeys if k not in self._bearing_cache]
+                if miss:
+                    K, C = bearings_mod.coefficients_at(b, [k[3] for k in miss], self._loads[b.node],
+                                                        viscosity=b.viscosity * vf[i], clearance=b.clearance * cf[i],
+                                                        model=form[0] if form is not None else b.model)
+                    for k, Kk, Ck in zip(miss, K, C):
+                        self._bearing_cache[k] = (Kk, Ck)
+                per_bearing.append([self._bearing_cache[k] for k in bkeys])
+            for j, W in enumerate(todo):
+                self._coeff_cache[(lf_key, W, form)] = {b.node: per_bearing[i][j]
+                                                        for i, b in enumerate(self.rig.bearings)}
+        return [self._coeff_cache[k] for k in keys]
 
     # ----------------------------------------------------------------------------------------- prediction
     def _bearing_setup(self, effects, nls):
@@ -240,7 +244,7 @@ class Problem:
         ws = [ratio * W for (_, ratio), W in zip(keys, Ws)]
         w = np.array(ws)
         speeds = list(dict.fromkeys(Ws))
-        per_speed = [self.coeffs(theta, W, factors, form) for W in speeds]
+        per_speed = self.coeffs(theta, speeds, factors, form)
         pos = {W: i for i, W in enumerate(speeds)}
         at = np.array([pos[W] for W in Ws])
         b_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).bearing_impedance is not Effect.bearing_impedance]
