@@ -82,11 +82,6 @@ class Diagnosis:
         """1 - chi2_after / chi2_before (share of the residual power the selected effects explain)."""
         return float(1.0 - (self.residual_after / max(self.residual_before, 1e-300)) ** 2)
 
-    @property
-    def residual_reduction(self) -> float:
-        """1 - RMS_after / RMS_before of the located mismatch [m]."""
-        return float(1.0 - self.residual_after_m / max(self.residual_before_m, 1e-300))
-
     def as_json(self) -> dict:
         return {'mismatch': [m.as_dict() for m in self.mismatch], 'hypotheses': self.hypotheses,
                 'verdict': self.verdict, 'augmented_params': self.augmented_params,

@@ -65,11 +65,6 @@ class FastStability:
         self.model, self.bearing_fn = model, bearing_fn
         self.n_refine = int(n_refine)
         self.eig = ReducedEigen(model, cutoff_hz=float(cutoff_factor) * float(speed_top) / (2 * math.pi))
-        self.red = self.eig.red
-
-    def reduced_eigs(self, speed: float, vectors: bool = False):
-        """All eigenvalues [1/s] of the reduced model's state matrix at ``speed`` [rad/s] (and its eigenvectors)."""
-        return self.eig.reduced(speed, self.bearing_fn(speed), vectors)
 
     def least_stable(self, speed: float) -> np.ndarray:
         """
