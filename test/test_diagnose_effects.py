@@ -18,7 +18,7 @@ from bearing_id.diagnose import effects as fx
 from bearing_id.diagnose.report import rig_to_dict
 from bearing_id.excitation import harmonic_forces
 from bearing_id.rotor import supports
-from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel, state_space
+from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
 from bearing_id.simulation import effects as te, rig as rigmod
 from error_bounds import solve_tol
 import numpy as np
@@ -145,21 +145,44 @@ def synthetic_problem(params=None, runs=2):
     return Problem(Observations(recordings=recs, windows=wins, orders=(1, 2, 3)), rig)
 
 
+def state_space_here(model, W, coeffs):
+    """
+    Return (A, B) of x' = A x + B f, x = [q; q'], assembled here from the physics of the films.
+
+    M, C + W G, K of the rotor model (and its pedestal DOFs); a film (kb, cb) at shaft node n acts on the relative
+    displacement q_n - q_p of its pedestal p, on q_n alone without one: blocks [[k, -k], [-k, k]] on (n, p), k on
+    (n, n).  The known elements (seals) likewise; A = [[0, I], [-M^-1 K, -M^-1 C]], B = [0; M^-1].
+    """
+    n = model.ndof
+    K, C, M = model.K.copy(), model.C + W * model.G, model.M
+    peds = model.pedestals or {}
+    films = [(node, peds.get(node), kb, cb) for node, (kb, cb) in coeffs.items()]
+    films += [(node, j, kb, cb) for node, j, kb, cb in model.known_coefficients(W)]
+    for node, j, kb, cb in films:
+        i = dof_index(node, 'x', model.n_nodes)
+        idx = [i, i + 1] if j is None else [i, i + 1, j, j + 1]
+        for X, b in ((K, kb), (C, cb)):
+            X[np.ix_(idx, idx)] += b if j is None else np.block([[b, -b], [-b, b]])
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
+    return A, np.vstack([np.zeros((n, n)), Minv])
+
+
 @pytest.mark.parametrize('params', [None, 'plant_like'])
 def test_prediction_is_the_state_space_response(params):
     """
     Problem.predict (no effect, bearing nuisance off nominal) against the first-order route x' = A x + B f.
 
-    Oracle per (window, order) at w = order x speed: x = (j w I - A)^-1 B F with A, B of
-    :func:`rotor.assembly.state_space` (M^-1 form, bearings from :func:`rotor.supports.bearing_fn` at the same factors),
-    solved balanced (scipy.linalg.matrix_balance: its condition number ~1e6 instead of ~1e13); probe readings P q.
+    Oracle per (window, order) at w = order x speed: x = (j w I - A)^-1 B F with A, B assembled in this test
+    (:func:`state_space_here`; bearings from :func:`rotor.supports.bearing_fn` at the same factors), solved
+    balanced (scipy.linalg.matrix_balance: its condition number ~1e6 instead of ~1e13); probe readings P q.
     Tolerance: solve_tol of the balanced state matrix and of the dynamic stiffness, times ||q||.  The plant-like
     rig's bearings sit on pedestals: the film acts between shaft and pedestal DOFs.
     """
     from bearing_id.config.params import PACKAGE_PARAMS
     prob = synthetic_problem(None if params is None else PACKAGE_PARAMS / 'examples' / f'{params}.yaml')
     if params:
-        assert prob.model.pedestals
+        assert prob.model.pedestals and prob.model.known
     nb = prob.nb
     theta = np.linspace(0.15, -0.2, prob.n_nuis)
     y0, A, idx = prob.predict(theta, [], [])
@@ -169,7 +192,7 @@ def test_prediction_is_the_state_space_response(params):
     checked = 0
     for k, win in enumerate(prob.windows):
         S = probe_matrix(model, prob.obs.probes(win.rec))
-        As, Bs = state_space(model, win.speed, bf(win.speed))
+        As, Bs = state_space_here(model, win.speed, bf(win.speed))
         got = y0[prob.slices[k]].reshape(win.X.shape)
         for o, r in enumerate(prob.orders):
             F = prob.known[k].get(r)
