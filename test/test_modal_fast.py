@@ -7,15 +7,19 @@ Models: the plant-like example (a pedestal, a seal table) and the paper rig refi
 scipy.linalg.eig with LAPACK's error bound e for each eigenvalue (test/error_bounds.py; two routes that each meet it
 agree within 2 e).  Derived from it: damped frequency within 2 e, log decrement -2 pi sigma / wd within
 2 pi 2 e (1 / wd + |sigma| / wd^2), damping ratio -sigma / |lambda| within 2 (2 e) / |lambda|.  Mode shapes: each
-is an eigenvector of the full model to a backward error (in the oracle's balanced state matrix) below n eps, n the
-state dimension (the classic p(n) = n of a backward-stable eigensolver; LAPACK's own shapes reach ~3 eps here, the
-refined ones ~120 eps), and whirls as the oracle's shapes whirl.
+is an eigenvector of the full model to a backward error (in the oracle's balanced state matrix) below
+n eps + 10 ITER_TOL: n eps (n the state dimension) is the classic bound of a backward-stable eigensolver (LAPACK's
+own shapes reach ~3 eps here), ITER_TOL = ``rotor.eigen.ITER_TOL`` the refinement's stopping rule (its inverse
+iterations stop when the eigenvalue moves by less than ITER_TOL |lambda|; the vector's error is of that order, 10 x
+for the slower convergence of a vector of a non-normal matrix; measured up to 1e-13); and whirls as the oracle's
+shapes whirl.
 """
 from __future__ import annotations
 
 from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.plots.data import campbell_data
+from bearing_id.rotor import eigen
 from bearing_id.rotor.assembly import RotorModel, state_space
 from bearing_id.rotor.modal import FAST_NDOF, FastModes, mode_whirl, modes_solver
 from bearing_id.rotor.supports import bearing_fn
@@ -58,9 +62,9 @@ def test_fast_modes_are_eigenpairs_of_the_full_model(case):
         assert got.whirl == tuple(mode_whirl(model, X[:, k]) for k in range(8))
         k = int(np.argmax(every.real))
         assert abs(got.max_real - every[k].real) <= 2 * every_bnd[k]
-        n = 2 * model.ndof
+        bound = 2 * model.ndof * EPS_MACH + 10 * eigen.ITER_TOL
         for k in range(8):
-            assert state_backward_error(model, w, fn(w), got.eigenvalues[k], got.shapes[:, k]) <= n * EPS_MACH, (rpm, k)
+            assert state_backward_error(model, w, fn(w), got.eigenvalues[k], got.shapes[:, k]) <= bound, (rpm, k)
     if rig.name.startswith('plant_like'):
         assert fm.fallbacks == 0       # every speed on the fast path
     # (the 40-element paper rig's stiffness-proportional damping turns high bending modes into heavily damped pairs
