@@ -11,6 +11,7 @@ from bearing_id.bearings import short
 from bearing_id.config.params import load_rig
 from bearing_id.conventions import GRAVITY, rpm_to_rad_s, whirl_direction
 from bearing_id.rotor import supports
+from error_bounds import eigen_with_bounds, EPS_MACH, solve_tol
 import numpy as np
 import pytest
 
@@ -33,14 +34,21 @@ def test_short_equilibrium_force_matches_pressure_quadrature(rpm):
     assert abs(fx) < 1e-6 * W and abs(fy - W) < 1e-6 * W
     x, y = s.journal_position
     assert x > 0 and y < 0                       # below the centre, shifted in the spin direction (+x)
-    assert math.isclose(math.hypot(x, y), s.eccentricity * C_RAD, rel_tol=1e-12)
+    assert math.isclose(math.hypot(x, y), s.eccentricity * C_RAD, rel_tol=8 * EPS_MACH)   # sin^2 + cos^2: 6 roundings
 
 
 @pytest.mark.parametrize('rpm', [600, 1800, 3000])
 def test_short_coefficients_equal_derivatives_of_quadrature_force_in_our_frame(rpm):
-    """K = -dF/dq and C = -dF/dq' by central differences of the quadrature force, in (x, y): tests lit_to_xy too."""
+    """
+    K = -dF/dq and C = -dF/dq' by central differences of the quadrature force, in (x, y): tests lit_to_xy too.
+
+    The coefficients of ocvirk and of ocvirk_batch (the physical method's call: here all three speeds at once).
+    """
     w = rpm_to_rad_s(rpm)
     s = short.ocvirk(D, L, C_RAD, MU, W, w)
+    speeds = rpm_to_rad_s(np.array([600.0, 1800.0, 3000.0]))
+    Kb, Cb = short.ocvirk_batch(D, L, C_RAD, MU, W, speeds)
+    i = int(np.argmin(np.abs(speeds - w)))
     x, y = s.journal_position
     Kn, Cn = np.zeros((2, 2)), np.zeros((2, 2))
     for j in range(2):
@@ -53,8 +61,12 @@ def test_short_coefficients_equal_derivatives_of_quadrature_force_in_our_frame(r
         fp = np.array(short.short_film_force(x, y, v[0], v[1], D, L, C_RAD, MU, w, n=20000))
         fm = np.array(short.short_film_force(x, y, -v[0], -v[1], D, L, C_RAD, MU, w, n=20000))
         Cn[:, j] = -(fp - fm) / (2 * v[j])
-    assert np.allclose(s.K, Kn, rtol=0, atol=1e-3 * np.abs(Kn).max()), (s.K, Kn)
-    assert np.allclose(s.C, Cn, rtol=0, atol=1e-3 * np.abs(Cn).max()), (s.C, Cn)
+    # tolerance 1e-3 ~ 3 h, h = 2 pi / n = 3.1e-4: the midpoint rule's error for a pressure with a kink at the film
+    # rupture, differenced while the rupture moves, is O(h) relative (measured 1e-5 ... 5e-5); the difference steps'
+    # own truncation is O(1e-10)
+    for K, C in ((s.K, s.C), (Kb[i], Cb[i])):
+        assert np.allclose(K, Kn, rtol=0, atol=1e-3 * np.abs(Kn).max()), (K, Kn)
+        assert np.allclose(C, Cn, rtol=0, atol=1e-3 * np.abs(Cn).max()), (C, Cn)
 
 
 def test_short_cross_coupling_drives_forward_whirl():
@@ -72,11 +84,8 @@ def test_short_cross_coupling_drives_forward_whirl():
     assert K[0, 0] > 0 and K[1, 1] > 0
 
 
-def test_short_load_equation_limits_and_inverse():
-    """Check the brentq inverse of pi S (L/D)^2 = f(eps) across 10 decades, and the attitude-angle limits."""
-    for eps in (1e-4, 0.05, 0.3, 0.5, 0.8, 0.95, 0.999):
-        S = float(short.short_load_parameter(eps)) / (math.pi * 0.5**2)
-        assert math.isclose(short.short_eccentricity(S, 0.5), eps, rel_tol=1e-10)
+def test_short_attitude_angle_limits():
+    """The journal moves at right angles to the load at light load (eps -> 0) and along it at heavy load (eps -> 1)."""
     assert math.isclose(short.short_attitude_angle(1e-9), math.pi / 2, rel_tol=1e-6)
     assert short.short_attitude_angle(0.999999) < 0.01
 
@@ -107,11 +116,13 @@ def test_default_loads_are_the_rotor_weight_share(rig):
     from bearing_id.rotor.assembly import RotorModel
     fn = supports.bearing_fn(rig)
     model = RotorModel.from_params(rig)
-    total = model.total_mass() * GRAVITY if hasattr(model, 'total_mass') else None
     shaft_mass = rig.shaft.mass + sum(d.mass for d in rig.discs)
-    assert math.isclose(sum(fn.loads.values()), shaft_mass * GRAVITY, rel_tol=1e-9)
-    if total is not None:
-        assert math.isclose(sum(fn.loads.values()), total, rel_tol=1e-9)
+    # the statics solve (test_rotor.py::test_static_bearing_loads_lever_rule derives the same bound) against the mass
+    n = model.n_nodes
+    plane = np.sort(np.concatenate([np.arange(n) * 4 + 1, np.arange(n) * 4 + 2]))
+    free = np.setdiff1d(plane, [4 * (b.node - 1) + 1 for b in rig.bearings])
+    tol = solve_tol(model.K[np.ix_(free, free)]) + 64 * EPS_MACH
+    assert math.isclose(sum(fn.loads.values()), shaft_mass * GRAVITY, rel_tol=tol)
     for v in fn.loads.values():
         assert 9.6 < v < 9.8
 
@@ -159,7 +170,7 @@ def test_stability_threshold_short_rig(rig):
 def test_threshold_from_a_campbell_scan_equals_the_dense_search(rig):
     """The threshold bracketed on a Campbell grid (its max real parts) is the geometric-grid search's, to brentq's."""
     from bearing_id.rotor import stability
-    from bearing_id.rotor.assembly import RotorModel
+    from bearing_id.rotor.assembly import RotorModel, state_space
     from bearing_id.rotor.modal import campbell
     model = RotorModel.from_params(rig)
     fn = supports.bearing_fn(rig, model='short')
@@ -167,7 +178,10 @@ def test_threshold_from_a_campbell_scan_equals_the_dense_search(rig):
     grid = np.linspace(hi / 60, hi, 25)
     cb = campbell(model, grid, fn, 4)
     for i in (0, 12, 24):        # the scan is the largest real part of ALL the eigenvalues at each grid speed
-        assert cb.max_real[i] == pytest.approx(stability.max_real_part(model, fn, grid[i]), rel=1e-9, abs=1e-9)
+        lam, bound, _ = eigen_with_bounds(state_space(model, grid[i], fn(grid[i]))[0])
+        k = int(np.argmax(lam.real))                # (eig with vectors and eigvals: two routes, each within the bound)
+        for got in (cb.max_real[i], stability.max_real_part(model, fn, grid[i])):
+            assert abs(got - lam[k].real) <= 2 * bound[k]
     ref = stability.threshold_speed(model, fn, hi)
     got = stability.threshold_speed(model, fn, hi, scan=(grid, cb.max_real))
     assert abs(got - ref) < 2e-3, (got, ref)                    # both brentq to 1e-3 rad/s

@@ -12,7 +12,8 @@ Journal-bearing theory: plain cylindrical bearings as speed-dependent 2x2 stiffn
 Both models return a :class:`BearingSolution` (eccentricity, attitude angle, Sommerfeld number, K [N/m] and
 C [N s/m] in our (x, y) frame, journal position [m]).  The helpers here apply them to one ``params.Bearing``:
 
-* ``coefficients(bearing, speed, load, *, viscosity=None, clearance=None, model=None) -> (K, C)``
+* ``coefficients(bearing, speed, load, *, viscosity=None, clearance=None, model=None) -> (K, C)``;
+  ``coefficients_at(bearing, speeds, load, ...)`` the same at many speeds (K, C (n, 2, 2))
 * ``solution(...)`` -> the full BearingSolution (for orbit/clearance and Sommerfeld checks)
 
 A rig's bearings under the rotor's static loads: :func:`bearing_id.rotor.supports.bearing_fn`; the onset of oil
@@ -22,20 +23,19 @@ Schema v2: a bearing of kind 'table' is interpolated (``k_scale``/``c_scale`` sc
 viscosity/clearance factors do not apply to it); a short/finite bearing whose static load is not along -y
 (``bearing.load_direction``: a load vector, or gravity not along -y) has the coefficients for a load along -y rotated
 by :func:`bearing_id.conventions.load_rotation` (the plain journal bearing is axisymmetric); a finite bearing with
-``cavitation: gumbel`` uses the direct Reynolds solver with the half-Sommerfeld condition when it offers one.
+``cavitation: gumbel`` uses the direct Reynolds solver with the half-Sommerfeld condition.
 """
 from __future__ import annotations
 
 import dataclasses
 from functools import lru_cache
-import inspect
 import math
 
 import numpy as np
 
 from . import finite_table, table as table_model
 from .finite import reynolds
-from .short import BearingSolution, ocvirk
+from .short import BearingSolution, ocvirk, ocvirk_batch
 from ..conventions import load_rotation
 
 MODELS = ('short', 'finite')
@@ -72,9 +72,8 @@ def solution(bearing, speed: float, load: float, *, viscosity: float | None = No
     if model in ('finite', 'finite_direct') and cav == 'gumbel':
         model = 'finite_gumbel'
     s = _solve(model, float(bearing.diameter), float(bearing.length), c, mu, float(load), speed)
-    direction = getattr(bearing, 'load_direction', None)
-    if direction is not None and tuple(direction) != (0.0, 1.0):
-        s = _rotated(s, tuple(float(v) for v in direction))
+    if not _load_along_y(bearing):
+        s = _rotated(s, tuple(float(v) for v in bearing.load_direction))
     return s
 
 
@@ -88,10 +87,12 @@ def _rotated(s: BearingSolution, direction: tuple) -> BearingSolution:
     return dataclasses.replace(s, K=K, C=C, journal_position=pos)
 
 
+def _load_along_y(bearing) -> bool:
+    direction = getattr(bearing, 'load_direction', None)
+    return direction is None or tuple(direction) == (0.0, 1.0)
+
+
 def _gumbel(D, L, c, mu, W, speed) -> BearingSolution:
-    if 'cavitation' not in inspect.signature(reynolds).parameters:
-        raise ValueError("cavitation: gumbel needs bearings.finite.reynolds(..., cavitation='gumbel'), which this "
-                         'version does not have')
     return reynolds(D, L, c, mu, W, speed, cavitation='gumbel')
 
 
@@ -114,5 +115,25 @@ def coefficients(bearing, speed: float, load: float, *, viscosity: float | None 
     return s.K, s.C
 
 
-__all__ = ['BearingSolution', 'ocvirk', 'reynolds', 'solution', 'coefficients', 'MODELS', 'MODELS_ALL', 'KINDS',
-           'finite_table', 'table_model']
+def coefficients_at(bearing, speeds, load: float, *, viscosity: float | None = None, clearance: float | None = None,
+                    model: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return :func:`coefficients` at every speed of ``speeds`` (n,) [rad/s]: K [N/m], C [N s/m] (n, 2, 2).
+
+    A short bearing loaded along -y in one :func:`.short.ocvirk_batch` (the same computation as :func:`.short.ocvirk`,
+    without a call per speed), any other one speed by speed.
+    """
+    speeds = np.asarray(speeds, dtype=float).reshape(-1)
+    if (model or bearing.model) == 'short' and bearing.model != 'table' and _load_along_y(bearing):
+        c = float(bearing.clearance if clearance is None else clearance)
+        mu = float(bearing.viscosity if viscosity is None else viscosity)
+        if not np.all(np.isfinite(speeds) & (speeds > 0)):
+            raise ValueError(f'bearing coefficients need speed > 0 rad/s (no hydrodynamic film at zero speed), '
+                             f'got {speeds!r} for {bearing.name}')
+        return ocvirk_batch(float(bearing.diameter), float(bearing.length), c, mu, float(load), speeds)
+    pairs = [coefficients(bearing, w, load, viscosity=viscosity, clearance=clearance, model=model) for w in speeds]
+    return np.array([k for k, _ in pairs]).reshape(-1, 2, 2), np.array([c for _, c in pairs]).reshape(-1, 2, 2)
+
+
+__all__ = ['BearingSolution', 'ocvirk', 'reynolds', 'solution', 'coefficients', 'coefficients_at', 'MODELS',
+           'MODELS_ALL', 'KINDS', 'finite_table', 'table_model']

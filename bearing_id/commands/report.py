@@ -168,15 +168,15 @@ def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, l
     return header, rows
 
 
-def modes_rows(model, bearing_fn, speeds, n_modes: int = 6, method: str = 'auto') -> tuple[list, list]:
+def modes_rows(model, bearing_fn, speeds, n_modes: int = 6) -> tuple[list, list]:
     """
     Return (header, rows): damped natural frequencies [Hz] with whirl (F/B) and log decrement at each speed.
 
-    This is the table ``bearing-id model`` prints; ``method`` as :func:`bearing_id.rotor.modal.modes_solver`.
+    This is the table ``bearing-id model`` prints; the modes by :func:`bearing_id.rotor.modal.modes_solver`.
     """
     rows = []
     speeds = np.asarray(speeds, float)
-    modes = modes_solver(model, float(np.max(speeds)), method, bearing_fn, n_modes) if speeds.size else None
+    modes = modes_solver(model, float(np.max(speeds)), bearing_fn, n_modes) if speeds.size else None
     for w in speeds:
         m = modes(w, bearing_fn(w), n_modes)
         rows.append([f'{_rpm(w):.0f}'] + [f'{f / (2 * math.pi):.2f} {wh[0].upper()} ({d:+.2f})'

@@ -21,7 +21,7 @@ missing effect; a factor beyond two prior sigmas or at the bound is reported as 
 physics.  Pass ``nuisance=False`` to trust the nominal bearings as they are.
 
 Bearing model form: a default candidate (``bearing_model_form``: the short bearing, the finite-length Reynolds
-bearing under each cavitation condition the physics core offers).  It competes with the other effects at the model
+bearing, each bearing under its own cavitation condition).  It competes with the other effects at the model
 tolerance, and it is tried at the noise floor whenever identify's MODEL MISFIT test trips on the diagnosis' model
 (:mod:`.floor`), so that ``bearing-id identify`` and ``bearing-id diagnose`` never contradict each other.
 
@@ -81,11 +81,6 @@ class Diagnosis:
     def explained_fraction(self) -> float:
         """1 - chi2_after / chi2_before (share of the residual power the selected effects explain)."""
         return float(1.0 - (self.residual_after / max(self.residual_before, 1e-300)) ** 2)
-
-    @property
-    def residual_reduction(self) -> float:
-        """1 - RMS_after / RMS_before of the located mismatch [m]."""
-        return float(1.0 - self.residual_after_m / max(self.residual_before_m, 1e-300))
 
     def as_json(self) -> dict:
         return {'mismatch': [m.as_dict() for m in self.mismatch], 'hypotheses': self.hypotheses,

@@ -48,13 +48,6 @@ class AugmentedModel:
     def names(self) -> list:
         return [e.name for e, _, _ in self._effects] + [d['effect'] for d in self._corrections]
 
-    @property
-    def changes_system(self) -> bool:
-        """Return True when an effect changes the dynamic stiffness (the identification Jacobian is then numerical)."""
-        return any(type(e).bearing_impedance is not fx.Effect.bearing_impedance
-                   or type(e).add_dZ is not fx.Effect.add_dZ
-                   for e, _, _ in self._effects)
-
     def dynamic_stiffness(self, speed: float, omega: float, coeffs: dict) -> np.ndarray:
         """
         Return the dynamic stiffness of the augmented rotor.

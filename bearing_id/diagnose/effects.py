@@ -154,12 +154,12 @@ class BearingModelForm(Effect):
     """
     The oil-film theory itself is off: the bearings follow another model *form* over all speeds.
 
-    ``form`` = (model, cavitation) from :func:`predict.model_forms` (the short bearing; the finite-length Reynolds
-    bearing under each cavitation condition the physics core offers).  With the bearing nuisance refitted (the
-    default) the viscosity and clearance factors stay the nuisance and this effect only swaps the form: no
-    continuous parameter, counted as one parameter in the BIC (a discrete choice), and the refitted factors are
-    reported with it.  With ``with_factors`` (``diagnose(..., nuisance=False)``) it also carries ln viscosity and ln
-    clearance factors per bearing; then the nominal form with refitted factors is a variant too (a theory that is
+    ``form`` = (model, cavitation) from :func:`predict.model_forms` (the short bearing, the finite-length Reynolds
+    bearing).  With the bearing nuisance refitted (the default) the viscosity and clearance factors stay the
+    nuisance and this effect only swaps the form: no continuous parameter, counted as one parameter in the BIC (a
+    discrete choice), and the refitted factors are reported with it.  With ``with_factors``
+    (``diagnose(..., nuisance=False)``) it also carries ln viscosity and ln clearance factors per bearing; then the
+    nominal form with refitted factors is a variant too (a theory that is
     off in its constants: oil temperature, worn clearance).
     """
 
@@ -589,7 +589,7 @@ class OilWhirl(Effect):
     def unit_response(self, prob, k, theta, effects, nls) -> np.ndarray:
         """Probe readings (nch,) of window k for a unit forward force at this bearing at the window's sub ratio."""
         w = prob.windows[k]
-        Z = prob.system(k, w.sub_ratio, theta, effects, nls)
+        Z = prob.systems([(k, w.sub_ratio)], theta, effects, nls)[0]
         q = np.linalg.solve(Z, np.pad(forward_force(prob.model.ndof, self.node, prob.model.n_nodes),
                                       (0, Z.shape[0] - prob.model.ndof)))[:prob.model.ndof]
         return prob.P[w.rec] @ q

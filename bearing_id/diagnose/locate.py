@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from ..conventions import orbit_semi_axes, rad_s_to_rpm, whirl_direction
+from ..conventions import rad_s_to_rpm
 from ..signals import harmonics as signals
 from ..signals.subsync import subsynchronous_bands
 from ..signals.windows import steady_windows
@@ -179,13 +179,6 @@ def _stationary(x, ang, ratio, keep: float = 0.6) -> bool:
 
 
 WHIRL_BAND = (0.3, 0.6)   # frequency ratios accepted as oil whirl (classically 0.42-0.49X)
-
-
-def _is_whirl(w, x, ang, band) -> bool:
-    """Return True when a sub-synchronous line is a whirl: ratio in ``band``, forward, not decaying."""
-    if not band[0] <= w.sub_ratio <= band[1] or w.whirl == 'backward':
-        return False
-    return _stationary(x, ang, w.sub_ratio)
 
 
 def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_duration: float = 0.25,
@@ -334,20 +327,4 @@ def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel
     return out
 
 
-def orbit_table(obs: Observations, pred_X: list) -> list[dict]:
-    """1X orbit shape per window and x/y probe pair: measured and predicted semi-axes [m] and whirl direction."""
-    rows = []
-    for k, w in enumerate(obs.windows):
-        pair = _xy_pair(obs.probes(w.rec))
-        if pair is None:
-            continue
-        i, j = pair
-        mx, my = w.X[0, i], w.X[0, j]
-        px, py = pred_X[k][0, i], pred_X[k][0, j]
-        rows.append({'rpm': w.rpm, 'node': obs.probes(w.rec)[i].node,
-                     'measured_axes': orbit_semi_axes(mx, my), 'predicted_axes': orbit_semi_axes(px, py),
-                     'measured_whirl': whirl_direction(mx, my), 'predicted_whirl': whirl_direction(px, py)})
-    return rows
-
-
-__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate', 'orbit_table', 'DEFAULT_ORDERS']
+__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate', 'DEFAULT_ORDERS']

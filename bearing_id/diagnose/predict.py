@@ -21,8 +21,6 @@ Bearing uncertainty (nuisance)
 from __future__ import annotations
 
 import copy
-import inspect
-import math
 
 import numpy as np
 
@@ -36,43 +34,14 @@ from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_
 
 
 # ------------------------------------------------------------------------------------------------ bearing model forms
-def model_forms() -> list[tuple[str, str | None]]:
+def model_forms() -> list[tuple[str, None]]:
     """
-    Return every bearing model form the physics core offers.
+    Return every bearing model form the physics core offers, as (model, cavitation) pairs.
 
-    Every bearing model form the physics core offers, as (model, cavitation) pairs: the short (Ocvirk, pi film)
-    bearing and the finite-length Reynolds bearing under each cavitation condition that
-    :func:`bearing_id.bearings.coefficients` accepts (``cavitation=None``: the core's one default condition, Reynolds
-    / Swift-Stieber for the finite bearing).
+    The short (Ocvirk, pi film) and the finite-length Reynolds bearing (:data:`bearing_id.bearings.MODELS`); the
+    cavitation entry is None: each bearing keeps its own condition (``params.Bearing.cavitation``).
     """
-    forms = []
-    cav = _cavitation_options()
-    for m in bearings_mod.MODELS:
-        if m == 'finite' and cav:
-            forms += [(m, c) for c in cav]
-        else:
-            forms.append((m, None))
-    return forms
-
-
-def _cavitation_options() -> tuple:
-    """
-    Return the cavitation conditions the core offers for the finite bearing.
-
-    Cavitation conditions of the finite bearing, when the core exposes a choice (a ``cavitation`` keyword of
-    ``bearings.coefficients`` and a tuple of names ``CAVITATION_MODELS``); () when it offers one condition only.
-    """
-    try:
-        params = inspect.signature(bearings_mod.coefficients).parameters
-    except (TypeError, ValueError):
-        return ()
-    if 'cavitation' not in params:
-        return ()
-    for mod in (bearings_mod, getattr(bearings_mod, 'finite', None)):
-        opts = getattr(mod, 'CAVITATION_MODELS', None)
-        if opts:
-            return tuple(opts)
-    return ()
+    return [(m, None) for m in bearings_mod.MODELS]
 
 
 def form_label(form) -> str:
@@ -83,75 +52,6 @@ def form_label(form) -> str:
     if model == 'finite':
         return 'finite-length bearing (Reynolds equation, ' + (f'{cav} cavitation)' if cav else 'Reynolds cavitation)')
     return f'{model} bearing' + (f' ({cav} cavitation)' if cav else '')
-
-
-class FormTable:
-    """
-    Dimensionless coefficients of one bearing geometry (D, L) under one model form, tabulated in ln S.
-
-    For a plain journal bearing of fixed L/D, K c / W and C c Omega / W depend on the Sommerfeld number
-    S = mu N L D / W (R/c)^2 alone (isoviscous film; exact for the short and for the finite Reynolds model), so
-    the coefficients at any viscosity, clearance, speed and load follow from one curve.  Nodes sit on a fixed grid
-    in ln S (step ``h``) and are computed on demand through the public API :func:`bearing_id.bearings.coefficients`
-    (the finite model is the expensive one: a Reynolds solve per node; tables are shared per process, see
-    :func:`form_table`); values between nodes come from 4-point cubic Lagrange interpolation.  Accuracy: 1e-4
-    relative for the short bearing; for the finite-difference Reynolds bearing about 1-3 %, which is the size of
-    that model's own cell-by-cell jitter along S (its cavitation boundary moves one grid cell at a time), so the
-    table is a slightly smoothed finite bearing.
-    """
-
-    def __init__(self, bearing, form, h: float = 0.25):
-        self.bearing, self.form, self.h = bearing, tuple(form), float(h)
-        self._nodes: dict = {}
-        D, L = float(bearing.diameter), float(bearing.length)
-        self._geom = L * D * (0.5 * D) ** 2          # S = mu N L D R^2 / (W c^2) = mu N geom / (W c^2)
-
-    def sommerfeld(self, mu: float, c: float, speed: float, load: float) -> float:
-        return mu * (speed / (2 * math.pi)) * self._geom / (load * c * c)
-
-    def _node(self, i: int) -> np.ndarray:
-        v = self._nodes.get(i)
-        if v is None:
-            S = math.exp(i * self.h)
-            c, W, Om = float(self.bearing.clearance), 10.0, 200.0     # any positive values: the scaling is exact
-            mu = S * W * c * c / ((Om / (2 * math.pi)) * self._geom)
-            kw = {'viscosity': mu, 'clearance': c, 'model': self.form[0]}
-            if self.form[1] is not None:
-                kw['cavitation'] = self.form[1]
-            K, C = bearings_mod.coefficients(self.bearing, Om, W, **kw)
-            v = np.concatenate([np.asarray(K, float).reshape(4) * c / W, np.asarray(C, float).reshape(4) * c * Om / W])
-            self._nodes[i] = v
-        return v
-
-    def coefficients(self, mu: float, c: float, speed: float, load: float):
-        """
-        Return (K [N/m], C [N s/m]) at a viscosity, clearance, speed and load.
-
-        (K [N/m], C [N s/m]) 2x2 at viscosity ``mu`` [Pa s], clearance ``c`` [m], ``speed`` [rad/s] and static
-        ``load`` [N].
-        """
-        x = math.log(self.sommerfeld(mu, c, speed, load)) / self.h
-        i0 = int(math.floor(x)) - 1
-        t = x - (i0 + 1)                    # position between nodes i0+1 and i0+2, in [0, 1)
-        w = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
-             (t + 1) * t * (t - 1) / 6)    # 4-point Lagrange weights at nodes -1, 0, 1, 2 (relative to i0 + 1)
-        v = sum(wi * self._node(i0 + j) for j, wi in enumerate(w))
-        return v[:4].reshape(2, 2) * load / c, v[4:].reshape(2, 2) * load / (c * speed)
-
-
-_TABLES: dict = {}
-# the physics core evaluates the finite bearing from its own precomputed Sommerfeld table (fast, smooth): call it
-# directly; with a core that solves Reynolds at every call, go through FormTable (a few dozen solves per geometry)
-_FAST_CORE = hasattr(bearings_mod, 'finite_table')
-
-
-def form_table(bearing, form) -> FormTable:
-    """Return the process-wide :class:`FormTable` of ``bearing``'s geometry (D, L) under ``form``."""
-    key = (float(bearing.diameter), float(bearing.length), tuple(form))
-    t = _TABLES.get(key)
-    if t is None:
-        t = _TABLES[key] = FormTable(bearing, form)
-    return t
 
 
 class Problem:
@@ -256,15 +156,15 @@ class Problem:
         th = np.asarray(theta, dtype=float)
         return tuple(np.exp(th[:self.nb])), tuple(np.exp(th[self.nb:2 * self.nb]))
 
-    def coeffs(self, theta, speed: float, factors=None, form=None) -> dict:
+    def coeffs(self, theta, speeds, factors=None, form=None) -> list:
         """
-        Bearing coefficients {node: (K, C)} at ``speed`` [rad/s] for nuisance ``theta`` (cached).
+        Bearing coefficients [{node: (K, C)}, ...] at each of ``speeds`` [rad/s] for nuisance ``theta`` (cached).
 
         ``factors`` : optional (viscosity factors, clearance factors) per bearing multiplying the nuisance ones
         (an effect that re-fits the bearing theory, :class:`effects.BearingModelForm`).   ``form`` : optional
         (model, cavitation) replacing every bearing's model form (default: each bearing's ``model``).  Through
-        :func:`bearing_id.bearings.coefficients` (the core's finite bearing is a precomputed Sommerfeld table);
-        with a core that solves the finite bearing at every call, through :class:`FormTable`.
+        :func:`bearing_id.bearings.coefficients_at`, all missing speeds of a bearing in one call (the short bearing
+        in one batch, the finite bearing from its precomputed Sommerfeld table).
         """
         # the factors and their rounded logs once per (theta, factors): every window of a prediction asks for them
         fkey = (np.asarray(theta, dtype=float).tobytes(),
@@ -280,48 +180,32 @@ class Problem:
                 self._factor_memo.clear()
             memo = self._factor_memo[fkey] = (vf, cf, lf, tuple(lf))
         vf, cf, lf, lf_key = memo
-        key = (lf_key, float(speed), form)
-        c = self._coeff_cache.get(key)
-        if c is None:
+        if len(self._coeff_cache) > 20000:
+            self._coeff_cache.clear()
+            self._bearing_cache.clear()
+        keys = [(lf_key, float(W), form) for W in speeds]
+        todo = [k[1] for k in keys if k not in self._coeff_cache]
+        if todo:
             if self._loads is None:
                 self._loads = supports.static_loads(self.rig)
-            if len(self._coeff_cache) > 20000:
-                self._coeff_cache.clear()
-                self._bearing_cache.clear()
-            c = {}
+            per_bearing = []
             for i, b in enumerate(self.rig.bearings):
                 # per bearing: a nuisance step on one bearing's factors (a Jacobian column) leaves the others cached
-                bkey = (i, float(lf[i]), float(lf[self.nb + i]), float(speed), form)
-                kc = self._bearing_cache.get(bkey)
-                if kc is None:
-                    f = tuple(form) if form is not None else (b.model, None)
-                    mu, cl, W = b.viscosity * vf[i], b.clearance * cf[i], self._loads[b.node]
-                    if f == ('short', None) or _FAST_CORE:
-                        kw = {} if f[1] is None else {'cavitation': f[1]}
-                        K, C = bearings_mod.coefficients(b, speed, W, viscosity=mu, clearance=cl, model=f[0], **kw)
-                    else:
-                        K, C = form_table(b, f).coefficients(mu, cl, speed, W)
-                    kc = self._bearing_cache[bkey] = (np.array(K, float), np.array(C, float))
-                c[b.node] = kc
-            self._coeff_cache[key] = c
-        return c
+                bkeys = [(i, float(lf[i]), float(lf[self.nb + i]), W, form) for W in todo]
+                miss = [k for k in bkeys if k not in self._bearing_cache]
+                if miss:
+                    K, C = bearings_mod.coefficients_at(b, [k[3] for k in miss], self._loads[b.node],
+                                                        viscosity=b.viscosity * vf[i], clearance=b.clearance * cf[i],
+                                                        model=form[0] if form is not None else b.model)
+                    for k, Kk, Ck in zip(miss, K, C):
+                        self._bearing_cache[k] = (Kk, Ck)
+                per_bearing.append([self._bearing_cache[k] for k in bkeys])
+            for j, W in enumerate(todo):
+                self._coeff_cache[(lf_key, W, form)] = {b.node: per_bearing[i][j]
+                                                        for i, b in enumerate(self.rig.bearings)}
+        return [self._coeff_cache[k] for k in keys]
 
     # ----------------------------------------------------------------------------------------- prediction
-    def system(self, k: int, ratio: float, theta, effects, nls) -> np.ndarray:
-        """Full dynamic stiffness Z (ndof, ndof) of window k at ratio x speed with bearings and effects."""
-        W = self.obs.windows[k].speed
-        w = ratio * W
-        Z = self.Z0(k, ratio).copy()
-        factors, form = self._bearing_setup(effects, nls)
-        for node, (Kb, Cb) in self.coeffs(theta, W, factors, form).items():
-            Zb = np.asarray(Kb) + 1j * w * np.asarray(Cb)
-            for e, nl in zip(effects, nls):
-                Zb = e.bearing_impedance(self, node, Zb, W, w, nl)
-            add_film_impedance(self.model, Z, node, Zb)       # at the node, or in series with its pedestal
-        for e, nl in zip(effects, nls):
-            e.add_dZ(self, Z, W, w, nl)
-        return Z
-
     def _bearing_setup(self, effects, nls):
         """Return (factors, form): what the effects apply to the bearing theory, composed in effect order."""
         factors, form = None, None
@@ -345,11 +229,11 @@ class Problem:
 
     def systems(self, keys, theta, effects, nls) -> np.ndarray:
         """
-        Return :meth:`system` for every (window, ratio) of ``keys``, stacked (n, N, N).
+        Return the full dynamic stiffness Z (n, N, N) of every (window, ratio) of ``keys`` with bearings and effects.
 
-        The same operations on every entry as :meth:`system` (the rotor part, each bearing's K + j w C through the
-        effects' bearing hooks added at its film DOFs in the same order, then the effects' dZ), vectorised over the
-        entries: the same bits (test/test_diagnose_speed.py).
+        Per entry at w = ratio x the window's speed: the rotor-only Z (:meth:`Z0`), each bearing's K + j w C (at the
+        nuisance ``theta`` and the effects' bearing factors and form) through the effects' bearing hooks, added at
+        its film DOFs (or in series with its pedestal), then the effects' dZ; vectorised over the entries.
         """
         n = len(keys)
         Z = self._Z0_stack(keys).copy()
@@ -360,7 +244,7 @@ class Problem:
         ws = [ratio * W for (_, ratio), W in zip(keys, Ws)]
         w = np.array(ws)
         speeds = list(dict.fromkeys(Ws))
-        per_speed = [self.coeffs(theta, W, factors, form) for W in speeds]
+        per_speed = self.coeffs(theta, speeds, factors, form)
         pos = {W: i for i, W in enumerate(speeds)}
         at = np.array([pos[W] for W in Ws])
         b_hooks = [(e, nl) for e, nl in zip(effects, nls) if type(e).bearing_impedance is not Effect.bearing_impedance]
@@ -373,7 +257,7 @@ class Problem:
             for e, nl in b_hooks:
                 for j in range(n):
                     Zb[j] = e.bearing_impedance(self, node, Zb[j], Ws[j], ws[j], nl)
-            add_film_impedance(self.model, Z, node, Zb)       # every entry at once, as system() adds one
+            add_film_impedance(self.model, Z, node, Zb)       # every entry at once
         for e, nl in z_hooks:
             for j in range(n):
                 e.add_dZ(self, Z[j], Ws[j], ws[j], nl)
@@ -385,17 +269,16 @@ class Problem:
 
         Returns (y0, A, q_by_window) with y0 complex (n_sel,) the readings from the known excitation, A complex
         (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and the
-        selected entry indices.  ``nls`` holds each effect's nonlinear parameter vector.  The same numbers as
-        :meth:`predict_reference` (test/test_diagnose_fast.py): the dynamic stiffness of every (window, order) is
-        assembled as there, all at once (:meth:`systems`, bit for bit :meth:`system`), and the systems with
-        right-hand sides of equal shape are solved in one stacked ``numpy.linalg.solve``.
+        selected entry indices.  ``nls`` holds each effect's nonlinear parameter vector.  The dynamic stiffness of
+        every (window, order) is assembled at once (:meth:`systems`), and the systems with right-hand sides of equal
+        shape are solved in one stacked ``numpy.linalg.solve``.
         """
         windows = range(len(self.obs.windows)) if windows is None else windows
         nlin = [e.n_lin for e in effects]
         off = np.concatenate([[0], np.cumsum(nlin)]).astype(int)
         ndof = self.model.ndof
         zero_rhs = np.zeros((ndof, 1), complex)
-        jobs = []               # (window, order, ratio, cols, solved?, R) in the reference's order
+        jobs = []               # (window, order, ratio, cols, solved?, R) window by window, order by order
         for k in windows:
             for o, ratio in enumerate(self.orders):
                 F0 = self.known[k].get(ratio)
@@ -455,61 +338,6 @@ class Problem:
             return np.zeros(0, complex), np.zeros((0, off[-1]), complex), np.zeros(0, int)
         return np.concatenate(y0s), np.vstack(As), np.concatenate(idx)
 
-    def predict_reference(self, theta, effects, nls, windows=None):
-        """
-        Return :meth:`predict` computed window by window: the first implementation, the reference.
-
-        Model prediction over the entries of ``windows`` (default all).
-
-        Returns (y0, A, q_by_window) with y0 complex (n_sel,) the readings from the known excitation, A complex
-        (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and the
-        selected entry indices.  ``nls`` holds each effect's nonlinear parameter vector.
-        """
-        windows = range(len(self.obs.windows)) if windows is None else windows
-        nlin = [e.n_lin for e in effects]
-        off = np.concatenate([[0], np.cumsum(nlin)]).astype(int)
-        idx, y0s, As = [], [], []
-        for k in windows:
-            wdw = self.obs.windows[k]
-            r_ = self.rec_of(k)
-            P, Pp = self.P[r_], self.Pperp[r_]
-            no, nch = wdw.X.shape
-            y0 = np.zeros((no, nch), complex)
-            A = np.zeros((no, nch, off[-1]), complex)
-            for o, ratio in enumerate(self.orders):
-                F0 = self.known[k].get(ratio)
-                rhs = [F0[:, None] if F0 is not None else np.zeros((self.model.ndof, 1), complex)]
-                cols = []
-                for j, (e, nl) in enumerate(zip(effects, nls)):
-                    fc = e.force_columns(self, k, ratio, nl)
-                    if fc is not None:
-                        cols.append((j, fc.shape[1]))
-                        rhs.append(fc)
-                if F0 is None and not cols:
-                    q0 = np.zeros(self.model.ndof, complex)
-                    Q = None
-                else:
-                    Z = self.system(k, ratio, theta, effects, nls)
-                    R = np.hstack(rhs)
-                    Q = np.linalg.solve(Z, R)[:self.model.ndof]
-                    q0 = Q[:, 0]
-                y0[o] = P @ q0
-                c0 = 1
-                for j, m in cols:
-                    A[o, :, off[j]:off[j] + m] += P @ Q[:, c0:c0 + m]
-                    c0 += m
-                for j, (e, nl) in enumerate(zip(effects, nls)):
-                    mc = e.measure_columns(self, k, o, ratio, P @ q0, Pp @ q0)
-                    if mc is not None:
-                        A[o, :, off[j]:off[j + 1]] += mc
-            sl = self.slices[k]
-            idx.append(np.arange(sl.start, sl.stop))
-            y0s.append(y0.reshape(-1))
-            As.append(A.reshape(no * nch, off[-1]))
-        if not idx:
-            return np.zeros(0, complex), np.zeros((0, off[-1]), complex), np.zeros(0, int)
-        return np.concatenate(y0s), np.vstack(As), np.concatenate(idx)
-
     def prediction_by_window(self, theta, effects, nls, lin):
         """Predicted harmonic vectors per window, complex (n_orders, nch) each, with linear parameters ``lin``."""
         y0, A, idx = self.predict(theta, effects, nls)
@@ -536,4 +364,4 @@ def forward_force(ndof: int, node: int, n_nodes: int, value: complex = 1.0) -> n
     return F
 
 
-__all__ = ['Problem', 'forward_force', 'FormTable', 'form_table', 'model_forms', 'form_label']
+__all__ = ['Problem', 'forward_force', 'model_forms', 'form_label']

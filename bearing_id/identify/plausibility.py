@@ -27,133 +27,48 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .direct import SPARSE_NDOF
-from ..bearings.short import brentq
 from ..conventions import dof_index
 from ..excitation import harmonic_forces
-from ..rotor.assembly import dynamic_stiffness, harmonic_response, probe_matrix, state_space
-from ..rotor.stability import FAST_NDOF, max_real_part_fn, threshold_speed
+from ..rotor.assembly import dynamic_stiffness, probe_matrix
+from ..rotor.stability import threshold_speed
 from ..rotor.supports import bearing_fn
 
 ORBIT_LIMIT = 0.30      # fraction of the radial clearance (same rule as rig.check_validity and kf_estimator)
 SIGNAL_SIGMA = 3.0      # a channel's 1X amplitude must exceed this many of its 1-sigma in some run
 
 
-def stability_threshold(model, rig, speed_max: float, method: str = 'auto') -> float:
+def stability_threshold(model, rig, speed_max: float) -> float:
     """
-    Return the nominal model's stability threshold [rad/s].
+    Return the nominal model's stability threshold [rad/s] as far as speeds up to ``speed_max`` [rad/s] need it.
 
-    ``method``: as :func:`bearing_id.rotor.stability.threshold_speed` ('auto': the reduced-screen, full-refine fast
-    path above ``FAST_NDOF`` DOFs, the dense eigenvalues below).
-
-    Searched up to at least 2 x ``speed_max`` (inf when stable there).  Kept on the model object for this rig: a later
-    call within the range searched reuses it (the live identifier solves again at every new speed).
+    :func:`bearing_id.rotor.stability.threshold_speed` on its geometric grid from 0.2 to 4 x ``speed_max``, stopped
+    at the first stable grid point at or above ``speed_max``: the threshold when the crossing lies before it, else
+    ``math.inf`` (the threshold, if any, lies above every speed asked about); 0 when the model is unstable already
+    at the bottom of the range.  Kept on the model object for this rig: a later call with a ``speed_max`` the
+    answer covers (up to this one for inf, twice it for a threshold) reuses it (the live identifier asks at every
+    new speed; its ``prepare`` asks first with the top of the scenario).
     """
-    cached = getattr(model, '_plausibility_threshold', None)       # (rig, top of the range searched, threshold)
-    if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
+    cached = getattr(model, '_plausibility_threshold', None)       # (rig, largest speed_max covered, threshold)
+    if cached is not None and cached[0] is rig and float(speed_max) <= cached[1]:
         return cached[2]
-    top = 4.0 * float(speed_max)
     try:
-        thr = threshold_speed(model, bearing_fn(rig), top, method=method)
+        thr = threshold_speed(model, bearing_fn(rig), 4.0 * float(speed_max), stop_above=float(speed_max))
     except ValueError:              # unstable already at the bottom of the range
         thr = 0.0
     try:
-        model._plausibility_threshold = (rig, top, thr)
+        model._plausibility_threshold = (rig, float(speed_max) * (1.0 if math.isinf(thr) else 2.0), thr)
     except AttributeError:          # a model that takes no attributes: no cache
         pass
     return thr
 
 
-THRESHOLD_GRID = 40        # the geometric grid of :func:`bearing_id.rotor.stability.threshold_speed` (its default)
-
-
-CAYLEY_STEP = 0.3          # the stability certificate's Cayley step h = CAYLEY_STEP / speed [s]
-CERT_SQUARINGS = 30        # squarings of the Cayley transform before the certificate gives up
-CERT_NORM = 0.5            # ... proved when the Frobenius norm of its 2^k-th power falls below this
-
-
-def certified_stable(A: np.ndarray, h: float) -> bool:
-    """
-    Return True when every eigenvalue of ``A`` (n, n) is proved to lie in the open left half plane; False: not proved.
-
-    The Cayley transform Cy = (I - h A)^-1 (I + h A) (h > 0 [s]) maps the open left half plane onto the open unit
-    disc, and rho(Cy) <= ||Cy^(2^k)||^(1 / 2^k) for any norm: a Frobenius norm of a repeated square below
-    :data:`CERT_NORM` proves rho < 1, i.e. A stable.  One LU and ~12 matrix products (~1 ms for the 88-state rig)
-    instead of the ~2 ms of the dense eigenvalues; an unstable or nearly unstable A is never "proved" (its powers grow
-    or do not shrink within :data:`CERT_SQUARINGS` squarings), and the caller computes the eigenvalues then.
-    """
-    n = A.shape[0]
-    hA = h * np.asarray(A, dtype=float)
-    Id = np.eye(n)
-    try:
-        Cy = np.linalg.solve(Id - hA, Id + hA)
-    except np.linalg.LinAlgError:
-        return False
-    with np.errstate(over='ignore', invalid='ignore'):
-        for _ in range(CERT_SQUARINGS):
-            nf = float(np.sqrt(np.sum(Cy * Cy)))
-            if nf < CERT_NORM:
-                return True
-            if not nf < 1e100:          # growing (or NaN): not provable
-                return False
-            Cy = Cy @ Cy
-    return False
-
-
-def threshold_for_gate(model, rig, speed_max: float, method: str = 'auto', certify: bool = True) -> float:
-    """
-    Return what the gate needs of the stability threshold [rad/s] for speeds up to ``speed_max``, scanning less.
-
-    The same search as :func:`stability_threshold` (the geometric grid of
-    :func:`bearing_id.rotor.stability.threshold_speed` from 0.2 to 4 x ``speed_max``, the first unstable grid point
-    refined with brentq), stopped at the first stable grid point at or above ``speed_max``: when the crossing lies
-    before it the value is the one :func:`stability_threshold` returns (same grid, same bracket, same brentq); else
-    ``math.inf``, and :func:`stability_threshold` gives a threshold above that grid point, so no speed up to
-    ``speed_max`` compares differently (test/test_plausibility_fast.py).  22 eigenvalue problems instead of 40 when
-    the rig is stable over the data (the gate's cost in a 1-speed identification was a third of the whole).
-    A threshold already on the model (:func:`stability_threshold`, e.g. from the identifier node's ``prepare``) is
-    used as it is.  ``method`` as :func:`stability_threshold` (on a 160-element rotor 'auto' takes ~0.1 s per speed
-    instead of ~1.3 s; test/test_stability_fast.py ties it to 'full').  ``certify`` (dense models, the default): a
-    grid point is first offered to :func:`certified_stable` (a proof of stability at half the cost of the
-    eigenvalues); only the points it cannot prove stable get the eigenvalues, so every decision is the eigenvalues'
-    (test/test_plausibility_fast.py; both are meaningless only for an eigenvalue within rounding of the axis).
-    """
-    cached = getattr(model, '_plausibility_threshold', None)       # (rig, top of the range searched, threshold)
-    if cached is not None and cached[0] is rig and 2.0 * float(speed_max) <= cached[1]:
-        return cached[2]
-    bfn = bearing_fn(rig)
-    top = 4.0 * float(speed_max)
-    grid = np.geomspace(top / 20, top, THRESHOLD_GRID)
-    f = max_real_part_fn(model, bfn, top, method)
-    dense = method == 'full' or (method == 'auto' and model.ndof <= _fast_ndof())
-
-    def unstable(w):
-        if certify and dense:
-            if certified_stable(state_space(model, w, bfn(w))[0], CAYLEY_STEP / w):
-                return False
-        return f(w) > 0
-
-    if unstable(grid[0]):       # unstable already at the bottom of the range (stability_threshold: 0)
-        return 0.0
-    for prev_w, w in zip(grid[:-1], grid[1:]):
-        if unstable(w):
-            return float(brentq(f, prev_w, w, xtol=1e-3, rtol=4 * np.finfo(float).eps))
-        if w >= speed_max:
-            return math.inf
-    return math.inf
-
-
-def _fast_ndof() -> int:
-    return FAST_NDOF
-
-
-def bearing_orbits(result, model, data, s: int, runs, probes, fast: bool = True) -> dict:
+def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
     """
     Return {bearing node: largest orbit radius [m] over the runs} at speed index ``s``.
 
     The model's response with the identified coefficients, scaled by the least-squares ratio of measured to modelled
-    probe amplitudes.  ``fast``: every run's response from one factorisation of Z (sparse LU above
-    ``direct.SPARSE_NDOF`` DOFs, the FE dynamic stiffness being banded); False: a dense
-    :func:`bearing_id.rotor.assembly.harmonic_response` per run (the reference; test/test_direct_fast.py).
+    probe amplitudes.  Every run's response from one factorisation of the dynamic stiffness Z (a sparse LU above
+    ``direct.SPARSE_NDOF`` DOFs, the FE dynamic stiffness being banded; dense below); inf for a singular Z.
     """
     w = float(data.speeds[s])
     co = result.coeffs()
@@ -166,23 +81,19 @@ def bearing_orbits(result, model, data, s: int, runs, probes, fast: bool = True)
             forced.append((r, F))
     if not forced:
         return out
+    Fs = np.stack([np.asarray(F, dtype=complex) for _, F in forced], axis=1)
     try:
-        if fast:
-            Z = dynamic_stiffness(model, w, w, co)
-            Fs = np.stack([np.asarray(F, dtype=complex) for _, F in forced], axis=1)
-            if Z.shape[0] > SPARSE_NDOF:
-                lu = splu(sp.csc_matrix(Z))
-                if not np.all(np.isfinite(lu.U.diagonal())) or np.any(lu.U.diagonal() == 0):
-                    raise np.linalg.LinAlgError('singular dynamic stiffness')
-                Q = lu.solve(Fs)
-            else:
-                Q = np.linalg.solve(Z, Fs)
-            qs = [Q[:, k] for k in range(len(forced))]
+        Z = dynamic_stiffness(model, w, w, co)
+        if Z.shape[0] > SPARSE_NDOF:
+            lu = splu(sp.csc_matrix(Z))
+            if not np.all(np.isfinite(lu.U.diagonal())) or np.any(lu.U.diagonal() == 0):
+                raise np.linalg.LinAlgError('singular dynamic stiffness')
+            Q = lu.solve(Fs)
         else:
-            qs = [harmonic_response(model, w, w, F, co) for _, F in forced]
+            Q = np.linalg.solve(Z, Fs)
     except (np.linalg.LinAlgError, RuntimeError):
         return {n: math.inf for n in co}
-    for (r, _), q in zip(forced, qs):
+    for (r, _), q in zip(forced, Q.T):
         pred = np.abs(S @ q)
         meas = np.abs(data.X[r, s])
         scale = float(pred @ meas / (pred @ pred)) if pred @ pred > 0 else math.inf
@@ -202,7 +113,7 @@ def gate(results, model, rig, data, runs, probes) -> list:
     if not results:
         return results
     speeds = np.asarray(data.speeds, dtype=float)
-    thr = threshold_for_gate(model, rig, float(np.max(speeds)))
+    thr = stability_threshold(model, rig, float(np.max(speeds)))
     clearance = {b.node: b.clearance for b in rig.bearings}
     amp = np.abs(data.X)                                   # (nr, ns, nch)
     std = np.asarray(data.X_std, dtype=float)
@@ -235,5 +146,4 @@ def gate(results, model, rig, data, runs, probes) -> list:
     return results
 
 
-__all__ = ['ORBIT_LIMIT', 'SIGNAL_SIGMA', 'stability_threshold', 'threshold_for_gate', 'certified_stable',
-           'bearing_orbits', 'gate']
+__all__ = ['ORBIT_LIMIT', 'SIGNAL_SIGMA', 'stability_threshold', 'bearing_orbits', 'gate']

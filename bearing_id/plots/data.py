@@ -83,20 +83,20 @@ class CampbellData:
 
 
 def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | None = None, n_modes: int = 8,
-                  n_grid: int = 40, label: str = '', method: str = 'auto') -> CampbellData:
+                  n_grid: int = 40, label: str = '') -> CampbellData:
     """
     Campbell data of ``model`` on ``bearing_fn`` over (min_speed, max_speed] [rad/s].
 
     Critical speeds: :func:`bearing_id.rotor.modal.critical_speeds` on (lo, max_speed) with 40 grid points and
     ``n_modes`` modes (the ``bearing-id model`` call); stability threshold: :func:`rotor.stability.threshold_speed`
     on (lo, max_speed), scanned on the Campbell grid (whose eigenvalues are computed anyway; the crossing refined by
-    brentq) and :func:`rotor.stability.whirl_ratio` at it.  ``method``: the modes' solver,
-    :func:`bearing_id.rotor.modal.modes_solver` ('auto': the reduced screen with full refinement on large models).
+    brentq) and :func:`rotor.stability.whirl_ratio` at it.  The modes by :func:`bearing_id.rotor.modal.modes_solver`
+    (the reduced screen with full refinement on large models).
     """
     hi = float(max_speed)
     lo = float(min_speed) if min_speed is not None else max(50.0 / RPM_PER_RAD_S, hi / 60.0)
     grid = np.linspace(lo, hi, int(n_grid))
-    modes = modes_solver(model, hi, method, bearing_fn, n_modes)
+    modes = modes_solver(model, hi, bearing_fn, n_modes)
     cb = campbell(model, grid, bearing_fn, n_modes, solver=modes)
     notes = []
     crit = critical_speeds(model, bearing_fn, (lo, hi), n_grid=40, n_modes=n_modes, campbell_grid=cb, solver=modes)
@@ -107,7 +107,7 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
         zc.append(float(m.damping_ratio[k]))
     thr, ratio = None, None
     try:
-        thr = stability.threshold_speed(model, bearing_fn, hi, scan=(grid, cb.max_real), method='auto')
+        thr = stability.threshold_speed(model, bearing_fn, hi, scan=(grid, cb.max_real))
         if np.isfinite(thr):
             ratio = stability.whirl_ratio(model, bearing_fn, thr * (1 + 1e-6))
     except ValueError as exc:

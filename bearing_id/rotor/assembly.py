@@ -211,17 +211,19 @@ def _xy_index(model: RotorModel, node: int) -> int:
     return dof_index(node, 'x', model.n_nodes)
 
 
+def _add_between(X, i, j, B) -> None:
+    """Add a 2x2 block ``B`` (..., 2, 2) in place to ``X`` (..., n, n) between DOF pairs i and j (None = ground)."""
+    X[..., i:i + 2, i:i + 2] += B
+    if j is not None:
+        X[..., j:j + 2, j:j + 2] += B
+        X[..., i:i + 2, j:j + 2] -= B
+        X[..., j:j + 2, i:i + 2] -= B
+
+
 def _add_film(K, C, i, j, kb, cb) -> None:
     """Add a film (kb, cb) between DOF pair i (shaft x, y) and j (pedestal x, y; None = ground)."""
-    K[i:i + 2, i:i + 2] += kb
-    C[i:i + 2, i:i + 2] += cb
-    if j is not None:
-        K[j:j + 2, j:j + 2] += kb
-        C[j:j + 2, j:j + 2] += cb
-        K[i:i + 2, j:j + 2] -= kb
-        C[i:i + 2, j:j + 2] -= cb
-        K[j:j + 2, i:i + 2] -= kb
-        C[j:j + 2, i:i + 2] -= cb
+    _add_between(K, i, j, kb)
+    _add_between(C, i, j, cb)
 
 
 def film_dofs(model: RotorModel, node: int) -> tuple:
@@ -240,12 +242,7 @@ def add_film_impedance(model: RotorModel, Z: np.ndarray, node: int, Zb: np.ndarr
     At the shaft node's (x, y), or between the shaft node and its pedestal when the bearing has one (``film_dofs``).
     Stacks work alike: ``Z`` (..., ndof, ndof) with ``Zb`` (..., 2, 2).
     """
-    i, j = film_dofs(model, node)
-    Z[..., i:i + 2, i:i + 2] += Zb
-    if j is not None:
-        Z[..., j:j + 2, j:j + 2] += Zb
-        Z[..., i:i + 2, j:j + 2] -= Zb
-        Z[..., j:j + 2, i:i + 2] -= Zb
+    _add_between(Z, *film_dofs(model, node), Zb)
 
 
 def add_bearings(model: RotorModel, K: np.ndarray, C: np.ndarray, coeffs: dict) -> None:

@@ -194,10 +194,7 @@ class ShaftElement:
 
     def _own_G(self) -> np.ndarray:
         """Return the host's gyroscopic matrix (without the layers), 8x8."""
-        if self.added_mass:
-            R = 2.0 * self.rotary_per_length * self._rotation_integral()
-        else:   # the v1 expression, bit for bit
-            R = 2.0 * self.rho * self.inertia * self._rotation_integral()
+        R = 2.0 * self.rotary_per_length * self._rotation_integral()
         # ty = Psi . (x-z planar dofs); tx = -Psi . (y-z planar dofs); disc-like coupling +Ip on [tx, ty]
         return _T_XZ.T @ R @ _T_YZ - _T_YZ.T @ R @ _T_XZ
 

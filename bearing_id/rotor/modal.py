@@ -78,7 +78,7 @@ def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n
                        whirl=whirl, eigenvalues=lam, shapes=V, max_real=max_real)
 
 
-FAST_NDOF = 100           # method='auto' takes :class:`FastModes` for models with more DOFs than this
+FAST_NDOF = 100           # models with more DOFs take :class:`FastModes` (:func:`modes_solver`)
 N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as rotor.stability.FastStability)
 
 
@@ -90,7 +90,7 @@ class FastModes:
     [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (one dense solve; without
     ``coeffs_top``, ``cutoff_factor`` x ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
     ``N_LEAST_STABLE`` least stable eigenvalues are refined on the full model, so the frequencies, damping, shapes
-    and the largest real part are the full model's (to ~1e-13).  A speed where the check fails -- fewer than ``n``
+    and the largest real part are the full model's (to rounding).  A speed where the check fails -- fewer than ``n``
     reduced modes, the n-th above half the cutoff, or two refinements landing on one full eigenvalue -- is solved
     densely instead (counted in ``fallbacks``).
     """
@@ -133,17 +133,15 @@ class FastModes:
         return damped_modes(self.model, speed, coeffs, n)
 
 
-def modes_solver(model: RotorModel, speed_top: float, method: str = 'auto', bearing_fn=None, n: int = 8):
+def modes_solver(model: RotorModel, speed_top: float, bearing_fn=None, n: int = 8):
     """
-    Return f(speed, coeffs, n) -> DampedModes by ``method``.
+    Return f(speed, coeffs, n) -> DampedModes for ``model``.
 
-    'full' (:func:`damped_modes`, dense, the reference), 'fast' (:class:`FastModes`) or 'auto' (fast above
-    ``FAST_NDOF`` DOFs).  ``speed_top`` [rad/s]: the highest speed to be asked; with ``bearing_fn`` and ``n`` (the
-    most modes to be asked) the fast path's reduction keeps modes up to 3 x the n-th one there.
+    :func:`damped_modes` (dense) for models up to ``FAST_NDOF`` DOFs, :class:`FastModes` above.  ``speed_top``
+    [rad/s]: the highest speed to be asked; with ``bearing_fn`` and ``n`` (the most modes to be asked) the fast
+    path's reduction keeps modes up to 3 x the n-th one there.
     """
-    if method not in ('full', 'fast', 'auto'):
-        raise ValueError(f"method must be 'full', 'fast' or 'auto', got {method!r}")
-    if method == 'fast' or (method == 'auto' and model.ndof > FAST_NDOF):
+    if model.ndof > FAST_NDOF:
         top = float(speed_top)
         return FastModes(model, top, bearing_fn(top) if bearing_fn is not None else None, n).damped_modes
     return lambda speed, coeffs, n: damped_modes(model, speed, coeffs, n)
@@ -186,15 +184,15 @@ class Campbell:
     max_real: np.ndarray | None = None
 
 
-def campbell(model: RotorModel, speeds, bearing_fn, n: int = 8, method: str = 'full', solver=None) -> Campbell:
+def campbell(model: RotorModel, speeds, bearing_fn, n: int = 8, solver=None) -> Campbell:
     """
     Damped modes over ``speeds`` [rad/s] with speed-dependent bearings ``bearing_fn(speed) -> coeffs``.
 
     Modes are ordered by frequency at each speed (no mode tracking); NaN where fewer than ``n`` modes exist.
-    ``method`` as :func:`modes_solver` (or a ``solver`` from it).
+    The modes by :func:`modes_solver` (or a ``solver`` from it).
     """
     speeds = np.asarray(speeds, dtype=float)
-    modes = solver or modes_solver(model, float(np.max(speeds)), method, bearing_fn, n)
+    modes = solver or modes_solver(model, float(np.max(speeds)), bearing_fn, n)
     F = np.full((speeds.size, n), np.nan)
     Z = np.full_like(F, np.nan)
     D = np.full_like(F, np.nan)
@@ -221,7 +219,7 @@ def forward_frequencies(cb: Campbell) -> list:
 
 
 def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60, n_modes: int = 8, *,
-                    campbell_grid: Campbell | None = None, method: str = 'full', solver=None) -> np.ndarray:
+                    campbell_grid: Campbell | None = None, solver=None) -> np.ndarray:
     """
     Return the synchronous critical speeds [rad/s]: where a forward-whirl damped frequency crosses the 1X line.
 
@@ -229,12 +227,12 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
     speeds, each sign change refined with Brent's method.  Returns the sorted crossings inside the range.
     ``campbell_grid``: a :func:`campbell` of the same model and bearings with ``n_modes`` modes on exactly that grid
     (``linspace(lo, hi, n_grid)``), whose modes are then reused instead of recomputed (the same numbers).
-    ``method`` as :func:`modes_solver` (or a ``solver`` from it).
+    The modes by :func:`modes_solver` (or a ``solver`` from it).
     """
     lo, hi = map(float, speed_range)
     if not 0 < lo < hi:
         raise ValueError('speed_range must be (lo, hi) with 0 < lo < hi [rad/s]')
-    modes = solver or modes_solver(model, hi, method, bearing_fn, n_modes)
+    modes = solver or modes_solver(model, hi, bearing_fn, n_modes)
     grid = np.linspace(lo, hi, n_grid)
     if campbell_grid is not None and campbell_grid.speeds.shape == grid.shape \
             and np.array_equal(campbell_grid.speeds, grid) and campbell_grid.frequency.shape[1] == n_modes:

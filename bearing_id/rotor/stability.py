@@ -13,12 +13,12 @@ craig_bampton`, bearing, pedestal and known-element DOFs kept physical, fixed-in
 x the top speed of the search, built once; the speed-dependent films, pedestals, seals and gyroscopics act on it
 exactly or through the projection) screens all its eigenvalues (a ~30-state dense problem), then (2) each of the
 ``n_refine`` least stable ones is refined on the FULL model (:class:`bearing_id.rotor.eigen.ReducedEigen`: inverse
-iteration on the sparse pencil, a residual check, else ARPACK shift-invert).
-The refined eigenvalues are
-full-model eigenvalues to machine precision (test/test_stability_fast.py: max real part within 1e-9 |lambda| of the
-dense reference, the threshold within brentq's tolerance).  The assumption stated: the mode that goes unstable first
-is among the ``n_refine`` least stable modes of the reduced model, i.e. below the cutoff (the interior modes above it
-are the shaft's high bending modes, stiffness-damped and far from the films' cross-coupling).
+iteration on the sparse pencil, a residual check, else ARPACK shift-invert).  Models above ``FAST_NDOF`` DOFs take
+it, smaller ones the dense eigenvalues.  The refined eigenvalues are full-model eigenvalues to rounding
+(test/test_stability_fast.py: within LAPACK's error bound of the dense ones, the threshold within brentq's tolerance).
+The assumption stated: the mode that goes unstable first is among the ``n_refine`` least stable modes of the reduced
+model, i.e. below the cutoff (the interior modes above it are the shaft's high bending modes, stiffness-damped and far
+from the films' cross-coupling).
 """
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def whirl_ratio(model, bearing_fn, speed: float) -> float:
     return float(abs(lam[k].imag) / speed)
 
 
-FAST_NDOF = 200            # models with more DOFs use :class:`FastStability` where callers ask for method='auto'
+FAST_NDOF = 200            # models with more DOFs take :class:`FastStability` (:func:`max_real_part_fn`)
 
 
 class FastStability:
@@ -65,11 +65,6 @@ class FastStability:
         self.model, self.bearing_fn = model, bearing_fn
         self.n_refine = int(n_refine)
         self.eig = ReducedEigen(model, cutoff_hz=float(cutoff_factor) * float(speed_top) / (2 * math.pi))
-        self.red = self.eig.red
-
-    def reduced_eigs(self, speed: float, vectors: bool = False):
-        """All eigenvalues [1/s] of the reduced model's state matrix at ``speed`` [rad/s] (and its eigenvectors)."""
-        return self.eig.reduced(speed, self.bearing_fn(speed), vectors)
 
     def least_stable(self, speed: float) -> np.ndarray:
         """
@@ -93,18 +88,19 @@ class FastStability:
 
 
 def threshold_speed(model, bearing_fn, speed_max: float, speed_min: float | None = None, n_grid: int = 40,
-                    xtol: float = 1e-3, method: str = 'full', scan=None) -> float:
+                    xtol: float = 1e-3, scan=None, stop_above: float | None = None) -> float:
     """
     Lowest speed [rad/s] in [speed_min, speed_max] at which the system has an eigenvalue with Re > 0.
 
     The grid is geometric (``n_grid`` points, default speed_min = speed_max / 20); the crossing is refined with
     brentq to ``xtol`` rad/s.  Returns ``math.inf`` when the system is stable over the whole range.  Raises
-    ValueError when it is already unstable at ``speed_min`` (lower it: the threshold is below the range).
-    ``method``: 'full' (dense eigenvalues, the reference), 'fast' (:class:`FastStability`), 'auto' (fast above
-    ``FAST_NDOF`` DOFs).
+    ValueError when it is already unstable at ``speed_min`` (lower it: the threshold is below the range).  The
+    largest real part by :func:`max_real_part_fn` (dense below ``FAST_NDOF`` DOFs, :class:`FastStability` above).
     ``scan``: (speeds (n,) increasing [rad/s], largest real part at each (n,) [1/s]) already computed on this model
     and bearings (e.g. :attr:`bearing_id.rotor.modal.Campbell.max_real`): the grid is then those speeds
     (``speed_min``, ``n_grid`` ignored; ``speed_max`` must be the last) and only the bracketing crossing is refined.
+    ``stop_above`` [rad/s]: the scan stops at the first stable grid point at or above it and returns ``math.inf``
+    (the threshold, if any, lies above that point): what a caller needs who only compares speeds up to it.
     """
     speed_max = float(speed_max)
     if not (math.isfinite(speed_max) and speed_max > 0):
@@ -120,7 +116,7 @@ def threshold_speed(model, bearing_fn, speed_max: float, speed_min: float | None
         if not 0 < speed_min < speed_max:
             raise ValueError(f'need 0 < speed_min < speed_max, got {speed_min!r}, {speed_max!r} rad/s')
         grid, values = np.geomspace(speed_min, speed_max, int(n_grid)), None
-    f = max_real_part_fn(model, bearing_fn, speed_max, method)
+    f = max_real_part_fn(model, bearing_fn, speed_max)
 
     def at(i):
         return float(values[i]) if values is not None else f(grid[i])
@@ -132,18 +128,19 @@ def threshold_speed(model, bearing_fn, speed_max: float, speed_min: float | None
     for i in range(1, grid.size):
         if at(i) > 0:
             return float(brentq(f, grid[i - 1], grid[i], xtol=xtol))
+        if stop_above is not None and grid[i] >= stop_above:
+            break
     return math.inf
 
 
-def max_real_part_fn(model, bearing_fn, speed_top: float, method: str = 'full'):
+def max_real_part_fn(model, bearing_fn, speed_top: float):
     """
-    Return f(speed) -> largest real part [1/s], by ``method`` 'full' | 'fast' | 'auto' (see :func:`threshold_speed`).
+    Return f(speed) -> largest real part [1/s] of the rotor-bearing eigenvalues.
 
-    ``speed_top`` [rad/s]: the highest speed f will be asked (the fast path's reduction cutoff).
+    The dense eigenvalues (:func:`max_real_part`) for models up to ``FAST_NDOF`` DOFs, :class:`FastStability` above
+    (``speed_top`` [rad/s]: the highest speed f will be asked, its reduction's cutoff).
     """
-    if method not in ('full', 'fast', 'auto'):
-        raise ValueError(f"method must be 'full', 'fast' or 'auto', got {method!r}")
-    if method == 'fast' or (method == 'auto' and model.ndof > FAST_NDOF):
+    if model.ndof > FAST_NDOF:
         return FastStability(model, bearing_fn, speed_top).max_real_part
     return lambda w: max_real_part(model, bearing_fn, w)
 
