@@ -137,4 +137,3 @@ def test_gate_orbits_equal_a_dense_solve_per_run(sparse_ndof, monkeypatch):
         assert got.keys() == want.keys()
         for n in got:
             assert abs(got[n] - want[n]) <= tol * size
-
