@@ -97,3 +97,64 @@ def test_bad_inputs_exit_2(npz_runs, tmp_path):
     assert main(['identify', str(bad)]) == 2
     # conventional needs two probe nodes per bearing and direction: a named parameter error, not a traceback
     assert main(['identify', *paths, '--method', 'conventional']) == 2
+
+
+def test_default_method_identifies_the_default_simulated_data(npz_runs, capsys):
+    """
+    `bearing-id identify` without --method on unbalance runs at one probe station (rank 8 of 16 per speed).
+
+    The default, auto, runs physical and says why (the design check on these data); every coefficient is determined
+    and within 3 of its stated 1-sigma of the simulator's truth, which the recordings carry.
+    """
+    d, paths = npz_runs
+    out_json = d / 'auto.json'
+    code = main(['identify', *paths, '--json', str(out_json)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert out.startswith('method: physical (auto: ') and 'rank 8 of 16' in out.splitlines()[0]
+    doc = json.loads(out_json.read_text())
+    assert doc['method'] == 'physical' and doc['requested'] == 'auto'
+    from bearing_id.io.recordings import load_npz
+    truth = load_npz(paths[0]).truth['coefficients']
+    for r in doc['results']:
+        assert r['method'] == 'physical' and r['notes'][0].startswith('method auto chose physical: ')
+        true = truth[min(truth, key=lambda s: abs(s - r['speed_rad_s']))]
+        for b in r['bearings']:
+            for sym, k in (('K', 0), ('C', 1)):
+                assert np.all(b['determined'][sym])
+                err = (np.array(b[sym]) - true[b['node']][k]) / np.array(b[sym + '_std'])
+                assert np.all(np.abs(err) < 3.0), err
+
+
+def test_default_method_is_direct_where_the_plan_determines_every_coefficient(capsys):
+    """The packaged directional-force bag (4 shaker runs): the design check determines all 16, auto runs direct."""
+    from pathlib import Path
+    bag = Path(__file__).resolve().parent.parent / 'bags' / 'force_plan'
+    code = main(['identify', str(bag)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert out.startswith('method: direct (auto: the design check on these data determines all 16 coefficients')
+    assert 'method direct  rank 16 of 16' in out
+
+
+def test_method_options_need_their_method(npz_runs, capsys):
+    """A method's own option with the default method is an error naming the method (exit 2), not ignored."""
+    d, paths = npz_runs
+    assert main(['identify', *paths, '--bearing-model', 'finite']) == 2
+    assert '--bearing-model applies to --method physical only' in capsys.readouterr().err
+
+
+def test_the_cli_and_the_nodes_share_their_defaults():
+    """One place for defaults (config/defaults.py): the identifier and kf_estimator specs and the CLI take them."""
+    import argparse
+    from bearing_id.commands import identify as cmd
+    from bearing_id.config import defaults
+    from bearing_id.nodes import identifier_core, kf_estimator_core
+    sub = argparse.ArgumentParser().add_subparsers()
+    args = cmd.add_parser(sub).parse_args(['x.npz'])
+    spec = {s.name: s.default for s in identifier_core.SPECS}
+    assert args.method == spec['method'] == defaults.METHOD
+    assert spec['kf_process_noise'] == {s.name: s.default for s in kf_estimator_core.SPECS}['process_noise'] \
+        == defaults.KF_PROCESS_NOISE
+    assert (spec['speed_tolerance'], spec['settle_fraction'], spec['min_window'], spec['max_segment']) == \
+        (defaults.SPEED_TOLERANCE, defaults.SETTLE_FRACTION, defaults.MIN_WINDOW, defaults.MAX_WINDOW)

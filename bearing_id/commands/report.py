@@ -22,11 +22,12 @@ import time
 import numpy as np
 
 from .inputs import attach_excitation, check_probe_nodes, load_recordings
+from ..config import defaults
 from ..config.params import load_rig, ParamError
 from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
 from ..diagnose.reidentify import format_table
 from ..excitation import harmonic_forces
-from ..identify import harmonics, identify
+from ..identify import harmonics, identify, METHODS
 from ..identify.result import format_results
 from ..plots import data as fd
 from ..plots.campbell import campbell_figure, mode_shapes_figure
@@ -43,7 +44,7 @@ from ..rotor.assembly import RotorModel
 from ..rotor.modal import modes_solver
 
 REPORT_NAME = 'report.html'
-METHOD_CHOICES = ('physical', 'direct', 'paper', 'conventional', 'none')
+METHOD_CHOICES = METHODS + ('none',)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -55,9 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument('inputs', nargs='+', help='.npz or .csv recordings (one per run) or bag directories')
     p.add_argument('--out', default='out/report', help='output directory (default out/report)')
     p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
-    p.add_argument('--method', default='physical', choices=METHOD_CHOICES,
-                   help='identification method for the coefficients and the identified model curves '
-                        '(default physical; none = theory only)')
+    p.add_argument('--method', default=defaults.METHOD, choices=METHOD_CHOICES,
+                   help=f'identification method for the coefficients and the identified model curves (default '
+                        f'{defaults.METHOD}, as bearing-id identify; none = theory only)')
     p.add_argument('--max-rpm', type=float, default=None,
                    help='upper end of the Campbell diagram [rpm] (default: max(6000, 1.5 x the highest test speed))')
     p.add_argument('--png', action='store_true', help='also write every figure as a PNG file next to the page')
@@ -72,7 +73,7 @@ def run(args) -> int:
     check_probe_nodes(recs, rig.shaft.n_nodes)
     info = build_report(rig, recs, args.out, method=args.method, max_rpm=args.max_rpm, write_png=args.png,
                         command='bearing-id report ' + ' '.join(args.inputs)
-                                + (f' --method {args.method}' if args.method != 'physical' else ''))
+                                + (f' --method {args.method}' if args.method != defaults.METHOD else ''))
     for n in info.notes:
         print(f'note: {n}')
     print(f'wrote {info.path} ({info.n_figures} figures, {info.seconds:.1f} s)')
@@ -239,10 +240,10 @@ CAPTIONS = {
 }
 
 
-def build_report(rig, recordings, outdir, *, data=None, results=None, method: str = 'physical', options=None,
-                 diagnosis=None, reidentification=None, cli_text: str | None = None, command: str | None = None,
-                 max_rpm: float | None = None, write_png: bool = False, allow_undetermined: bool = False,
-                 keep_figures: bool = False) -> ReportInfo:
+def build_report(rig, recordings, outdir, *, data=None, results=None, method: str = defaults.METHOD,
+                 options=None, diagnosis=None, reidentification=None, cli_text: str | None = None,
+                 command: str | None = None, max_rpm: float | None = None, write_png: bool = False,
+                 allow_undetermined: bool = False, keep_figures: bool = False) -> ReportInfo:
     """
     Write ``outdir/report.html`` for ``recordings`` (rig.Recording list) on ``rig``.
 
