@@ -31,15 +31,13 @@ from a rotor model.  :func:`fit_decaying_modes` is called by :func:`bearing_id.s
 * The std of the harmonic coefficients comes from the joint fit: sigma_c^2 diag(D_full^T D_full)^-1 plus the
   propagated uncertainty of (s, w) (D_full^+ dmodel/dp cov_p ...), so a transient nearly collinear with 1X inflates
   the std honestly (:func:`_joint_fit`).
-
-Cost (2 channels, 1.5 s at 10240 Hz, one core): ~4 ms with nothing found, ~15-30 ms with 1-2 components kept
-(benchmarks/bench_transient_fit.py: 0.29 s CPU for the 18 demo windows).
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.optimize import least_squares
 
 TWO_PI = 2.0 * math.pi
@@ -71,8 +69,8 @@ def exp_outer(tt, lam, dt=None) -> np.ndarray:
 
     On a uniform grid (``dt`` [s] from :func:`uniform_step`) z[i B + j] = exp(lam (tt[0] + j dt)) exp(lam i B dt):
     2 sqrt(N) m exponentials and N m products instead of N m exponentials; the two differ by rounding of the
-    arguments (relative ~ eps |lam t|).  A trial step with a fast-growing component overflows to inf / nan quietly;
-    the evaluation then raises ValueError (non-finite) and the caller counts that candidate as failed.
+    arguments (relative ~ eps |lam t|).  A trial step with a fast-growing component overflows to inf / nan quietly:
+    the residual is then not finite and Levenberg-Marquardt rejects the step.
     """
     with np.errstate(over='ignore', invalid='ignore'):
         if dt is None:
@@ -98,16 +96,10 @@ class VariableProjection:
     ``xw`` (N, nch) channel-weighted data, ``D0`` (N, L0) fixed (harmonic) regressors, ``tt`` (N,) times [s];
     E(p) = [Re z_1, Im z_1, ...] with z_m = exp((-s_m + j w_m) t).  The residual r_c = P x_c (P the projector out of
     span(D0, E)) and the Kaufman Jacobian columns -P dE c_c / dp_j of every channel lie in the span of
-    [D0, E, t E, x] (dz/ds = -t z, dz/dw = j t z).  The Cholesky factor R of the Gram matrix of
-    A = [D0, E, t E, x_p] (N, L0 + 4m + nch), x_p = x outside span(D0) (which changes neither the residual nor c), is
-    the R of A = Q R: it gives their coordinates in an orthonormal basis of that span, and dropping its first
-    L0 + 2m rows projects out span(D0, E).  The reduced residual (nch (2m + nch),) and Jacobian have the inner
-    products (r^T r, J^T J, J^T r) of the full (N nch,) ones, and those are all Levenberg-Marquardt uses.
-
-    Normal equations square the condition number of A; against a Householder QR of A (the route before) the 1X
-    vectors of the 63 windows of the packaged bags and simulated data moved by < 2e-5 of their 1-sigma, with the
-    same components kept, and the evaluations cost 2-15x less (matrix products instead of a tall QR, whose threaded
-    OpenBLAS version also stalls on a busy machine).
+    [D0, E, t E, x] (dz/ds = -t z, dz/dw = j t z).  One QR (R only) of A = [D0, E, t E, x] (N, L0 + 4m + nch) gives
+    their coordinates in an orthonormal basis of that span; dropping its first L0 + 2m rows projects out
+    span(D0, E).  The reduced residual (nch (2m + nch),) and Jacobian have the inner products (r^T r, J^T J, J^T r)
+    of the full (N nch,) ones, and those are all Levenberg-Marquardt uses.
     """
 
     def __init__(self, xw, D0, tt):
@@ -115,27 +107,29 @@ class VariableProjection:
         self.dt = uniform_step(tt)
         self.Q0, _ = np.linalg.qr(D0)
         self.xp = xw - self.Q0 @ (self.Q0.T @ xw)     # data outside span(D0)
-        self._DD, self._Dx, self._xx = D0.T @ D0, D0.T @ self.xp, self.xp.T @ self.xp
         self._key = None
+        self._buf = None             # (N, k) Fortran-ordered work array, reused by every evaluation
 
     def evaluate(self, p, jac: bool = True):
-        """
-        Return (reduced residual (nch (2m + nch),), Jacobian (nch (2m + nch), 2m) or None, c (2m, nch)).
-
-        LinAlgError when A is numerically rank deficient (its Gram matrix is not positive definite to rounding); the
-        callers count such a candidate as failed.
-        """
+        """Return (reduced residual (nch (2m + nch),), Jacobian (nch (2m + nch), 2m) or None, c (2m, nch))."""
         key = p.tobytes()
         if key != self._key:
-            L0, nch = self.D0.shape[1], self.xw.shape[1]
-            m2 = p.size
-            L = L0 + m2
             E = exp_outer(self.tt, _rates(p), self.dt).view(float)            # (N, 2m) [Re z, Im z]
-            F = np.hstack([E, E * self.tt[:, None]])                           # [E, t E]
-            FD, Fx = F.T @ self.D0, F.T @ self.xp
-            G = np.block([[self._DD, FD.T, self._Dx], [FD, F.T @ F, Fx], [self._Dx.T, Fx.T, self._xx]])
-            R = np.linalg.cholesky(G).T                                        # R^T R = A^T A
-            c1 = np.linalg.solve(R[:L, :L], R[:L, L + m2:])[L0:]             # (2m, nch) on [Re z, Im z]
+            n, m2 = E.shape
+            L0, nch = self.D0.shape[1], self.xw.shape[1]
+            L = L0 + m2
+            if self._buf is None or self._buf.shape[1] < L + m2 + nch:
+                self._buf = np.empty((n, L + m2 + nch), order='F')
+            A = self._buf[:, :L + m2 + nch]
+            A[:, :L0] = self.D0
+            A[:, L0:L] = E
+            np.multiply(E, self.tt[:, None], out=A[:, L:L + m2])
+            A[:, L + m2:] = self.xw
+            R = np.linalg.qr(A, mode='r')
+            try:
+                c1 = solve_triangular(R[:L, :L], R[:L, L + m2:])[L0:]        # (2m, nch) on [Re z, Im z]
+            except np.linalg.LinAlgError:
+                c1 = np.linalg.lstsq(E - self.Q0 @ (self.Q0.T @ E), self.xp, rcond=None)[0]
             rho = R[L:, L + m2:]                                       # (2m + nch, nch): residual coordinates
             RT = R[L:, L:L + m2]                                       # P t E coordinates (rows past 2m are 0)
             a, b = c1[0::2], c1[1::2]                                  # (m, nch)
@@ -309,7 +303,7 @@ def _joint_fit(x, D, tt, p, dt=None):
     A[:, L + m2:] = x
     R = np.linalg.qr(A, mode='r')
     Rf = R[:L, :L]
-    coef = np.linalg.solve(Rf, R[:L, L + m2:])                       # (L, nch)
+    coef = solve_triangular(Rf, R[:L, L + m2:])                      # (L, nch)
     resid = x - A[:, :L] @ coef
     dof = N - L - m2 / nch
     sigma2 = np.sum(resid ** 2, axis=0) / dof                        # (nch,)
@@ -322,9 +316,9 @@ def _joint_fit(x, D, tt, p, dt=None):
     Gp = np.einsum('it,tcj->icj', R[L:L + m2, L:L + m2], V)         # projected derivatives' coordinates
     info = np.einsum('icj,ick,c->jk', Gp, Gp, 1.0 / sigma2)
     cov_p = np.linalg.pinv(info)
-    Rinv = np.linalg.inv(Rf)
+    Rinv = solve_triangular(Rf, np.eye(L))
     cov_unit_diag = np.sum(Rinv ** 2, axis=1)                        # diag (Rf^T Rf)^-1
-    B = -np.linalg.solve(Rf, np.einsum('lt,tcj->lcj', R[:L, L:L + m2], V).reshape(L, -1)).reshape(L, nch, m2)
+    B = -solve_triangular(Rf, np.einsum('lt,tcj->lcj', R[:L, L:L + m2], V).reshape(L, -1)).reshape(L, nch, m2)
     var = cov_unit_diag[:, None] * sigma2[None, :] + np.einsum('lcj,jk,lck->lc', B, cov_p, B)
     return coef, resid, var, cov_p
 
