@@ -31,13 +31,16 @@ from a rotor model.  :func:`fit_decaying_modes` is called by :func:`bearing_id.s
 * The std of the harmonic coefficients comes from the joint fit: sigma_c^2 diag(D_full^T D_full)^-1 plus the
   propagated uncertainty of (s, w) (D_full^+ dmodel/dp cov_p ...), so a transient nearly collinear with 1X inflates
   the std honestly (:func:`_joint_fit`).
+* Every evaluation takes R of a Householder QR of the tall [D0, E, tE, x] (numpy): the Gram route (Cholesky of A^T A)
+  squares the condition number and, on a window of a 14-probe force plan, flipped which component was kept
+  (1X moved 6 sigma).  The triangular solves use numpy too (on an upper-triangular matrix its LU does no pivoting):
+  scipy's OpenBLAS pool beside numpy's made the fit ~10 x slower with two BLAS threads.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from scipy.linalg import solve_triangular
 from scipy.optimize import least_squares
 
 TWO_PI = 2.0 * math.pi
@@ -127,7 +130,7 @@ class VariableProjection:
             A[:, L + m2:] = self.xw
             R = np.linalg.qr(A, mode='r')
             try:
-                c1 = solve_triangular(R[:L, :L], R[:L, L + m2:])[L0:]        # (2m, nch) on [Re z, Im z]
+                c1 = np.linalg.solve(R[:L, :L], R[:L, L + m2:])[L0:]        # (2m, nch) on [Re z, Im z]
             except np.linalg.LinAlgError:
                 c1 = np.linalg.lstsq(E - self.Q0 @ (self.Q0.T @ E), self.xp, rcond=None)[0]
             rho = R[L:, L + m2:]                                       # (2m + nch, nch): residual coordinates
@@ -303,7 +306,7 @@ def _joint_fit(x, D, tt, p, dt=None):
     A[:, L + m2:] = x
     R = np.linalg.qr(A, mode='r')
     Rf = R[:L, :L]
-    coef = solve_triangular(Rf, R[:L, L + m2:])                      # (L, nch)
+    coef = np.linalg.solve(Rf, R[:L, L + m2:])                      # (L, nch)
     resid = x - A[:, :L] @ coef
     dof = N - L - m2 / nch
     sigma2 = np.sum(resid ** 2, axis=0) / dof                        # (nch,)
@@ -316,9 +319,9 @@ def _joint_fit(x, D, tt, p, dt=None):
     Gp = np.einsum('it,tcj->icj', R[L:L + m2, L:L + m2], V)         # projected derivatives' coordinates
     info = np.einsum('icj,ick,c->jk', Gp, Gp, 1.0 / sigma2)
     cov_p = np.linalg.pinv(info)
-    Rinv = solve_triangular(Rf, np.eye(L))
+    Rinv = np.linalg.solve(Rf, np.eye(L))
     cov_unit_diag = np.sum(Rinv ** 2, axis=1)                        # diag (Rf^T Rf)^-1
-    B = -solve_triangular(Rf, np.einsum('lt,tcj->lcj', R[:L, L:L + m2], V).reshape(L, -1)).reshape(L, nch, m2)
+    B = -np.linalg.solve(Rf, np.einsum('lt,tcj->lcj', R[:L, L:L + m2], V).reshape(L, -1)).reshape(L, nch, m2)
     var = cov_unit_diag[:, None] * sigma2[None, :] + np.einsum('lcj,jk,lck->lc', B, cov_p, B)
     return coef, resid, var, cov_p
 
