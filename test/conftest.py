@@ -26,7 +26,8 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 
 def pytest_configure(config):
-    config.addinivalue_line('markers', 'slow: takes more than ~20 s (still run by `make test`)')
+    config.addinivalue_line('markers', 'slow(reason): takes more than ~10 s for the stated reason (make test runs it; '
+                                       '-m "not slow" leaves it out)')
     config.addinivalue_line('markers', 'ros: starts ROS 2 processes (rclpy in subprocesses, see test/rosutil.py)')
     config.addinivalue_line('markers', 'linter: marks tests as linter checks')
     config.addinivalue_line('markers', 'flake8: marks tests checking for flake8 compliance')

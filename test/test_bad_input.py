@@ -331,6 +331,7 @@ def test_truncated_and_corrupt_bag(recordings, tmp_path):
         finish(node)
 
 
+@pytest.mark.slow(reason='an identifier is run, stopped and restarted on its record (~10 s)')
 def test_identifier_restart_resumes_from_its_record(recordings, tmp_path):
     env = rosutil.ros_env()
     with identifier(tmp_path, env) as node:

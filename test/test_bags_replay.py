@@ -21,7 +21,7 @@ import rosutil
 REPO = Path(__file__).resolve().parents[1]
 BAGS = REPO / 'bags'
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(reason='each replays a packaged bag through the nodes (10-20 s)')]
 
 
 def _node(name, params, env, timeout=120.0):

@@ -10,7 +10,7 @@ import re
 import pytest
 import rosutil
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(reason='the whole demo: three nodes stream 9 speeds (~10-35 s)')]
 
 
 def test_demo_runs_end_to_end(tmp_path):

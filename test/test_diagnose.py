@@ -70,6 +70,7 @@ def test_residual_unbalance(rigs):
     check_single(d, 'residual_unbalance', 'me', 2.0e-5)
 
 
+@pytest.mark.slow(reason='a bow is fitted against every other candidate on 9 speeds (~10-15 s)')
 def test_shaft_bow(rigs):
     nominal, matched = rigs
     d = record(matched, [te.ShaftBow(matched, 20e-6, 0.5)], 'bow')

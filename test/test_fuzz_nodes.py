@@ -18,7 +18,8 @@ import pytest
 import rosutil
 from test_bags_replay import _node, BAGS, offline, wait_for_results
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros,
+              pytest.mark.slow(reason='600 corrupted messages, then a whole bag through two nodes (~20 s)')]
 
 
 def test_nodes_survive_corrupted_messages_then_identify_a_valid_bag_exactly(tmp_path):

@@ -505,6 +505,10 @@ CASES = {
 }
 
 
+CAMPAIGN_SLOW = pytest.mark.slow(reason='its campaign fixture runs every hostile case through the CLI: ~70 processes, '
+                                        '20-45 s')
+
+
 @pytest.fixture(scope='module')
 def base(tmp_path_factory):
     """One small valid run (1200 rpm, 0.6 s) as .npz, .csv and the sensor_driver messages of a bag."""
@@ -561,6 +565,7 @@ def campaign(base, built, tmp_path_factory):
         return dict(pool.map(one, RUNS))
 
 
+@CAMPAIGN_SLOW
 @pytest.mark.parametrize('case,command', RUNS)
 def test_malformed_input_exits_2_with_one_paragraph(case, command, campaign):
     _, _, bound, mention = CASES[case]
@@ -751,6 +756,7 @@ def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
     assert bags.offered_qos(bag)['/rotor/excitation'][0].durability.name == 'TRANSIENT_LOCAL'
 
 
+@CAMPAIGN_SLOW
 def test_campaign_table(campaign, request, capsys):
     """Print the campaign table (with -s)."""
     assert len(campaign) == len(RUNS)

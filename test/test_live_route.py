@@ -41,7 +41,7 @@ def _z(results, truth_fn):
 
 
 @pytest.mark.ros
-@pytest.mark.slow
+@pytest.mark.slow(reason='three node processes stream a ramped 9-speed rig (~13 s)')
 def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coefficients(tmp_path):
     from bearing_id.simulation import rig as R
     from bearing_id.identify import identify
@@ -120,7 +120,7 @@ def _with_noise(rec, noise, rng):
     return dataclasses.replace(rec, samples=x)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(reason='Monte Carlo over noise seeds through the node core (~4 s each)')
 @pytest.mark.parametrize('method, scenario', [('physical', 'default'), ('direct', 'force')])
 def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scenario, tmp_path):
     from bearing_id.simulation import rig as R

@@ -54,7 +54,7 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
         assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['session']
 
 
-@pytest.mark.slow
+@pytest.mark.slow(reason='simulation, three node processes and the offline route (~5-10 s)')
 def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
     """Simulate -> three processes -> coefficients; the same simulation offline agrees within 0.01 sigma."""
     env = rosutil.ros_env()

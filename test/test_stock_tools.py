@@ -585,6 +585,7 @@ def test_param_dump_answers_for_every_parameter_of_driver_and_identifier(tmp_pat
 
 
 @pytest.mark.ros
+@pytest.mark.slow(reason='three publisher kinds, each with its own node processes (~13 s)')
 def test_excitation_from_volatile_and_transient_local_publishers_and_best_effort_input(tmp_path):
     """
     The identifier learns runs from transient-local and volatile publishers; best-effort input only when asked.
