@@ -6,6 +6,7 @@ Shared pytest set-up.
   (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and gives the process its own ``ROS_DOMAIN_ID`` only when a ROS
   helper asks for one (see :func:`rosutil.ros_env`).  rclpy itself is never imported in the pytest process.
 * Cleans Fast DDS shared memory left by killed participants at the end of the session.
+* Prints the OpenBLAS kernel and thread count numpy and scipy run with (``.ci/run`` runs the numeric tests on two).
 * Registers the ``slow`` and ``ros`` markers, and the ``linter``, ``flake8`` and ``pep257`` markers of the ament
   lint tests (their pytest plugins register them too when installed).
 """
@@ -32,6 +33,16 @@ def pytest_configure(config):
     config.addinivalue_line('markers', 'linter: marks tests as linter checks')
     config.addinivalue_line('markers', 'flake8: marks tests checking for flake8 compliance')
     config.addinivalue_line('markers', 'pep257: marks tests checking for PEP 257 compliance')
+
+
+def pytest_report_header(config):
+    """Name the BLAS kernels in use: a rounding-dependent failure says which kernel it failed on."""
+    import numpy  # noqa: F401  (loads numpy's OpenBLAS)
+    import scipy.linalg  # noqa: F401  (and scipy's)
+    from threadpoolctl import threadpool_info
+    blas = sorted({(i.get('architecture') or '?', i.get('num_threads')) for i in threadpool_info()
+                   if i.get('internal_api') == 'openblas'})
+    return 'OpenBLAS (kernel, threads): ' + ', '.join(f'{a} x{n}' for a, n in blas)
 
 
 @pytest.fixture(scope='session', autouse=True)
