@@ -99,7 +99,6 @@ class Listener:
         self.node = rclpy.create_node('bearing_id_demo', context=self.context)
         self.results = {}                # speed [rad/s] -> coefficients dict (latest)
         self.last_result_time = None
-        self.n_results = 0
         self.diag = {}                   # status name -> (level, message)
         self.diag_values = {}            # status name -> {key: value}
         self.lock = threading.Lock()
@@ -121,7 +120,6 @@ class Listener:
         with self.lock:
             self.results[round(d['speed'], 6)] = d
             self.last_result_time = time.monotonic()
-            self.n_results += 1
 
     def _on_diag(self, msg):
         with self.lock:

@@ -595,11 +595,6 @@ class StreamingKF:
         self._e = np.zeros(km.n)           # e(k|k-1) for the next sample
         self.n_samples = 0
 
-    def reset(self):
-        """Restart from the model's steady state at the next sample."""
-        self._e = np.zeros(self.km.n)
-        self.n_samples = 0
-
     def in_band(self, speed: float) -> bool:
         sp = self.km.speed
         return sp == 0.0 or abs(float(speed) - sp) <= self.band_tol_rel * abs(sp)

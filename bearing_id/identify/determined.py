@@ -50,7 +50,6 @@ K_SIGMA = 3.0               # |value| >= K_SIGMA x sigma (data exclude zero at 3
 MAX_PRIOR_PULL = 0.1        # d(estimate)/d(prior mean) <= this (the data carry >= 90 % of the weight)
 MAX_BIAS_SIGMA = 0.5        # a method's own estimated bias <= this x sigma
 MISFIT_LEVEL = 0.999        # chi2 above this quantile of chi-square(dof) is a model misfit
-ESTIMABLE_LEAK = 1e-6       # default: a coefficient is estimable when its null-space leakage is below this
 
 
 def misfit_threshold(dof: float, level: float = MISFIT_LEVEL) -> float:

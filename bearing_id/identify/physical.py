@@ -61,7 +61,6 @@ from ..bearings.short import ocvirk_batch
 from ..conventions import COEFF_ORDER
 from ..rotor.assembly import static_bearing_loads
 
-PARAM_NAMES = ('viscosity', 'clearance', 'load')
 FD_STEP = 1e-4               # central-difference step in log-parameter
 BOUND_FACTOR = 10.0          # parameters are kept within [nominal / 10, nominal x 10]
 LEAK_TOL = 1e-4              # relative leakage of a coefficient gradient into the parameter null space
@@ -540,4 +539,4 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     return results
 
 
-__all__ = ['PhysicalFit', 'fit_physical', 'identify_physical', 'PARAM_NAMES']
+__all__ = ['PhysicalFit', 'fit_physical', 'identify_physical']

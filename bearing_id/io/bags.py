@@ -106,8 +106,6 @@ def typestore():
 # ---------------------------------------------------------------------------------------------------- QoS
 LATCHED_TOPICS = ('/rotor/excitation', '/bearing_id/coefficients')
 _INFINITE = (9223372036, 854775807)     # RMW_DURATION_INFINITE as rosbag2 writes it
-QOS_KEYS = ('history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan', 'liveliness',
-            'liveliness_lease_duration', 'avoid_ros_namespace_conventions')
 
 
 def _enum(enum_cls, value, default='UNKNOWN'):
@@ -167,19 +165,6 @@ def qos_from_rclpy(profile):
                        deadline=profile.deadline, lifespan=profile.lifespan, liveliness=profile.liveliness,
                        liveliness_lease_duration=profile.liveliness_lease_duration,
                        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions)
-
-
-def qos_to_dict(q) -> dict:
-    """
-    Return one ``Qos`` as rosbag2 Jazzy (metadata version 9) writes it.
-
-    Policy names in lower case, durations as {sec, nsec}.
-    """
-    t = lambda x: {'sec': int(x.sec), 'nsec': int(x.nsec)}  # noqa: E731
-    return {'history': q.history.name.lower(), 'depth': int(q.depth), 'reliability': q.reliability.name.lower(),
-            'durability': q.durability.name.lower(), 'deadline': t(q.deadline), 'lifespan': t(q.lifespan),
-            'liveliness': q.liveliness.name.lower(), 'liveliness_lease_duration': t(q.liveliness_lease_duration),
-            'avoid_ros_namespace_conventions': bool(q.avoid_ros_namespace_conventions)}
 
 
 def default_qos(topic: str) -> list:
@@ -836,5 +821,5 @@ def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
 
 
 __all__ = ['BagError', 'BagWriter', 'STORAGES', 'LATCHED_TOPICS', 'msg_files', 'make_typestore', 'typestore',
-           'write_bag', 'read_bag', 'bag_topics', 'offered_qos', 'qos_profile', 'qos_from_rclpy', 'qos_to_dict',
+           'write_bag', 'read_bag', 'bag_topics', 'offered_qos', 'qos_profile', 'qos_from_rclpy',
            'default_qos', 'check_message', 'unfinished', 'salvage_bag', 'recover_bag', 'Salvage']

@@ -95,11 +95,6 @@ class KeyMarks:
         """(m,) mark times [s] from the first sample."""
         return self.index / self.sample_rate
 
-    @property
-    def sigma_time(self) -> np.ndarray:
-        """(m,) 1-sigma of ``times`` [s]."""
-        return self.sigma / self.sample_rate
-
     def __len__(self) -> int:
         return int(self.index.size)
 
