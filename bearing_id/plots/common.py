@@ -2,7 +2,7 @@
 Shared figure plumbing: figures without pyplot state, PNG bytes, the styles every figure family uses.
 
 Figures are :class:`matplotlib.figure.Figure` objects made without ``pyplot`` (no global state, nothing to close,
-Agg rendering on save), except the legacy save-to-path helpers that keep ``pyplot`` for their callers' tests.
+Agg rendering on save).
 """
 from __future__ import annotations
 
@@ -76,22 +76,4 @@ def save_png(fig, path, dpi: int = DPI) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(png_bytes(fig, dpi))
-    return path
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _finish(plt, fig, path, title=None) -> Path:
-    """Title, layout, save as PNG (90 dpi) and close a pyplot ``fig``; returns the path."""
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
     return path
