@@ -123,8 +123,8 @@ def _floor_pool() -> ProcessPoolExecutor | None:
     """
     Return a one-process pool for the noise-floor vectors, or None (no spare core, or ``BEARING_ID_WORKERS=0``).
 
-    The noise-floor check's 1X vectors (identify's window fits, ~1.5 s of a ~9 s diagnosis on the 2-core machine)
-    are fitted there while this process locates and selects effects.  Forked (the recordings and the imported
+    The noise-floor check's 1X vectors (identify's window fits) are fitted there while this process locates and
+    selects effects.  Forked (the recordings and the imported
     package are inherited; POSIX); the worker ignores Ctrl-C and ends with this process (:func:`_worker_init`).
     """
     if os.environ.get(WORKERS_ENV, '').strip() == '0' or len(os.sched_getaffinity(0)) < 2:

@@ -1,5 +1,5 @@
 """
-One rule for "determined" and one misfit test, shared by every identification method (issue 11).
+One rule for "determined" and one misfit test, shared by every identification method.
 
 What "determined" means
     A coefficient is *determined* -- shown to a person as a plain number with its 1-sigma -- only when the data alone
@@ -10,8 +10,8 @@ What "determined" means
     2. **significant**: ``|value| >= K_SIGMA x sigma`` with ``sigma`` its data-only 1-sigma (Birge-scaled when the
        model misfits, see below).  K_SIGMA = 3: for a Gaussian estimate the data then exclude zero at 3 sigma
        (two-sided probability 0.27 % that an estimate of a coefficient that is really 0 passes), and the relative
-       1-sigma sigma / |value| is at most 1/3 -- the data fix the sign and the size.  (The old rule, 1-sigma <= 10 %
-       of the *block* scale, passed e.g. Kyx = 1.0e4 +- 9.0e4 N/m: a value smaller than its own sigma.)
+       1-sigma sigma / |value| is at most 1/3 -- the data fix the sign and the size.  A bound relative to the
+       *block* scale alone would pass e.g. Kyx = 1.0e4 +- 9.0e4 N/m: a value smaller than its own sigma.
     3. **not the prior's**: the pull of a prior (or of the theory a method starts from) on it is at most
        ``MAX_PRIOR_PULL``.  The pull is d(estimate) / d(prior mean): for a Gaussian prior it is the shrinkage
        1 - var_posterior / var_data-only (the fraction of the way from the data's estimate to the prior mean that the

@@ -23,8 +23,8 @@ s_max / s_min of J (inf when rank deficient).  A coefficient is estimable when i
 of J (its leakage into the numerical null space < 1e-6); its data-only variance is then the diagonal of the
 pseudo-inverse of I.  ``determined`` is the one rule of :mod:`bearing_id.identify.determined` (shared by every method):
 estimable, |value| >= 3 x its data-only 1-sigma, and -- with a prior -- the prior's pull 1 - var_post / var_data
-<= 0.1.  (Until issue 11 the rule was "1-sigma <= 10 % of the block scale", which passed values smaller than their
-own sigma; ``max_rel_std`` is now an optional *additional* bound, off by default.)  Std: without prior, the
+<= 0.1; ``max_rel_std`` (1-sigma below a fraction of the block scale) is an optional *additional* bound, off by
+default.  Std: without prior, the
 pseudo-inverse of I for estimable coefficients, NaN for the others; with a prior, the posterior (I + I_prior)^-1.
 Both come from the measured 1X std (``X_std``).
 

@@ -26,9 +26,9 @@ from the augmented params file that ``bearing-id diagnose`` writes).  The predic
 the known excitation.  d y / d p is then taken by central differences in p (step ``FD_STEP``), the rest unchanged.
 
 Misfit: the weighted chi2 over all speeds is tested against the 99.9 % point of chi-square(dof), dof = equations -
-rank (:func:`bearing_id.identify.determined.fit_quality`; 1.6 x dof at 68 dof, not a fixed 3 x dof as before issue
-11).  On a misfit every covariance is multiplied by chi2/dof (Birge), every result is flagged ``misfit`` and the note
-says the std is a lower bound (a model-form error is a bias, not noise).
+rank (:func:`bearing_id.identify.determined.fit_quality`; 1.6 x dof at 68 dof).  On a misfit every covariance is
+multiplied by chi2/dof (Birge), every result is flagged ``misfit`` and the note says the std is a lower bound (a
+model-form error is a bias, not noise).
 
 Determined: the one rule of :mod:`bearing_id.identify.determined` -- per coefficient (delta-method sigma) and per
 parameter (|value| >= 3 sigma, i.e. relative 1-sigma <= 1/3, and estimable).
@@ -38,11 +38,11 @@ Fitted parameters: every result carries ``extra['parameters']`` = {'bearing1.vis
 (serialised by ``IdentResult.to_dict()`` as ``parameters``) and a note line with them; ``extra['fit']`` is the
 :class:`PhysicalFit`.
 
-Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is biased
-(the benchmark reports by how much).  ``bearing_model='finite'`` uses the tabulated finite-length Reynolds solution
-(:mod:`bearing_id.bearings.finite_table`: smooth, ~0.1 ms per evaluation, so a fit over 6 speeds takes < 1 s); its
-coefficients' 1-sigma include the table's stated accuracy against the direct Reynolds solver (a floor of 0.9-1.5 % of
-each block in the usual range), since nothing is known about a finite bearing better than its model's accuracy.
+Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is
+biased.  ``bearing_model='finite'`` uses the tabulated finite-length Reynolds solution
+(:mod:`bearing_id.bearings.finite_table`: smooth and cheap to evaluate); its coefficients' 1-sigma include the
+table's stated accuracy against the direct Reynolds solver (a floor of 0.9-1.5 % of each block in the usual range),
+since nothing is known about a finite bearing better than its model's accuracy.
 """
 from __future__ import annotations
 
@@ -164,7 +164,7 @@ class _Parametrisation:
             else:
                 statics = statics or static_bearing_loads(model, self.nodes)
                 self.loads[b.node] = float(statics[b.node])
-        # a table bearing (issue 12) is parametrised by one scale on K and one on C in place of viscosity, clearance
+        # a table bearing is parametrised by one scale on K and one on C in place of viscosity, clearance
         self.table = tuple(b.model == 'table' for b in self.bearings)
         if any(self.table) and self.fitted != ('viscosity', 'clearance'):
             raise ValueError("physical: with table bearings fit params=('viscosity', 'clearance') (a table bearing's "

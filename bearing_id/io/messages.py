@@ -13,8 +13,7 @@ Message layouts (see ``msg_defs/msg/*.msg``):
 
 * DisplacementBlock: ``samples`` row-major (sample, channel) [m]; ``channels``/``nodes``/``directions`` per channel.
   A direction is 'x', 'y' or a probe at any angle in the x-y plane as '<angle>deg' (e.g. '45.0deg'), optionally with
-  a gain '*<g>' (:func:`bearing_id.conventions.probe_direction`): channels carry their probe angle in the existing
-  string field, so the message layout and every recorded bag stay as they were.
+  a gain '*<g>' (:func:`bearing_id.conventions.probe_direction`).
 * Excitation: parallel arrays, one index per :class:`bearing_id.config.params.ExcitationEntry`.
 * BearingCoefficients: 4 entries per bearing in :data:`bearing_id.conventions.COEFF_ORDER` (xx, xy, yx, yy).
 """

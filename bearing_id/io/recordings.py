@@ -56,9 +56,9 @@ def _savez(path: Path, **arrays) -> None:
 
     Each member is deflated only when that saves at least :data:`NPZ_DEFLATE_MIN_SAVING` of its size (judged on its
     data's first MiB; small members always); a member that does not shrink -- the noisy samples (~4 % smaller
-    deflated) -- is stored as it is, so that every later read skips inflating it (0.1 s of a 9-speed load) for a file
-    1-4 % larger.  Each array is streamed into its member, as numpy does (no second copy in memory); fixed timestamps
-    (reproducible files).
+    deflated) -- is stored as it is, so that every later read skips inflating it, for a file 1-4 % larger.  Each
+    array is streamed into its member, as numpy does (no second copy in memory); fixed timestamps (reproducible
+    files).
     """
     with zipfile.ZipFile(path, 'w', allowZip64=True) as zf:
         for key, value in arrays.items():

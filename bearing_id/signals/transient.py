@@ -26,14 +26,13 @@ from a rotor model.  :func:`fit_decaying_modes` is called by :func:`bearing_id.s
 * Two modes closer than the resolution 2 pi / T (forward and backward whirl of one bending mode) beat, and one
   component fitted to them can look steady; before such a component is skipped, the pair is fitted
   (:func:`_close_pair`) and kept when its second component is significant too.  Decay rates closer in frequency
-  than the resolution are judged by their sum (:func:`_decays`).  Without this the pair stayed in the residual and
-  biased a nearby 1X by ~2 sigma on every noise draw (issue 11, the look-alike's 1186 rpm dwell).
+  than the resolution are judged by their sum (:func:`_decays`).  Left in the residual, such a pair can bias a
+  nearby 1X by about 2 sigma.
 * The std of the harmonic coefficients comes from the joint fit: sigma_c^2 diag(D_full^T D_full)^-1 plus the
   propagated uncertainty of (s, w) (D_full^+ dmodel/dp cov_p ...), so a transient nearly collinear with 1X inflates
   the std honestly (:func:`_joint_fit`).
 
-Cost (2 channels, 1.5 s at 10240 Hz, one core): ~4 ms with nothing found, ~15-30 ms with 1-2 components kept
-(benchmarks/bench_transient_fit.py: 0.29 s CPU for the 18 demo windows).
+benchmarks/bench_transient_fit.py times the fit on the packaged rig's windows.
 """
 from __future__ import annotations
 
@@ -103,11 +102,7 @@ class VariableProjection:
     the R of A = Q R: it gives their coordinates in an orthonormal basis of that span, and dropping its first
     L0 + 2m rows projects out span(D0, E).  The reduced residual (nch (2m + nch),) and Jacobian have the inner
     products (r^T r, J^T J, J^T r) of the full (N nch,) ones, and those are all Levenberg-Marquardt uses.
-
-    Normal equations square the condition number of A; against a Householder QR of A (the route before) the 1X
-    vectors of the 63 windows of the packaged bags and simulated data moved by < 2e-5 of their 1-sigma, with the
-    same components kept, and the evaluations cost 2-15x less (matrix products instead of a tall QR, whose threaded
-    OpenBLAS version also stalls on a busy machine).
+    The Gram matrix squares the condition number of A; a numerically rank-deficient A is refused (LinAlgError).
     """
 
     def __init__(self, xw, D0, tt):
