@@ -170,8 +170,7 @@ class Verdict:
                 + '; '.join(parts))
 
 
-def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_sigma: float = K_SIGMA,
-          max_pull: float = MAX_PRIOR_PULL, max_bias: float = MAX_BIAS_SIGMA) -> Verdict:
+def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None) -> Verdict:
     """
     Apply the rule of the module docstring to coefficients ``value`` with data-only 1-sigma ``sigma``.
 
@@ -188,14 +187,14 @@ def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_si
     est &= np.isfinite(v)
     with np.errstate(divide='ignore', invalid='ignore'):
         z = np.where(est, np.abs(v) / s, np.nan)
-    sig = est & (np.abs(v) >= k_sigma * s)
+    sig = est & (np.abs(v) >= K_SIGMA * s)
     pl = np.zeros_like(v) if pull is None else np.asarray(pull, dtype=float).ravel()
-    led = np.isfinite(pl) & (pl <= max_pull)
+    led = np.isfinite(pl) & (pl <= MAX_PRIOR_PULL)
     det = est & sig & led
     unb = None
     if bias is not None:
         b = np.abs(np.asarray(bias, dtype=float).ravel())
-        unb = np.isfinite(b) & ((b <= max_bias * s) | (b <= 1e-9 * np.abs(v)))
+        unb = np.isfinite(b) & ((b <= MAX_BIAS_SIGMA * s) | (b <= 1e-9 * np.abs(v)))
         det &= unb
     if veto is not None:
         det &= ~np.asarray(veto, bool).ravel()
