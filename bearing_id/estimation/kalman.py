@@ -82,21 +82,19 @@ def input_phasors(A, B, forces: dict, speed: float) -> dict:
     return {float(r): forced_states(A, B, F, float(r) * float(speed))[:, 0] for r, F in (forces or {}).items()}
 
 
-def particular_state(Xp: dict, angle, rows=None) -> np.ndarray:
+def particular_state(Xp: dict, angle) -> np.ndarray:
     """
-    Return x_p at each angle: sum_r Re{Xp_r[rows] exp(j r angle)} -> (N, len(rows)) (all rows if None).
+    Return x_p at each angle: sum_r Re{Xp_r exp(j r angle)} -> (N, n).
 
     Xp {ratio r: complex phasor (n,)} (the particular solution's state phasors, or any projection of them, e.g.
     {r: H Xp_r}); angle (N,) [rad].  Re{X e^{j r a}} = cos(r a) Re X - sin(r a) Im X.
     """
     angle = np.asarray(angle, dtype=float).reshape(-1)
     if not Xp:
-        return np.zeros((angle.size, 0 if rows is None else len(rows)))
-    first = next(iter(Xp.values()))
-    sel = np.arange(first.size) if rows is None else np.asarray(rows, dtype=int)
-    out = np.zeros((angle.size, sel.size))
+        return np.zeros((angle.size, 0))
+    out = np.zeros((angle.size, next(iter(Xp.values())).size))
     for r, X in Xp.items():
-        x = np.asarray(X)[sel]
+        x = np.asarray(X)
         ra = r * angle
         out += np.cos(ra)[:, None] * x.real[None, :] - np.sin(ra)[:, None] * x.imag[None, :]
     return out

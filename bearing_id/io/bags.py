@@ -108,15 +108,15 @@ LATCHED_TOPICS = ('/rotor/excitation', '/bearing_id/coefficients')
 _INFINITE = (9223372036, 854775807)     # RMW_DURATION_INFINITE as rosbag2 writes it
 
 
-def _enum(enum_cls, value, default='UNKNOWN'):
+def _enum(enum_cls, value):
     """Return the rosbags QoS enum member of a name ('transient_local', 'TRANSIENT_LOCAL'), an rclpy enum or an int."""
     name = getattr(value, 'name', value)
     if isinstance(name, str):
-        return enum_cls.__members__.get(name.upper(), enum_cls.__members__[default])
+        return enum_cls.__members__.get(name.upper(), enum_cls.UNKNOWN)
     try:
         return enum_cls(int(value))
     except (TypeError, ValueError):
-        return enum_cls.__members__[default]
+        return enum_cls.UNKNOWN
 
 
 def _qtime(v):
