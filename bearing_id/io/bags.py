@@ -25,7 +25,7 @@ string; ``ros2 bag play`` then offers a transient-local topic as transient-local
 
 Every failure (missing/truncated/corrupt bag, missing topic, unknown type, hostile metadata.yaml, a message whose
 arrays disagree) raises :class:`BagError` naming the file; nothing is read before metadata.yaml has passed a bounded
-parse (size, nesting, alias expansion: :func:`bearing_id.config.params.check_yaml_events`).
+parse (size, nesting, alias expansion: :func:`bearing_id.config.params.load_yaml_bounded`).
 """
 from __future__ import annotations
 
@@ -42,9 +42,7 @@ import sys
 import tempfile
 import time
 
-import yaml
-
-from ..config.params import check_yaml_events, ParamError
+from ..config.params import load_yaml_bounded, ParamError
 
 PACKAGE = 'bearing_id_msgs'
 STORAGES = ('mcap', 'sqlite3')
@@ -395,24 +393,11 @@ def unfinished(path) -> Path | None:
 
 def _check_metadata(path: Path) -> None:
     """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it."""
-    meta = path / 'metadata.yaml'
     try:
-        size = meta.stat().st_size
-        if size > METADATA_MAX_BYTES:
-            raise BagError(f'{path}: metadata.yaml has {size} bytes (more than {METADATA_MAX_BYTES}: refused)')
-        text = meta.read_bytes().decode('utf-8')
-    except OSError as exc:
-        raise BagError(f'{path}: cannot read metadata.yaml: {exc}') from exc
-    except UnicodeDecodeError as exc:
-        raise BagError(f'{path}: metadata.yaml is not UTF-8 text ({exc.reason} at byte {exc.start})') from None
-    try:
-        check_yaml_events(text, 'metadata.yaml', max_depth=32, max_nodes=1_000_000)
-        data = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # noqa: S506 - safe loader
+        data = load_yaml_bounded(path / 'metadata.yaml', 'metadata.yaml', max_bytes=METADATA_MAX_BYTES, max_depth=32,
+                                 max_nodes=1_000_000)
     except ParamError as exc:
-        raise BagError(f'{path}: {exc}') from None
-    except yaml.YAMLError as exc:
-        text = ' '.join(str(exc).replace('"<unicode string>"', 'metadata.yaml').split())
-        raise BagError(f'{path}: metadata.yaml is not valid YAML: {text[:300]}') from None
+        raise BagError(f'{path}: {str(exc)[:400]}') from None
     info = data.get('rosbag2_bagfile_information') if isinstance(data, dict) else None
     if not isinstance(info, dict):
         raise BagError(f'{path}: metadata.yaml is not rosbag2 metadata (no rosbag2_bagfile_information mapping)')
