@@ -57,7 +57,6 @@ from .direct import augmented_response, cases_from_data, information_analysis, S
 from .result import empty_result, IdentResult
 from .. import bearings as bearing_models
 from ..bearings.finite_table import stated_tolerance
-from ..bearings.short import ocvirk_batch
 from ..conventions import COEFF_ORDER
 from ..rotor.assembly import static_bearing_loads
 
@@ -215,63 +214,6 @@ class _Parametrisation:
                                          - self.bearing_beta(p - dp, i, speed)) / (2 * FD_STEP)
         return beta, G
 
-    def beta_and_grad_speeds(self, p, speeds, want_grad: bool = True) -> list:
-        """
-        Return [(beta, G or None)] at each of ``speeds``: :meth:`beta_and_grad` (or :meth:`beta`), batched.
-
-        Short (Ocvirk) bearings of a load along -y are evaluated for every speed and difference step at once
-        (:func:`bearing_id.bearings.short.ocvirk_batch`: brentq's steps and the same arithmetic as
-        :func:`~bearing_id.bearings.short.ocvirk`, so the same bits, test/test_bearings_batch.py); other bearings one
-        call at a time as :meth:`bearing_beta`.  Same numbers as :meth:`beta_and_grad` per speed.
-        """
-        nb, ns = len(self.bearings), len(speeds)
-        betas = np.zeros((ns, 8 * nb))
-        Gs = np.zeros((ns, 8 * nb, p.size)) if want_grad else None
-        for i in range(nb):
-            steps = [(None, 0.0)] + ([(i * self.npb + k, sg * FD_STEP) for k in range(self.npb) for sg in (1.0, -1.0)]
-                                     if want_grad else [])
-            vals = self._bearing_values_batch(p, i, steps, speeds)
-            for e, (j, h) in enumerate(steps):
-                if j is None:
-                    betas[:, 8 * i:8 * i + 8] = vals[e]
-            if want_grad:
-                for k in range(self.npb):
-                    j = i * self.npb + k
-                    Gs[:, 8 * i:8 * i + 8, j] = (vals[1 + 2 * k] - vals[2 + 2 * k]) / (2 * FD_STEP)
-        return [(betas[s], Gs[s] if want_grad else None) for s in range(ns)]
-
-    def _bearing_values_batch(self, p, i, steps, speeds) -> np.ndarray:
-        """(n_steps, ns, 8) coefficients [K flat, C flat] of bearing i at p moved by each (index, step), each speed."""
-        b = self.bearings[i]
-        batch = (not self.table[i] and self.model_name == 'short' and getattr(b, 'model', 'short') != 'table'
-                 and getattr(b, 'load_direction', None) in (None, (0.0, 1.0)))
-        pts = []
-        for j, h in steps:                  # as beta_and_grad: p + dp and p - dp, dp = FD_STEP at index j
-            if j is None:
-                pts.append(p)
-            else:
-                dp = np.zeros_like(p)
-                dp[j] = abs(h)
-                pts.append(p + dp if h > 0 else p - dp)
-        out = np.zeros((len(steps), len(speeds), 8))
-        if not batch:
-            for e, pp in enumerate(pts):
-                for s, w in enumerate(speeds):
-                    out[e, s] = self.bearing_beta(pp, i, w)
-            return out
-        mus, cs, Ws, ws = [], [], [], []
-        for pp in pts:
-            v = self.bearing_values(pp, i)
-            for w in speeds:
-                mus.append(v['viscosity'])
-                cs.append(v['clearance'])
-                Ws.append(v['load'])
-                ws.append(float(w))
-        K, C = ocvirk_batch(float(b.diameter), float(b.length), np.array(cs), np.array(mus), np.array(Ws),
-                            np.array(ws))
-        out = np.concatenate([K.reshape(-1, 4), C.reshape(-1, 4)], axis=1)
-        return out.reshape(len(steps), len(speeds), 8)
-
     def model_floor(self, p, speed) -> np.ndarray:
         """
         Return the (8 nb,) 1-sigma floor of the finite model's coefficients.
@@ -367,8 +309,8 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         if augment is not None:
             return residual_jac_aug(p, want_jac)
         rs, Js = [], []
-        bg = par.beta_and_grad_speeds(p, [speeds[i] for i in keep], want_jac)
-        for i, (beta, G) in zip(keep, bg):
+        for i in keep:
+            beta, G = par.beta_and_grad(p, speeds[i]) if want_jac else (par.beta(p, speeds[i]), None)
             r, Jb = rj_weighted(i, beta)
             rs.append(r)
             if want_jac:
