@@ -32,8 +32,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """
     Return the command-line parser: every subcommand, or only the subcommand ``only`` (what :func:`main` parses with).
 
-    Building all nine subparsers costs ~15 ms (argparse); a command line that names its subcommand parses the same
-    way with that one alone (its options, ``--help`` and errors are the subparser's).
+    A command line that names its subcommand imports and builds that one alone (its options, ``--help`` and errors
+    are the subparser's).
     """
     parser = argparse.ArgumentParser(
         prog='bearing-id',

@@ -60,7 +60,7 @@ Unbalance
     Fx = me Omega^2 exp(j phase), Fy = -j Fx.
 
 Units at the edges
-    rpm, micrometres and degrees only where a person reads; the helpers below convert.
+    rpm, micrometres and degrees only where a person reads (:func:`rpm_to_rad_s`, :func:`rad_s_to_rpm`).
 """
 from __future__ import annotations
 
@@ -103,11 +103,6 @@ def rpm_to_rad_s(rpm):
 def rad_s_to_rpm(speed):
     """Speed in rad/s -> rev/min (scalar or array)."""
     return np.asarray(speed, dtype=float) * RPM_PER_RAD_S if np.ndim(speed) else float(speed) * RPM_PER_RAD_S
-
-
-def m_to_um(x):
-    """Metres -> micrometres (for people)."""
-    return np.asarray(x) * 1e6
 
 
 def unbalance_phasors(me: float, phase: float, speed: float) -> tuple[complex, complex]:
@@ -252,13 +247,3 @@ def lit_to_xy(block_lit: np.ndarray) -> np.ndarray:
     Force and displacement transform alike: f_lit = T f, q_lit = T q, so K_xy = T^T K_lit T.
     """
     return _T_LIT.T @ np.asarray(block_lit, dtype=float) @ _T_LIT
-
-
-def flat4(block: np.ndarray) -> np.ndarray:
-    """2x2 block -> flat (xx, xy, yx, yy)."""
-    return np.asarray(block).reshape(4)
-
-
-def block2(flat: np.ndarray) -> np.ndarray:
-    """Flat (xx, xy, yx, yy) -> 2x2 block."""
-    return np.asarray(flat).reshape(2, 2)

@@ -9,6 +9,7 @@ then SIGKILL after a timeout).  Exit code 0 when every speed was identified, 1 o
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 from pathlib import Path
 import shutil
@@ -26,10 +27,12 @@ from rclpy.signals import SignalHandlerOptions
 
 from .config.params import load_rig
 from .conventions import COEFF_ORDER, rad_s_to_rpm
+from .identify.result import IdentResult
 from .io import messages as M
 from .nodes.dds import loopback_dds_env
 from .nodes.qos import qos_latched
 from .nodes.topics import TOPIC_COEFFICIENTS
+from .plots.coefficients import plot_coefficients
 from .rotor.supports import bearing_fn
 from .simulation import rig as rigmod
 
@@ -99,7 +102,6 @@ class Listener:
         self.node = rclpy.create_node('bearing_id_demo', context=self.context)
         self.results = {}                # speed [rad/s] -> coefficients dict (latest)
         self.last_result_time = None
-        self.n_results = 0
         self.diag = {}                   # status name -> (level, message)
         self.diag_values = {}            # status name -> {key: value}
         self.lock = threading.Lock()
@@ -121,7 +123,6 @@ class Listener:
         with self.lock:
             self.results[round(d['speed'], 6)] = d
             self.last_result_time = time.monotonic()
-            self.n_results += 1
 
     def _on_diag(self, msg):
         with self.lock:
@@ -196,39 +197,17 @@ def format_table(results: dict, truth_fn, theory_fn) -> str:
     return '\n'.join(lines)
 
 
-def plot(results: dict, truth_fn, theory_fn, path: Path, bearings_nodes) -> Path:
-    """Coefficients vs speed: identified (1-sigma bars), truth, theory; rows K and C, columns xx xy yx yy."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    speeds = np.array(sorted(results))
-    grid = np.linspace(speeds.min(), speeds.max(), 40) if speeds.size > 1 else speeds
-    fig, axes = plt.subplots(2, 4, figsize=(16, 7), sharex=True)
-    colors = ('C0', 'C3', 'C2', 'C1')
-    for i, (name, node) in enumerate(bearings_nodes):
-        for row, (sym, unit) in enumerate((('K', 'N/m'), ('C', 'N s/m'))):
-            for k, lab in enumerate(COEFF_ORDER):
-                ax = axes[row, k]
-                v = np.array([results[s][sym][i].reshape(4)[k] for s in speeds])
-                e = np.array([results[s][f'{sym}_std'][i].reshape(4)[k] for s in speeds])
-                det = np.array([results[s][f'{sym}_determined'][i].reshape(4)[k] for s in speeds])
-                rpm = rad_s_to_rpm(speeds)
-                ax.errorbar(rpm[det], v[det], yerr=np.nan_to_num(e[det]), fmt='o', color=colors[i], ms=4,
-                            capsize=2, label=f'{name} identified')
-                ax.plot(rad_s_to_rpm(grid), [np.asarray(truth_fn(w)[node][row]).reshape(4)[k] for w in grid], '-',
-                        color=colors[i], lw=1, label=f'{name} truth')
-                ax.plot(rad_s_to_rpm(grid), [np.asarray(theory_fn(w)[node][row]).reshape(4)[k] for w in grid],
-                        '--', color=colors[i], lw=1, alpha=0.6, label=f'{name} theory (nominal)')
-                ax.set_title(f'{sym}{lab} [{unit}]')
-                if row == 1:
-                    ax.set_xlabel('speed [rpm]')
-                ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
-    fig.suptitle('bearing_id demo: identified vs true bearing coefficients (ROS 2 nodes, simulated rig)')
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+def plot(results: dict, truth_fn, theory_fn, path: Path) -> Path:
+    """
+    Write the coefficients vs speed (``results``: speed -> :func:`bearing_id.io.messages.coefficients_from_msg`).
+
+    :func:`bearing_id.plots.coefficients.plot_coefficients`: identified +-1-sigma, truth and theory per coefficient.
+    """
+    keys = {f.name for f in dataclasses.fields(IdentResult)}
+    rs = [IdentResult(**{k: v for k, v in results[s].items() if k in keys}) for s in sorted(results)]
+    return plot_coefficients(rs, path, truth_fn=truth_fn, theory_fn=theory_fn,
+                             title='bearing_id demo: identified vs true bearing coefficients (ROS 2 nodes, '
+                                   'simulated rig)')
 
 
 def main(argv=None) -> int:
@@ -295,8 +274,7 @@ def main(argv=None) -> int:
     if results:
         print()
         print(format_table(results, truth_fn, theory_fn))
-        png = plot(results, truth_fn, theory_fn, out / 'coefficients.png',
-                   [(b.name, b.node) for b in rig.bearings])
+        png = plot(results, truth_fn, theory_fn, out / 'coefficients.png')
         print(f'\nplot: {png}')
     print('\nlast diagnostics:')
     for name, (level, msg) in sorted(listener.diag.items()):

@@ -51,8 +51,3 @@ def harmonic_forces(entries: Iterable[ExcitationEntry], speed: float, n_nodes: i
         f[dof_index(e.node, 'x', n_nodes)] += fx
         f[dof_index(e.node, 'y', n_nodes)] += fy
     return out
-
-
-def is_force_excited(entries: Iterable[ExcitationEntry]) -> bool:
-    """Return True when any entry is a directional (non-unbalance) force."""
-    return any(e.kind == 'force' for e in entries)

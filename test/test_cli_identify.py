@@ -64,25 +64,17 @@ def test_allow_undetermined_prints_flagged_values_and_exits_0(npz_runs, capsys):
 
 
 def test_bearing_vectors_plot_draws_estimate_and_truth(tmp_path):
-    # plots.plot_bearing_vectors with runs x speeds x bearings x (x, y): one estimated and one true line per run in
+    # plots.bearing_vectors_figure with runs x speeds x bearings x (x, y): one estimated and one true line per run in
     # every amplitude/phase panel; amplitudes in um, phases in degrees (checked on the drawn data).
-    import matplotlib
-    matplotlib.use('Agg')
     from bearing_id import plots
-    import matplotlib.pyplot as plt
     speeds = np.array([100.0, 200.0, 300.0])
     est = np.zeros((2, 3, 2, 2), complex)
     est[...] = 2e-6 * np.exp(1j * np.pi / 6)
-    captured = {}
-    orig = plt.close
-    plt.close = lambda fig=None: captured.setdefault('fig', fig)
-    try:
-        p = plots.plot_bearing_vectors(speeds, est, tmp_path / 'bv.png', true=1.1 * est, nodes=(2, 10),
-                                       run_labels=['A', 'B'])
-    finally:
-        plt.close = orig
+    kw = {'true': 1.1 * est, 'nodes': (2, 10), 'run_labels': ['A', 'B']}
+    fig = plots.bearing_vectors_figure(speeds, est, **kw)
+    p = plots.plot_bearing_vectors(speeds, est, tmp_path / 'bv.png', **kw)
     assert p.stat().st_size > 1000
-    ax_amp, ax_ph = captured['fig'].axes[0], captured['fig'].axes[4]
+    ax_amp, ax_ph = fig.axes[0], fig.axes[4]
     assert len(ax_amp.lines) == 4                                 # 2 runs x (estimated, true)
     np.testing.assert_allclose(ax_amp.lines[0].get_ydata(), 2.0)  # 2e-6 m = 2 um
     np.testing.assert_allclose(ax_amp.lines[1].get_ydata(), 2.2)

@@ -71,5 +71,4 @@ def test_units():
     assert cv.rpm_to_rad_s(60.0) == pytest.approx(2 * math.pi)
     assert cv.rad_s_to_rpm(2 * math.pi) == pytest.approx(60.0)
     assert np.allclose(cv.rpm_to_rad_s([0, 30]), [0, math.pi])
-    assert cv.block2(cv.flat4(np.array([[1, 2], [3, 4]]))).tolist() == [[1, 2], [3, 4]]
     assert cv.COEFF_ORDER == ('xx', 'xy', 'yx', 'yy')

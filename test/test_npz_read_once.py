@@ -1,8 +1,8 @@
 """
-Issue 13: ``rig.load_npz`` reads every array of a recording once, and its result equals a plain ``np.load`` reading.
+``io.recordings.load_npz`` reads every array of a recording once, and its result equals a plain ``np.load`` reading.
 
 References: ``numpy.load`` of the same file (the library's own reader, independent of the checked reader in
-``bearing_id.simulation.rig``) and the Recording that was written; the count of ``numpy.lib.format.read_array`` calls
+``bearing_id.io.recordings``) and the Recording that was written; the count of ``numpy.lib.format.read_array`` calls
 against the number of members of the archive.
 """
 from __future__ import annotations

@@ -85,15 +85,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def _load(paths) -> list:
-    """
-    Load the recordings from .npz / .csv files and bags (one per excitation run).
-
-    ParamError (exit 2) for any bad input.
-    """
-    return load_recordings(paths)
-
-
 WORKERS_ENV = 'BEARING_ID_WORKERS'     # 0: no worker process (everything in this one)
 
 
@@ -132,8 +123,8 @@ def _floor_pool() -> ProcessPoolExecutor | None:
     """
     Return a one-process pool for the noise-floor vectors, or None (no spare core, or ``BEARING_ID_WORKERS=0``).
 
-    The noise-floor check's 1X vectors (identify's window fits, ~1.5 s of a ~9 s diagnosis on the 2-core machine)
-    are fitted there while this process locates and selects effects.  Forked (the recordings and the imported
+    The noise-floor check's 1X vectors (identify's window fits) are fitted there while this process locates and
+    selects effects.  Forked (the recordings and the imported
     package are inherited; POSIX); the worker ignores Ctrl-C and ends with this process (:func:`_worker_init`).
     """
     if os.environ.get(WORKERS_ENV, '').strip() == '0' or len(os.sched_getaffinity(0)) < 2:
@@ -162,7 +153,7 @@ def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
         raise ParamError('--rel-tol must be in [0, 1)')
     rig = load_rig(args.params)
-    recs = attach_excitation(_load(args.recordings), rig, required=False)   # all checked before the heavy imports
+    recs = attach_excitation(load_recordings(args.recordings), rig, required=False)   # checked before the heavy work
     check_probe_nodes(recs, rig.shaft.n_nodes)
     # identify's 1X vectors for the noise-floor check, fitted in a worker while this process locates and selects
     pool = None if args.no_noise_floor else _floor_pool()

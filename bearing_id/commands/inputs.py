@@ -20,7 +20,6 @@ from ..io.daq import read_csv
 from ..io.recordings import load_npz, recordings_from_bag
 from ..signals.recording import check_recording
 
-RECORDING_SUFFIXES = ('.npz', '.csv', '.txt')
 BAG_SUFFIXES = ('.mcap', '.db3')
 
 

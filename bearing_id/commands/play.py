@@ -15,10 +15,8 @@ from pathlib import Path
 import sys
 import time
 
-from ..io.bags import bag_topics, BagError, offered_qos, read_bag
+from ..io.bags import bag_topics, BagError, LATCHED_TOPICS, offered_qos, read_bag
 from ..io.messages import msg_class
-
-LATCHED = ('/rotor/excitation', '/bearing_id/coefficients')
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -45,7 +43,7 @@ def latched(topic: str, profiles) -> bool:
     """
     if profiles:
         return all(getattr(q.durability, 'name', '') == 'TRANSIENT_LOCAL' for q in profiles)
-    return topic in LATCHED
+    return topic in LATCHED_TOPICS
 
 
 def run(args) -> int:

@@ -26,8 +26,7 @@ from pathlib import Path
 import sys
 import time
 
-from .play import LATCHED
-from ..io.bags import BagError, BagWriter, default_qos, qos_from_rclpy, recover_bag, typestore
+from ..io.bags import BagError, BagWriter, default_qos, LATCHED_TOPICS, qos_from_rclpy, recover_bag, typestore
 from ..io.messages import msg_class
 
 DEFAULT_TOPICS = {
@@ -140,7 +139,7 @@ def run(args) -> int:
     last = [None]
     failure = []
 
-    seen = {t: collections.deque(maxlen=64) for t in topics if t in LATCHED}   # latched: heard twice (below)
+    seen = {t: collections.deque(maxlen=64) for t in topics if t in LATCHED_TOPICS}   # latched: heard twice (below)
 
     def cb_for(topic, typ):
         def cb(data):
@@ -160,7 +159,7 @@ def run(args) -> int:
         return cb
 
     for topic, typ in topics.items():
-        if topic in LATCHED:       # transient-local AND volatile subscriptions: a plain `ros2 bag play` is heard too
+        if topic in LATCHED_TOPICS:    # transient-local AND volatile subscriptions: a plain `ros2 bag play` is heard
             subscribe_latched(node, classes[topic], topic, cb_for(topic, typ), raw=True)
             continue
         qos = 10 if topic == '/diagnostics' else qos_stream()

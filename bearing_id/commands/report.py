@@ -86,15 +86,14 @@ class ReportInfo:
     """
     What :func:`build_report` wrote.
 
-    ``path`` of the page, figure count, wall time [s], notes (what the data did not support), per-step timings, and the
-    figure data for tests (``figures``: name -> Figure).
+    ``path`` of the page, figure count, wall time [s], notes (what the data did not support), the figures
+    (``figures``: name -> Figure, with ``keep_figures``) and the numbers drawn (``data``), for tests.
     """
 
     path: Path
     n_figures: int
     seconds: float
     notes: list = field(default_factory=list)
-    timings: dict = field(default_factory=dict)
     figures: dict = field(default_factory=dict, repr=False)
     data: dict = field(default_factory=dict, repr=False)
 
@@ -123,22 +122,6 @@ def _has_forcing(run, n_nodes) -> bool:
         return 1.0 in harmonic_forces(run.excitation, 100.0, n_nodes)
     except ValueError:
         return False
-
-
-class _Timer:
-    def __init__(self):
-        self.t0 = time.perf_counter()
-        self.last = self.t0
-        self.steps: dict = {}
-
-    def lap(self, name: str) -> None:
-        now = time.perf_counter()
-        self.steps[name] = self.steps.get(name, 0.0) + now - self.last
-        self.last = now
-
-    @property
-    def total(self) -> float:
-        return time.perf_counter() - self.t0
 
 
 def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, list]:
@@ -188,11 +171,7 @@ def modes_rows(model, bearing_fn, speeds, n_modes: int = 6) -> tuple[list, list]
 
 # ------------------------------------------------------------------------------------------------ rendering
 class _Figures:
-    """
-    Figures -> PNG bytes, in this process (two figure workers made the page slower on the 2-core machine).
-
-    ``keep``: also keep the Figure objects (tests read the drawn data back).
-    """
+    """Figures -> PNG bytes; ``keep``: also keep the Figure objects (tests read the drawn data back)."""
 
     def __init__(self, keep: bool = False):
         self.keep = keep
@@ -255,14 +234,8 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
     returned info (tests).
     Anything the data do not support is left out with a note, never drawn.
     """
-    return _build(_Figures(keep_figures), rig, recordings, outdir, data=data, results=results, method=method,
-                  options=options, diagnosis=diagnosis, reidentification=reidentification, cli_text=cli_text,
-                  command=command, max_rpm=max_rpm, write_png=write_png, allow_undetermined=allow_undetermined)
-
-
-def _build(R, rig, recordings, outdir, *, data, results, method, options, diagnosis, reidentification, cli_text,
-           command, max_rpm, write_png, allow_undetermined) -> ReportInfo:
-    tm = _Timer()
+    t0 = time.perf_counter()
+    R = _Figures(keep_figures)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
@@ -278,14 +251,12 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
     top_rec = max((float(np.nanmax(np.abs(r.speed))) for r in recordings if r.speed.size), default=0.0)
     hi_rpm = max_rpm or max(6000.0, 1.5 * _rpm(top_rec))
     hi = float(rpm_to_rad_s(hi_rpm))
-    tm.lap('set-up')
     # ---------------------------------------------------------------- measured 1X
     if data is None and recordings:
         try:
             data = harmonics.from_recordings(recordings)
         except ValueError as exc:
             notes.append(f'no 1X vectors from these recordings: {exc}')
-    tm.lap('1X vectors')
     test_speeds = np.asarray(data.speeds, float) if data is not None else np.zeros(0)
     test_rpm = _rpm(test_speeds)
     probes = tuple(data.probes) if data is not None else (tuple(recordings[0].probes) if recordings else ())
@@ -352,7 +323,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
             except ValueError as exc:
                 notes.append(f'identification ({method}) not possible on these data: {exc}')
     results = list(results or [])
-    tm.lap('identification')
     ident, why = fd.identified_bearing_fn(results, rig) if results else (None, 'no identification')
     if results and ident is None:
         notes.append(f'no identified model curve: {why}')
@@ -380,7 +350,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
             sec_response.append((f'polar_{p.name}', R.figure(f'polar_{p.name}', polar_figure, p, test_rpm,
                                                              data.X[:, :, c], data.X_std[:, :, c], run_labels, cl),
                                  f'Probe {p.name}. ' + CAPTIONS['polar']))
-    tm.lap('response curves')
     # ---------------------------------------------------------------- coefficients
     sec_coeff = []
     if results:
@@ -420,16 +389,13 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
             sec_diag.append(('diagnosis_residual', R.figure('diagnosis_residual', residual_orders_figure, dc),
                              'RMS residual (measured minus model) per harmonic order, all probes and speeds, before '
                              'and after.'))
-    tm.lap('figure data')
     # ---------------------------------------------------------------- Campbell, critical speeds, mode shapes
     cd_ident = None
     if ident is not None and ident.speed_range is None:
         cd_ident = fd.campbell_data(model, ident.fn, hi, label=ident.label)
-    tm.lap('Campbell (identified)')
     cd_theory = fd.campbell_data(model, theory, hi, label='theory (nominal params)')
     cd = cd_ident or cd_theory
     fdata['campbell'], fdata['campbell_theory'] = cd, cd_theory
-    tm.lap('Campbell')
     sec_campbell = []
     for c_, tag in ((cd_theory, 'theory'), (cd_ident, 'identified')):
         if c_ is not None:
@@ -456,7 +422,6 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
             sec_response[k] = (name, R.figure(name, bode_figure, probes[c], test_rpm, data.X[:, :, c],
                                               data.X_std[:, :, c], run_labels, fdata['curves_by_probe'][c],
                                               critical_rpm=list(cd.critical_rpm)), cap)
-    tm.lap('mode shapes')
 
     # ================================================================ assemble the page (in order)
     page = Page(f'bearing_id report - {rig.name}')
@@ -590,17 +555,16 @@ def _build(R, rig, recordings, outdir, *, data, results, method, options, diagno
         page.table(hdr, rws, left_cols=2)
     if cli_text:
         page.pre(cli_text, summary="the command's printed output")
-    tm.lap('tables')
     if write_png:
         for name, png in figs:
             (out / f'{name}.png').write_bytes(png)
-    tm.lap('PNG files')
-    footer = (f'written by bearing_id in {tm.total:.1f} s'
+    seconds = time.perf_counter() - t0
+    footer = (f'written by bearing_id in {seconds:.1f} s'
               + (f'; command: {command}' if command else '')
               + '; SI inside, rpm / µm / degrees for people; conventions: bearing_id/conventions.py')
     header_html = f'<p class="muted">{esc(command)}</p>' if command else ''
     path = page.write(out / REPORT_NAME, header_html=header_html, footer_text=footer)
-    return ReportInfo(path=path, n_figures=page.n_images, seconds=tm.total, notes=notes, timings=dict(tm.steps),
+    return ReportInfo(path=path, n_figures=page.n_images, seconds=seconds, notes=notes,
                       figures=dict(R.figures), data=fdata)
 
 

@@ -80,13 +80,11 @@ def rig_to_dict(rig: RigParams) -> dict:
         d['gravity'] = list(rig.gravity)
 
     def table(t):
-        K = [[[float(v) for v in row] for row in k] for k in t.K]
-        C = [[[float(v) for v in row] for row in c] for c in t.C]
         out = {'speed': list(t.speeds)}
         for i, a in enumerate('xy'):
             for j, b in enumerate('xy'):
-                out[f'k{a}{b}'] = [k[i][j] for k in K]
-                out[f'c{a}{b}'] = [c[i][j] for c in C]
+                out[f'k{a}{b}'] = [float(k[i][j]) for k in t.K]
+                out[f'c{a}{b}'] = [float(c[i][j]) for c in t.C]
         return out
 
     def bearing(b, seal=False):

@@ -24,10 +24,6 @@ class Material:
     shear_modulus: float          # Pa
     density: float                # kg/m^3
 
-    @property
-    def poisson_ratio(self) -> float:
-        return self.youngs_modulus / (2.0 * self.shear_modulus) - 1.0
-
 
 @dataclass(frozen=True)
 class AddedMass:
@@ -209,10 +205,6 @@ class Bearing:
     load_direction: tuple | None = None  # unit vector of the film force on the journal; None = +y (gravity -y)
     support: Support | None = None       # pedestal in series with the film
     table: BearingTable | None = None    # kind 'table'
-
-    @property
-    def kind(self) -> str:
-        return self.model
 
 
 @dataclass(frozen=True)

@@ -76,8 +76,7 @@ def load_yaml_bounded(path: str | Path, what: str | None = None, *, max_bytes: i
     try:
         size = path.stat().st_size
         if size > max_bytes:
-            raise ParamError(f'{what}: {size} bytes, more than the {max_bytes} a parameter file may have (refused '
-                             f'unread)')
+            raise ParamError(f'{what}: {size} bytes, more than the {max_bytes} allowed (refused unread)')
         with open(path, 'rb') as fh:
             raw = fh.read(max_bytes + 1)
     except OSError as exc:

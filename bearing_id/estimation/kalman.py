@@ -83,21 +83,19 @@ def input_phasors(A, B, forces: dict, speed: float) -> dict:
     return {float(r): forced_states(A, B, F, float(r) * float(speed))[:, 0] for r, F in (forces or {}).items()}
 
 
-def particular_state(Xp: dict, angle, rows=None) -> np.ndarray:
+def particular_state(Xp: dict, angle) -> np.ndarray:
     """
-    Return x_p at each angle: sum_r Re{Xp_r[rows] exp(j r angle)} -> (N, len(rows)) (all rows if None).
+    Return x_p at each angle: sum_r Re{Xp_r exp(j r angle)} -> (N, n).
 
     Xp {ratio r: complex phasor (n,)} (the particular solution's state phasors, or any projection of them, e.g.
     {r: H Xp_r}); angle (N,) [rad].  Re{X e^{j r a}} = cos(r a) Re X - sin(r a) Im X.
     """
     angle = np.asarray(angle, dtype=float).reshape(-1)
     if not Xp:
-        return np.zeros((angle.size, 0 if rows is None else len(rows)))
-    first = next(iter(Xp.values()))
-    sel = np.arange(first.size) if rows is None else np.asarray(rows, dtype=int)
-    out = np.zeros((angle.size, sel.size))
+        return np.zeros((angle.size, 0))
+    out = np.zeros((angle.size, next(iter(Xp.values())).size))
     for r, X in Xp.items():
-        x = np.asarray(X)[sel]
+        x = np.asarray(X)
         ra = r * angle
         out += np.cos(ra)[:, None] * x.real[None, :] - np.sin(ra)[:, None] * x.imag[None, :]
     return out
@@ -169,10 +167,11 @@ def steady_state_gain(Phi, H, Q, R):
     Steady-state prior covariance P, Kalman gain K = P H^T S^-1 and innovation covariance S = H P H^T + R.
 
     P solves the filter DARE  P = Phi P Phi^T - Phi P H^T (H P H^T + R)^-1 H P Phi^T + Q (the dual of the control
-    DARE with (Phi^T, H^T)), by structure-preserving doubling (:func:`_dare_sda`): about 8 ms for the 88-state rotor,
-    where scipy.linalg.solve_discrete_are takes ~33 ms and leaves a relative Riccati residual of ~6e-7 with
-    Q = 1e-16 I (benchmarks/bench_speed.py (b); test/test_kalman.py ties the two).  Raises RuntimeError if the
-    doubling does not converge or the final relative residual exceeds 1e-10 (check Q, R scaling and detectability).
+    DARE with (Phi^T, H^T)), by structure-preserving doubling (:func:`_dare_sda`): on the 88-state rotor with
+    Q = 1e-16 I about 4x faster than scipy.linalg.solve_discrete_are, with a relative Riccati residual ~1e-14 where
+    scipy's is ~5e-7 (benchmarks/bench_speed.py (b) measures both; test/test_kalman.py checks them against each
+    other).  Raises RuntimeError if the doubling does not converge or the final relative residual exceeds 1e-10
+    (check Q, R scaling and detectability).
     """
     P = _dare_sda(Phi, H, Q, R)
     if P is None:
@@ -408,7 +407,7 @@ def _check_inputs(km: KalmanModel, samples, angle):
     return z, a
 
 
-# ------------------------------------------------------------------------------------------------ fast path
+# ------------------------------------------------------------------------------------------------ chunked filter
 class _ChunkedLTI:
     """
     Vectorised evaluation of s_{k+1} = F s_k + G u_k, y_k = C s_k + D u_k over chunks of L samples.
@@ -474,7 +473,7 @@ def innovation_chunk(m: int) -> int:
     Chunk length of the innovation operator for ``m`` measured channels (samples per chunk).
 
     The Toeplitz product costs ~L m^2 per sample and the loop over chunk starts ~1/L: 64 samples for up to two
-    probes, 32 above (the 9-speed rig's six probes: 5.0 instead of 6.4 ms per 15,000-sample window).
+    probes, 32 above.
     """
     return CHUNK if m <= 2 else CHUNK // 2
 
@@ -594,11 +593,6 @@ class StreamingKF:
         self.band_tol_rel = float(band_tol_rel)
         self._op = _operator(km, 'estimates')
         self._e = np.zeros(km.n)           # e(k|k-1) for the next sample
-        self.n_samples = 0
-
-    def reset(self):
-        """Restart from the model's steady state at the next sample."""
-        self._e = np.zeros(self.km.n)
         self.n_samples = 0
 
     def in_band(self, speed: float) -> bool:

@@ -15,8 +15,8 @@ Interpolation-bias check (stated rules)
       straight line alone causes near this operating point.  Above ``max_rel_std`` (default 0.05, the design
       threshold) the coefficient is flagged: determined=False, named in the notes ("interpolation bias"); and, by the
       one rule, a bias above half the coefficient's 1-sigma also leaves it undetermined; for that the bias is evaluated
-      at the theory AND at the identified coefficients, the larger (it depends on the mode shapes: on the issue-11
-      plan, probes 3/6/9, the theory's bias of bearing 2 Cxx was 1 % of what it was at the truth).
+      at the theory AND at the identified coefficients, the larger (it depends on the mode shapes, which the
+      coefficients change: at the theory it can be a small fraction of what it is at the truth).
     * Data route (only with more equations than unknowns, i.e. more than two runs): the eqs 33-37 residual is a
       chi-square test against the propagated noise of the interpolated displacements
       (:func:`bearing_id.identify.lsq.solve_coefficients`, :func:`bearing_id.identify.determined.fit_quality`); a

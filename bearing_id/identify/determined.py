@@ -1,5 +1,5 @@
 """
-One rule for "determined" and one misfit test, shared by every identification method (issue 11).
+One rule for "determined" and one misfit test, shared by every identification method.
 
 What "determined" means
     A coefficient is *determined* -- shown to a person as a plain number with its 1-sigma -- only when the data alone
@@ -10,8 +10,8 @@ What "determined" means
     2. **significant**: ``|value| >= K_SIGMA x sigma`` with ``sigma`` its data-only 1-sigma (Birge-scaled when the
        model misfits, see below).  K_SIGMA = 3: for a Gaussian estimate the data then exclude zero at 3 sigma
        (two-sided probability 0.27 % that an estimate of a coefficient that is really 0 passes), and the relative
-       1-sigma sigma / |value| is at most 1/3 -- the data fix the sign and the size.  (The old rule, 1-sigma <= 10 %
-       of the *block* scale, passed e.g. Kyx = 1.0e4 +- 9.0e4 N/m: a value smaller than its own sigma.)
+       1-sigma sigma / |value| is at most 1/3 -- the data fix the sign and the size.  A bound relative to the
+       *block* scale alone would pass e.g. Kyx = 1.0e4 +- 9.0e4 N/m: a value smaller than its own sigma.
     3. **not the prior's**: the pull of a prior (or of the theory a method starts from) on it is at most
        ``MAX_PRIOR_PULL``.  The pull is d(estimate) / d(prior mean): for a Gaussian prior it is the shrinkage
        1 - var_posterior / var_data-only (the fraction of the way from the data's estimate to the prior mean that the
@@ -50,7 +50,6 @@ K_SIGMA = 3.0               # |value| >= K_SIGMA x sigma (data exclude zero at 3
 MAX_PRIOR_PULL = 0.1        # d(estimate)/d(prior mean) <= this (the data carry >= 90 % of the weight)
 MAX_BIAS_SIGMA = 0.5        # a method's own estimated bias <= this x sigma
 MISFIT_LEVEL = 0.999        # chi2 above this quantile of chi-square(dof) is a model misfit
-ESTIMABLE_LEAK = 1e-6       # default: a coefficient is estimable when its null-space leakage is below this
 
 
 def misfit_threshold(dof: float, level: float = MISFIT_LEVEL) -> float:
@@ -171,8 +170,7 @@ class Verdict:
                 + '; '.join(parts))
 
 
-def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_sigma: float = K_SIGMA,
-          max_pull: float = MAX_PRIOR_PULL, max_bias: float = MAX_BIAS_SIGMA) -> Verdict:
+def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None) -> Verdict:
     """
     Apply the rule of the module docstring to coefficients ``value`` with data-only 1-sigma ``sigma``.
 
@@ -189,14 +187,14 @@ def judge(value, sigma, *, estimable=None, pull=None, veto=None, bias=None, k_si
     est &= np.isfinite(v)
     with np.errstate(divide='ignore', invalid='ignore'):
         z = np.where(est, np.abs(v) / s, np.nan)
-    sig = est & (np.abs(v) >= k_sigma * s)
+    sig = est & (np.abs(v) >= K_SIGMA * s)
     pl = np.zeros_like(v) if pull is None else np.asarray(pull, dtype=float).ravel()
-    led = np.isfinite(pl) & (pl <= max_pull)
+    led = np.isfinite(pl) & (pl <= MAX_PRIOR_PULL)
     det = est & sig & led
     unb = None
     if bias is not None:
         b = np.abs(np.asarray(bias, dtype=float).ravel())
-        unb = np.isfinite(b) & ((b <= max_bias * s) | (b <= 1e-9 * np.abs(v)))
+        unb = np.isfinite(b) & ((b <= MAX_BIAS_SIGMA * s) | (b <= 1e-9 * np.abs(v)))
         det &= unb
     if veto is not None:
         det &= ~np.asarray(veto, bool).ravel()

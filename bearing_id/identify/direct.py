@@ -23,8 +23,8 @@ s_max / s_min of J (inf when rank deficient).  A coefficient is estimable when i
 of J (its leakage into the numerical null space < 1e-6); its data-only variance is then the diagonal of the
 pseudo-inverse of I.  ``determined`` is the one rule of :mod:`bearing_id.identify.determined` (shared by every method):
 estimable, |value| >= 3 x its data-only 1-sigma, and -- with a prior -- the prior's pull 1 - var_post / var_data
-<= 0.1.  (Until issue 11 the rule was "1-sigma <= 10 % of the block scale", which passed values smaller than their
-own sigma; ``max_rel_std`` is now an optional *additional* bound, off by default.)  Std: without prior, the
+<= 0.1; ``max_rel_std`` (1-sigma below a fraction of the block scale) is an optional *additional* bound, off by
+default.  Std: without prior, the
 pseudo-inverse of I for estimable coefficients, NaN for the others; with a prior, the posterior (I + I_prior)^-1.
 Both come from the measured 1X std (``X_std``).
 
@@ -413,10 +413,9 @@ def profile_widening(fun_jac, theta, cov, k: int, chi2_min: float, birge: float 
 
 
 # ------------------------------------------------------------------------------------------------ one speed
-def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, start: dict | None = None,
-              prior_weight: float = 0.0, scale=None, bearings=None, method_name: str = 'direct',
-              max_nfev: int = 200, max_rel_std: float | None = MAX_REL_STD, augment=None,
-              profile_check: bool = True) -> IdentResult:
+def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, prior_weight: float = 0.0,
+              bearings=None, max_nfev: int = 200, max_rel_std: float | None = MAX_REL_STD,
+              augment=None) -> IdentResult:
     """
     Output-error fit of the 8 nb bearing coefficients at one speed.
 
@@ -431,17 +430,12 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     nodes
         1-based bearing nodes.
     theory
-        {node: (K, C)} theory (scale, start and prior mean).
-    start
-        {node: (K, C)} start of the iteration (default: theory).
+        {node: (K, C)} theory: the scale of the unknowns (:func:`default_scale`), the start of the iteration and the
+        prior mean (None: default scales, start at zero, no prior).
     prior_weight
         w >= 0; prior 1-sigma = scale / sqrt(w) per coefficient (0 = no prior).
-    scale
-        (8 nb,) scale of the unknowns (default :func:`default_scale`).
     bearings
         bearing names for the result (default ``bearing1``, ``bearing2``, ...).
-    method_name
-        the result's method name (default 'direct').
     max_nfev
         evaluation limit of the least-squares fit (and of each profile in the nonlinearity check).
     max_rel_std
@@ -451,8 +445,6 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
         augmented-model hook (``dynamic_stiffness(speed, omega, coeffs) -> Z``; e.g. a flexible support in
         series with the film) or None.  With it the prediction is P Z_aug(beta)^-1 F and the Jacobian is taken by
         central differences in the scaled unknowns (relative step 1e-6).
-    profile_check
-        run the nonlinearity check (profile chi2, module docstring) on the determined coefficients (default True).
 
     Returns
     -------
@@ -467,14 +459,13 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
         raise ValueError(f'prior_weight must be a finite number >= 0, got {prior_weight!r}')
     if prior_weight > 0 and theory is None:
         raise ValueError('a prior (prior_weight > 0) needs the theory coefficients')
-    res = empty_result(speed, method_name, names, nodes)
+    res = empty_result(speed, 'direct', names, nodes)
     cases = [c for c in cases if np.all(np.isfinite(np.asarray(c.X)))]
     if not cases:
         res.notes.append('no finite measurements at this speed')
         return res
-    scale = np.asarray(scale if scale is not None else default_scale(nodes, theory), float)
-    beta0 = coeffs_to_beta(start if start is not None else theory, nodes) if (start or theory) is not None \
-        else np.zeros(n)
+    scale = default_scale(nodes, theory)
+    beta0 = coeffs_to_beta(theory, nodes) if theory is not None else np.zeros(n)
     theta0 = beta0 / scale
     theta_p = coeffs_to_beta(theory, nodes) / scale if theory is not None else None
     sw = math.sqrt(prior_weight)
@@ -540,7 +531,7 @@ def fit_speed(model, speed: float, cases, nodes, *, theory: dict | None = None, 
     # nonlinearity: the linearised sigma must describe the 3-sigma interval (profile chi2, module docstring)
     widen = np.ones(n)
     cand = np.nonzero(verdict.determined)[0]
-    if cand.size and profile_check:
+    if cand.size:
         chi2_tot = float(np.sum(fun_jac(theta)[0] ** 2))
         for k in cand:
             widen[k] = profile_widening(fun_jac, theta, cov_theta, k, chi2_tot, fq.birge, max_nfev=max_nfev)

@@ -7,12 +7,12 @@ Import graph inside :mod:`bearing_id.identify` (checked by test/test_honest_numb
     determined, result  <-  direct  <-  physical
 
 Contents
-* eqs 19-37 of Kang et al. 2020 (moved from paper.py): :func:`bearing_dofs`, :func:`bearing_forces`,
+* eqs 19-37 of Kang et al. 2020: :func:`bearing_dofs`, :func:`bearing_forces`,
   :func:`ls_system`, :func:`solve_coefficients` (:class:`LSSolution`), :func:`theta_to_KC`, :func:`coeffs_to_theta`,
   :func:`forces_at`, :func:`noise_rel_of`, :func:`build_result`;
-* the data-information analysis (moved from design.py): :func:`coefficient_labels`, :func:`coefficient_scales`,
+* the data-information analysis: :func:`coefficient_labels`, :func:`coefficient_scales`,
   :func:`coefficient_jacobian`, :func:`whitened_jacobian`, :func:`analyse` (:class:`Identifiability`);
-* the two-probe interpolation pairs (moved from conventional.py): :func:`probe_pairs`.
+* the two-probe interpolation pairs of the conventional method: :func:`probe_pairs`.
 
 Rules of :func:`solve_coefficients` (eqs 33-37 solved by SVD)
     * LS rank: singular values above ``rtol`` (default 1e-8) x the largest; a coefficient is LS-estimable when at
@@ -430,7 +430,7 @@ def probe_pairs(model, probes, pairs=None) -> dict:
     {(bearing_node, direction): ((channel, weight), ...)} for the interpolation: z = sum of weight x channel.
 
     Two probe nodes per bearing and direction, straight-line interpolation along the shaft; at each probe node the
-    displacement in x (y) is its x (y) probe ((channel, 1 - t) and (channel, t), as before), or, for probes at other
+    displacement in x (y) is its x (y) probe ((channel, 1 - t) and (channel, t)), or, for probes at other
     angles, the x (y) combination of two non-parallel probes there (:func:`node_xy_channels`).  Raises ValueError
     naming the bearing and direction that lack two probe nodes.
     """

@@ -26,9 +26,9 @@ from the augmented params file that ``bearing-id diagnose`` writes).  The predic
 the known excitation.  d y / d p is then taken by central differences in p (step ``FD_STEP``), the rest unchanged.
 
 Misfit: the weighted chi2 over all speeds is tested against the 99.9 % point of chi-square(dof), dof = equations -
-rank (:func:`bearing_id.identify.determined.fit_quality`; 1.6 x dof at 68 dof, not a fixed 3 x dof as before issue
-11).  On a misfit every covariance is multiplied by chi2/dof (Birge), every result is flagged ``misfit`` and the note
-says the std is a lower bound (a model-form error is a bias, not noise).
+rank (:func:`bearing_id.identify.determined.fit_quality`; 1.6 x dof at 68 dof).  On a misfit every covariance is
+multiplied by chi2/dof (Birge), every result is flagged ``misfit`` and the note says the std is a lower bound (a
+model-form error is a bias, not noise).
 
 Determined: the one rule of :mod:`bearing_id.identify.determined` -- per coefficient (delta-method sigma) and per
 parameter (|value| >= 3 sigma, i.e. relative 1-sigma <= 1/3, and estimable).
@@ -38,11 +38,11 @@ Fitted parameters: every result carries ``extra['parameters']`` = {'bearing1.vis
 (serialised by ``IdentResult.to_dict()`` as ``parameters``) and a note line with them; ``extra['fit']`` is the
 :class:`PhysicalFit`.
 
-Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is biased
-(the benchmark reports by how much).  ``bearing_model='finite'`` uses the tabulated finite-length Reynolds solution
-(:mod:`bearing_id.bearings.finite_table`: smooth, ~0.1 ms per evaluation, so a fit over 6 speeds takes < 1 s); its
-coefficients' 1-sigma include the table's stated accuracy against the direct Reynolds solver (a floor of 0.9-1.5 % of
-each block in the usual range), since nothing is known about a finite bearing better than its model's accuracy.
+Model form: the result is only as good as the bearing model; a short-bearing estimator on a finite bearing is
+biased.  ``bearing_model='finite'`` uses the tabulated finite-length Reynolds solution
+(:mod:`bearing_id.bearings.finite_table`: smooth and cheap to evaluate); its coefficients' 1-sigma include the
+table's stated accuracy against the direct Reynolds solver (a floor of 0.9-1.5 % of each block in the usual range),
+since nothing is known about a finite bearing better than its model's accuracy.
 """
 from __future__ import annotations
 
@@ -57,11 +57,9 @@ from .direct import augmented_response, cases_from_data, information_analysis, S
 from .result import empty_result, IdentResult
 from .. import bearings as bearing_models
 from ..bearings.finite_table import stated_tolerance
-from ..bearings.short import ocvirk_batch
 from ..conventions import COEFF_ORDER
 from ..rotor.assembly import static_bearing_loads
 
-PARAM_NAMES = ('viscosity', 'clearance', 'load')
 FD_STEP = 1e-4               # central-difference step in log-parameter
 BOUND_FACTOR = 10.0          # parameters are kept within [nominal / 10, nominal x 10]
 LEAK_TOL = 1e-4              # relative leakage of a coefficient gradient into the parameter null space
@@ -165,7 +163,7 @@ class _Parametrisation:
             else:
                 statics = statics or static_bearing_loads(model, self.nodes)
                 self.loads[b.node] = float(statics[b.node])
-        # a table bearing (issue 12) is parametrised by one scale on K and one on C in place of viscosity, clearance
+        # a table bearing is parametrised by one scale on K and one on C in place of viscosity, clearance
         self.table = tuple(b.model == 'table' for b in self.bearings)
         if any(self.table) and self.fitted != ('viscosity', 'clearance'):
             raise ValueError("physical: with table bearings fit params=('viscosity', 'clearance') (a table bearing's "
@@ -215,63 +213,6 @@ class _Parametrisation:
                 G[8 * i:8 * i + 8, j] = (self.bearing_beta(p + dp, i, speed)
                                          - self.bearing_beta(p - dp, i, speed)) / (2 * FD_STEP)
         return beta, G
-
-    def beta_and_grad_speeds(self, p, speeds, want_grad: bool = True) -> list:
-        """
-        Return [(beta, G or None)] at each of ``speeds``: :meth:`beta_and_grad` (or :meth:`beta`), batched.
-
-        Short (Ocvirk) bearings of a load along -y are evaluated for every speed and difference step at once
-        (:func:`bearing_id.bearings.short.ocvirk_batch`: brentq's steps and the same arithmetic as
-        :func:`~bearing_id.bearings.short.ocvirk`, so the same bits, test/test_bearings_batch.py); other bearings one
-        call at a time as :meth:`bearing_beta`.  Same numbers as :meth:`beta_and_grad` per speed.
-        """
-        nb, ns = len(self.bearings), len(speeds)
-        betas = np.zeros((ns, 8 * nb))
-        Gs = np.zeros((ns, 8 * nb, p.size)) if want_grad else None
-        for i in range(nb):
-            steps = [(None, 0.0)] + ([(i * self.npb + k, sg * FD_STEP) for k in range(self.npb) for sg in (1.0, -1.0)]
-                                     if want_grad else [])
-            vals = self._bearing_values_batch(p, i, steps, speeds)
-            for e, (j, h) in enumerate(steps):
-                if j is None:
-                    betas[:, 8 * i:8 * i + 8] = vals[e]
-            if want_grad:
-                for k in range(self.npb):
-                    j = i * self.npb + k
-                    Gs[:, 8 * i:8 * i + 8, j] = (vals[1 + 2 * k] - vals[2 + 2 * k]) / (2 * FD_STEP)
-        return [(betas[s], Gs[s] if want_grad else None) for s in range(ns)]
-
-    def _bearing_values_batch(self, p, i, steps, speeds) -> np.ndarray:
-        """(n_steps, ns, 8) coefficients [K flat, C flat] of bearing i at p moved by each (index, step), each speed."""
-        b = self.bearings[i]
-        batch = (not self.table[i] and self.model_name == 'short' and getattr(b, 'model', 'short') != 'table'
-                 and getattr(b, 'load_direction', None) in (None, (0.0, 1.0)))
-        pts = []
-        for j, h in steps:                  # as beta_and_grad: p + dp and p - dp, dp = FD_STEP at index j
-            if j is None:
-                pts.append(p)
-            else:
-                dp = np.zeros_like(p)
-                dp[j] = abs(h)
-                pts.append(p + dp if h > 0 else p - dp)
-        out = np.zeros((len(steps), len(speeds), 8))
-        if not batch:
-            for e, pp in enumerate(pts):
-                for s, w in enumerate(speeds):
-                    out[e, s] = self.bearing_beta(pp, i, w)
-            return out
-        mus, cs, Ws, ws = [], [], [], []
-        for pp in pts:
-            v = self.bearing_values(pp, i)
-            for w in speeds:
-                mus.append(v['viscosity'])
-                cs.append(v['clearance'])
-                Ws.append(v['load'])
-                ws.append(float(w))
-        K, C = ocvirk_batch(float(b.diameter), float(b.length), np.array(cs), np.array(mus), np.array(Ws),
-                            np.array(ws))
-        out = np.concatenate([K.reshape(-1, 4), C.reshape(-1, 4)], axis=1)
-        return out.reshape(len(steps), len(speeds), 8)
 
     def model_floor(self, p, speed) -> np.ndarray:
         """
@@ -368,8 +309,8 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         if augment is not None:
             return residual_jac_aug(p, want_jac)
         rs, Js = [], []
-        bg = par.beta_and_grad_speeds(p, [speeds[i] for i in keep], want_jac)
-        for i, (beta, G) in zip(keep, bg):
+        for i in keep:
+            beta, G = par.beta_and_grad(p, speeds[i]) if want_jac else (par.beta(p, speeds[i]), None)
             r, Jb = rj_weighted(i, beta)
             rs.append(r)
             if want_jac:
@@ -540,4 +481,4 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     return results
 
 
-__all__ = ['PhysicalFit', 'fit_physical', 'identify_physical', 'PARAM_NAMES']
+__all__ = ['PhysicalFit', 'fit_physical', 'identify_physical']

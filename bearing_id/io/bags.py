@@ -25,7 +25,7 @@ string; ``ros2 bag play`` then offers a transient-local topic as transient-local
 
 Every failure (missing/truncated/corrupt bag, missing topic, unknown type, hostile metadata.yaml, a message whose
 arrays disagree) raises :class:`BagError` naming the file; nothing is read before metadata.yaml has passed a bounded
-parse (size, nesting, alias expansion: :func:`bearing_id.config.params.check_yaml_events`).
+parse (size, nesting, alias expansion: :func:`bearing_id.config.params.load_yaml_bounded`).
 """
 from __future__ import annotations
 
@@ -42,9 +42,7 @@ import sys
 import tempfile
 import time
 
-import yaml
-
-from ..config.params import check_yaml_events, ParamError
+from ..config.params import load_yaml_bounded, ParamError
 
 PACKAGE = 'bearing_id_msgs'
 STORAGES = ('mcap', 'sqlite3')
@@ -106,19 +104,17 @@ def typestore():
 # ---------------------------------------------------------------------------------------------------- QoS
 LATCHED_TOPICS = ('/rotor/excitation', '/bearing_id/coefficients')
 _INFINITE = (9223372036, 854775807)     # RMW_DURATION_INFINITE as rosbag2 writes it
-QOS_KEYS = ('history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan', 'liveliness',
-            'liveliness_lease_duration', 'avoid_ros_namespace_conventions')
 
 
-def _enum(enum_cls, value, default='UNKNOWN'):
+def _enum(enum_cls, value):
     """Return the rosbags QoS enum member of a name ('transient_local', 'TRANSIENT_LOCAL'), an rclpy enum or an int."""
     name = getattr(value, 'name', value)
     if isinstance(name, str):
-        return enum_cls.__members__.get(name.upper(), enum_cls.__members__[default])
+        return enum_cls.__members__.get(name.upper(), enum_cls.UNKNOWN)
     try:
         return enum_cls(int(value))
     except (TypeError, ValueError):
-        return enum_cls.__members__[default]
+        return enum_cls.UNKNOWN
 
 
 def _qtime(v):
@@ -167,19 +163,6 @@ def qos_from_rclpy(profile):
                        deadline=profile.deadline, lifespan=profile.lifespan, liveliness=profile.liveliness,
                        liveliness_lease_duration=profile.liveliness_lease_duration,
                        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions)
-
-
-def qos_to_dict(q) -> dict:
-    """
-    Return one ``Qos`` as rosbag2 Jazzy (metadata version 9) writes it.
-
-    Policy names in lower case, durations as {sec, nsec}.
-    """
-    t = lambda x: {'sec': int(x.sec), 'nsec': int(x.nsec)}  # noqa: E731
-    return {'history': q.history.name.lower(), 'depth': int(q.depth), 'reliability': q.reliability.name.lower(),
-            'durability': q.durability.name.lower(), 'deadline': t(q.deadline), 'lifespan': t(q.lifespan),
-            'liveliness': q.liveliness.name.lower(), 'liveliness_lease_duration': t(q.liveliness_lease_duration),
-            'avoid_ros_namespace_conventions': bool(q.avoid_ros_namespace_conventions)}
 
 
 def default_qos(topic: str) -> list:
@@ -410,24 +393,11 @@ def unfinished(path) -> Path | None:
 
 def _check_metadata(path: Path) -> None:
     """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it."""
-    meta = path / 'metadata.yaml'
     try:
-        size = meta.stat().st_size
-        if size > METADATA_MAX_BYTES:
-            raise BagError(f'{path}: metadata.yaml has {size} bytes (more than {METADATA_MAX_BYTES}: refused)')
-        text = meta.read_bytes().decode('utf-8')
-    except OSError as exc:
-        raise BagError(f'{path}: cannot read metadata.yaml: {exc}') from exc
-    except UnicodeDecodeError as exc:
-        raise BagError(f'{path}: metadata.yaml is not UTF-8 text ({exc.reason} at byte {exc.start})') from None
-    try:
-        check_yaml_events(text, 'metadata.yaml', max_depth=32, max_nodes=1_000_000)
-        data = yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))  # noqa: S506 - safe loader
+        data = load_yaml_bounded(path / 'metadata.yaml', 'metadata.yaml', max_bytes=METADATA_MAX_BYTES, max_depth=32,
+                                 max_nodes=1_000_000)
     except ParamError as exc:
-        raise BagError(f'{path}: {exc}') from None
-    except yaml.YAMLError as exc:
-        text = ' '.join(str(exc).replace('"<unicode string>"', 'metadata.yaml').split())
-        raise BagError(f'{path}: metadata.yaml is not valid YAML: {text[:300]}') from None
+        raise BagError(f'{path}: {str(exc)[:400]}') from None
     info = data.get('rosbag2_bagfile_information') if isinstance(data, dict) else None
     if not isinstance(info, dict):
         raise BagError(f'{path}: metadata.yaml is not rosbag2 metadata (no rosbag2_bagfile_information mapping)')
@@ -836,5 +806,5 @@ def recover_bag(path, *, types=None) -> tuple[Path, Salvage, Path]:
 
 
 __all__ = ['BagError', 'BagWriter', 'STORAGES', 'LATCHED_TOPICS', 'msg_files', 'make_typestore', 'typestore',
-           'write_bag', 'read_bag', 'bag_topics', 'offered_qos', 'qos_profile', 'qos_from_rclpy', 'qos_to_dict',
+           'write_bag', 'read_bag', 'bag_topics', 'offered_qos', 'qos_profile', 'qos_from_rclpy',
            'default_qos', 'check_message', 'unfinished', 'salvage_bag', 'recover_bag', 'Salvage']

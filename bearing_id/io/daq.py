@@ -71,7 +71,7 @@ def read_csv(path: str | Path):
     """Read a CSV DAQ export (format in the module docstring) -> Recording (samples in metres)."""
     path = Path(path)
     meta = {}
-    header = None
+    header, lineno = None, 0
     with open(path, encoding='utf-8') as fh:
         for lineno, line in enumerate(fh, 1):
             s = line.strip()
@@ -104,7 +104,7 @@ def read_csv(path: str | Path):
     if missing:
         raise DaqError(f'{path}: channel column(s) {missing} not in the header {header}')
     try:
-        data = np.loadtxt(path, delimiter=',', comments='#', skiprows=_header_row(path), ndmin=2)
+        data = np.loadtxt(path, delimiter=',', comments='#', skiprows=lineno, ndmin=2)
     except ValueError as exc:
         raise DaqError(f'{path}: unreadable numbers ({exc})') from None
     if data.shape[1] != len(header):
@@ -133,15 +133,6 @@ def read_csv(path: str | Path):
     t = col['t'] if 't' in col else np.arange(n) / fs
     return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples,
                      run=Run(meta.get('run', '?'), ()), rig_name=meta.get('rig', 'daq'))
-
-
-def _header_row(path: Path) -> int:
-    with open(path, encoding='utf-8') as fh:
-        for i, line in enumerate(fh):
-            s = line.strip()
-            if s and not s.startswith('#'):
-                return i + 1
-    return 0
 
 
 def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, *,

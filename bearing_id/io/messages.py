@@ -13,8 +13,7 @@ Message layouts (see ``msg_defs/msg/*.msg``):
 
 * DisplacementBlock: ``samples`` row-major (sample, channel) [m]; ``channels``/``nodes``/``directions`` per channel.
   A direction is 'x', 'y' or a probe at any angle in the x-y plane as '<angle>deg' (e.g. '45.0deg'), optionally with
-  a gain '*<g>' (:func:`bearing_id.conventions.probe_direction`): channels carry their probe angle in the existing
-  string field, so the message layout and every recorded bag stay as they were.
+  a gain '*<g>' (:func:`bearing_id.conventions.probe_direction`).
 * Excitation: parallel arrays, one index per :class:`bearing_id.config.params.ExcitationEntry`.
 * BearingCoefficients: 4 entries per bearing in :data:`bearing_id.conventions.COEFF_ORDER` (xx, xy, yx, yy).
 """
@@ -416,11 +415,6 @@ def speed_to_msg(speed: float, angle: float, *, stamp=0, frame_id: str = '', typ
                   speed=float(speed), angle=float(angle))
 
 
-def speed_from_msg(msg) -> tuple[int, float, float]:
-    """(stamp_ns, speed [rad/s], angle [rad]) of a RotorSpeed message."""
-    return stamp_to_ns(msg.header.stamp), float(msg.speed), float(msg.angle)
-
-
 # ------------------------------------------------------------------------------------------------------ Excitation
 def excitation_to_msg(run, run_id: str | None = None, *, stamp=0, frame_id: str = '', types=None):
     """
@@ -505,10 +499,6 @@ def excitation_from_msg(msg, n_nodes: int | None = None) -> Run:
 
 
 # --------------------------------------------------------------------------------------------- BearingCoefficients
-_COEF_KEYS = ('speed', 'method', 'bearings', 'nodes', 'K', 'C', 'K_std', 'C_std', 'K_determined', 'C_determined',
-              'rank', 'unknowns', 'condition', 'residual', 'notes')
-
-
 def _get(src, key, default=None):
     if isinstance(src, Mapping):
         return src.get(key, default)
@@ -584,6 +574,6 @@ def coefficients_from_msg(msg) -> dict[str, Any]:
 
 __all__ = ['PACKAGE', 'MESSAGE_NAMES', 'MAX_PLAUSIBLE_DISPLACEMENT', 'MAX_BLOCK_VALUES', 'MAX_CHANNELS',
            'SAMPLE_RATE_RANGE', 'msg_class', 'stamp_to_ns', 'Block',
-           'block_to_msg', 'block_from_msg', 'validate_block', 'check_sample_angles', 'speed_to_msg', 'speed_from_msg',
+           'block_to_msg', 'block_from_msg', 'validate_block', 'check_sample_angles', 'speed_to_msg',
            'excitation_to_msg', 'excitation_entries_from_msg', 'excitation_from_msg', 'check_excitation',
            'coefficients_to_msg', 'coefficients_from_msg']

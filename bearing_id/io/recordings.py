@@ -8,7 +8,6 @@ Hostile files are refused before anything large is read (see :func:`load_npz`).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from pathlib import Path
@@ -57,9 +56,9 @@ def _savez(path: Path, **arrays) -> None:
 
     Each member is deflated only when that saves at least :data:`NPZ_DEFLATE_MIN_SAVING` of its size (judged on its
     data's first MiB; small members always); a member that does not shrink -- the noisy samples (~4 % smaller
-    deflated) -- is stored as it is, so that every later read skips inflating it (0.1 s of a 9-speed load) for a file
-    1-4 % larger.  Each array is streamed into its member, as numpy does (no second copy in memory); fixed timestamps
-    (reproducible files).
+    deflated) -- is stored as it is, so that every later read skips inflating it, for a file 1-4 % larger.  Each
+    array is streamed into its member, as numpy does (no second copy in memory); fixed timestamps (reproducible
+    files).
     """
     with zipfile.ZipFile(path, 'w', allowZip64=True) as zf:
         for key, value in arrays.items():
@@ -117,9 +116,10 @@ def _npz_headers(zf, path: Path, small: dict | None = None) -> dict:
     """
     Return {key: (ZipInfo, shape, dtype)} from the .npy headers of every member.
 
-    Nothing else is decompressed, except, with a dict ``small``, the data of the known members (:data:`NPZ_KNOWN`)
-    of at most :data:`NPZ_SMALL_BYTES`, read right after their header into ``small[key]`` (what
-    ``np.lib.format.read_array`` returns; at most ~1.4 MiB in all), so that each member is opened once.
+    Nothing else is decompressed, except, with a dict ``small``, the known members (:data:`NPZ_KNOWN`) whose header
+    declares at most :data:`NPZ_SMALL_BYTES` of data that agree with the member's size: those are read whole
+    (``np.lib.format.read_array``, after rewinding the open member) into ``small[key]``, so that each member is
+    opened once.
     """
     fmt = np.lib.format
     out = {}
@@ -145,20 +145,18 @@ def _npz_headers(zf, path: Path, small: dict | None = None) -> dict:
                 else:
                     raise ValueError(f'unsupported .npy version {version}')
                 header_len = fh.tell()
-                if small is not None and key in NPZ_KNOWN and not dtype.hasobject:
-                    _npz_read_small(fh, info, key, shape, fortran, dtype, header_len, small, path)
-        except (zipfile.BadZipFile, EOFError, OSError, ValueError, NotImplementedError, RuntimeError,
-                SyntaxError, TypeError) as exc:
-            raise ValueError(f'{path}: member {name} has no readable array header ({type(exc).__name__}: {exc})') \
-                from None
-        except Exception as exc:  # zlib.error and the like
-            raise ValueError(f'{path}: member {name} is corrupt ({type(exc).__name__}: {exc})') from None
+                nbytes = math.prod(shape) * dtype.itemsize
+                if (small is not None and key in NPZ_KNOWN and not dtype.hasobject and nbytes <= NPZ_SMALL_BYTES
+                        and info.file_size == header_len + nbytes):
+                    fh.seek(0)
+                    small[key] = fmt.read_array(fh, allow_pickle=False)
+                    if fh.read(1):          # reading to the member's end also checks its CRC
+                        raise ValueError('data beyond the declared array')
+        except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, a malformed .npy header, ...
+            raise ValueError(f'{path}: member {name} is corrupt or not an .npy array ({type(exc).__name__}: '
+                             f'{exc})') from None
         if dtype.hasobject:
             raise ValueError(f'{path}: {key} holds Python objects (pickled data is never loaded)')
-        count = 1
-        for s in shape:
-            count *= int(s)
-        nbytes = count * dtype.itemsize
         if info.file_size != header_len + nbytes:
             raise ValueError(f'{path}: {key} declares shape {shape} of {dtype} ({nbytes} bytes) but its zip member '
                              f'holds {info.file_size - header_len} bytes of data (corrupt or crafted; refused unread)')
@@ -172,33 +170,6 @@ def _npz_headers(zf, path: Path, small: dict | None = None) -> dict:
         raise ValueError(f'{path}: its arrays declare {total} bytes, more than the {budget} this machine allows '
                          f'(BEARING_ID_NPZ_MAX_BYTES) -- refused unread')
     return out
-
-
-def _npz_read_small(fh, info, key, shape, fortran, dtype, header_len, small: dict, path: Path) -> None:
-    """Read a small member's data after its header into ``small[key]``, as ``np.lib.format.read_array`` would."""
-    count = 1
-    for n in shape:
-        count *= int(n)
-    nbytes = count * dtype.itemsize
-    if nbytes > NPZ_SMALL_BYTES or info.file_size != header_len + nbytes:
-        return                          # large, or inconsistent (refused by the caller's size check)
-    try:
-        data = fh.read(nbytes)
-        rest = fh.read(1)               # reaches the end of the member: the zip CRC is checked
-    except Exception as exc:            # BadZipFile (CRC), zlib.error, EOFError on a damaged member
-        raise ValueError(f'{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})') from None
-    if len(data) != nbytes or rest:
-        raise ValueError(f'{path}: member {info.filename} is corrupt (holds {len(data) + len(rest)} data bytes, its '
-                         f'header declares {nbytes})')
-    arr = np.ndarray(count, dtype=dtype)
-    if count:
-        arr[:] = np.frombuffer(data, dtype=dtype, count=count)
-    if fortran:
-        arr.shape = tuple(shape)[::-1]
-        arr = arr.transpose()
-    else:
-        arr.shape = tuple(shape)
-    small[key] = arr
 
 
 def _npz_check_layout(h: dict, path: Path) -> None:
@@ -317,16 +288,14 @@ def load_npz(path: str | Path) -> Recording:
                 if not (math.isfinite(a) and math.isfinite(b) and 0 <= a <= b <= n):
                     raise ValueError(f'{path}: segment ({a}, {b}) is outside the {n} samples')
                 segs.append((int(a), int(b), float(s), bool(st)))
-        extra = {}
-        if 'gaps' in h and 'gaps' in {f.name for f in dataclasses.fields(Recording)}:
-            g = get('gaps')
-            if not np.all(np.isfinite(g)) or np.any((g < 0) | (g > n)):
-                raise ValueError(f'{path}: gaps must be sample indices in [0, {n}]')
-            extra['gaps'] = tuple(int(i) for i in g)
+        gaps = get('gaps') if 'gaps' in h else np.zeros(0)
+        if not np.all(np.isfinite(gaps)) or np.any((gaps < 0) | (gaps > n)):
+            raise ValueError(f'{path}: gaps must be sample indices in [0, {n}]')
         rec = Recording(sample_rate=fs, t=np.asarray(get('t'), dtype=float) if 't' in h else np.arange(n) / fs,
                         speed=np.asarray(get('speed'), dtype=float), angle=np.asarray(get('angle'), dtype=float),
                         probes=probes, samples=samples, run=Run(text('run_id', '?'), tuple(ex)),
-                        segments=segs, truth=truth, rig_name=text('rig_name', 'rig'), **extra)
+                        segments=segs, truth=truth, rig_name=text('rig_name', 'rig'),
+                        gaps=tuple(int(i) for i in gaps))
     return check_recording(rec, str(path))
 
 

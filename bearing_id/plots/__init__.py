@@ -15,13 +15,13 @@ Figures (matplotlib) for people: one module per figure family, all taking the re
 * :mod:`.html` -- the self-contained HTML report page (images as base64, no network).
 
 Figure functions return :class:`matplotlib.figure.Figure` objects made without pyplot; :func:`save_png` /
-:func:`png_bytes` render them.  :func:`plot_coefficients` and :func:`plot_bearing_vectors` keep their older
-save-to-path interface (``from bearing_id.plots import plot_coefficients``).
+:func:`png_bytes` render them; :func:`plot_coefficients` and :func:`plot_bearing_vectors` save one to a path.
 """
 from __future__ import annotations
 
-from .coefficients import coefficients_figure, plot_bearing_vectors, plot_coefficients, theory_coefficients_figure
+from .coefficients import (bearing_vectors_figure, coefficients_figure, plot_bearing_vectors, plot_coefficients,
+                           theory_coefficients_figure)
 from .common import DPI, new_figure, png_bytes, save_png
 
 __all__ = ['DPI', 'new_figure', 'png_bytes', 'save_png', 'plot_coefficients', 'plot_bearing_vectors',
-           'coefficients_figure', 'theory_coefficients_figure']
+           'coefficients_figure', 'theory_coefficients_figure', 'bearing_vectors_figure']

@@ -9,14 +9,14 @@ Bearing coefficients vs speed.
 * :func:`plot_coefficients` -- the same, saved to a PNG (``bearing-id identify --plot``).
 * :func:`theory_coefficients_figure` -- the theory's K and C vs speed of ``bearing-id model``, one panel per
   coefficient with each bearing in its own colour, line style and marker (coinciding bearings stay visible).
-* :func:`plot_bearing_vectors` -- like Figures 5-6 / 10-11: amplitude [um] and phase [deg] of the bearing-node 1X
-  displacement, estimated vs true.
+* :func:`bearing_vectors_figure` -- like Figures 5-6 / 10-11: amplitude [um] and phase [deg] of the bearing-node 1X
+  displacement, estimated vs true; :func:`plot_bearing_vectors` saves it (``bearing-id identify --plot``).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .common import _finish, _plt, BEARING_STYLES, new_figure, save_png, THEORY_STYLE, TRUTH_STYLE
+from .common import BEARING_STYLES, new_figure, save_png, THEORY_STYLE, TRUTH_STYLE
 from ..conventions import COEFF_ORDER, rad_s_to_rpm
 
 UNIT = {'K': 'N/m', 'C': 'N s/m'}
@@ -171,16 +171,15 @@ def theory_coefficients_figure(speeds_rpm, coeffs, names=None, *, title=None):
     return fig
 
 
-def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labels=('estimated', 'true'),
-                         run_labels=None, title=None):
+def bearing_vectors_figure(speeds, estimated, *, true=None, nodes=None, labels=('estimated', 'true'),
+                           run_labels=None, title=None):
     """
-    Amplitude [um] and phase [deg] of bearing-node 1X vectors vs speed [rpm] (the paper's Figures 5-6 style).
+    Plot amplitude [um] and phase [deg] of bearing-node 1X vectors vs speed [rpm] -> Figure (the paper's Figures 5-6).
 
     speeds (ns,) rad/s; estimated, true complex (ns, nb, 2) or (nr, ns, nb, 2) [m] (x, y per bearing; one line per
     excitation run, labelled by ``run_labels``); nodes (nb,) for titles.  Columns: bearing x direction; rows:
     amplitude, phase.
     """
-    plt = _plt()
     est = np.asarray(estimated)
     if est.ndim == 3:
         est = est[None]
@@ -191,13 +190,12 @@ def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labe
     run_labels = list(run_labels) if run_labels is not None else ([''] if nr == 1 else [f'run {i}' for i in range(nr)])
     nodes = nodes or tuple(range(1, nb + 1))
     rpm = rad_s_to_rpm(np.asarray(speeds, float))
-    fig, axes = plt.subplots(2, 2 * nb, figsize=(4 * nb * 2, 6), squeeze=False)
-    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    fig, axes = new_figure((4 * nb * 2, 6), 2, 2 * nb)
     for b in range(nb):
         for d, dn in enumerate(('x', 'y')):
             c = 2 * b + d
             for r in range(nr):
-                col = colors[r % len(colors)]
+                col = f'C{r % 10}'
                 rl = f' {run_labels[r]}' if run_labels[r] else ''
                 for arr, style, lab in ((est, 'o-', labels[0]), (true, '--', labels[1])):
                     if arr is None:
@@ -210,7 +208,16 @@ def plot_bearing_vectors(speeds, estimated, path, *, true=None, nodes=None, labe
             axes[1, c].set_title(f'node {nodes[b]} {dn}: phase [deg]', fontsize=9)
             axes[1, c].set_xlabel('speed [rpm]')
     axes[0, 0].legend(fontsize=6)
-    return _finish(plt, fig, path, title)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
 
 
-__all__ = ['coefficients_figure', 'plot_coefficients', 'theory_coefficients_figure', 'plot_bearing_vectors']
+def plot_bearing_vectors(speeds, estimated, path, **kw):
+    """Save :func:`bearing_vectors_figure` (same keywords) to ``path`` (PNG, 90 dpi); returns the path."""
+    return save_png(bearing_vectors_figure(speeds, estimated, **kw), path)
+
+
+__all__ = ['coefficients_figure', 'plot_coefficients', 'theory_coefficients_figure', 'bearing_vectors_figure',
+           'plot_bearing_vectors']

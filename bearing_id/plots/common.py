@@ -2,7 +2,7 @@
 Shared figure plumbing: figures without pyplot state, PNG bytes, the styles every figure family uses.
 
 Figures are :class:`matplotlib.figure.Figure` objects made without ``pyplot`` (no global state, nothing to close,
-Agg rendering on save), except the legacy save-to-path helpers that keep ``pyplot`` for their callers' tests.
+Agg rendering on save).
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import io
 from pathlib import Path
 
 DPI = 90                       # report figures: readable at 100 % zoom, small enough to embed
-PNG_COMPRESS_LEVEL = 3         # zlib level: 1.5 % larger than the default 6, the encoding ~35 % cheaper
+PNG_COMPRESS_LEVEL = 3         # zlib level: a little larger than the default 6, cheaper to encode
 RUN_COLORS = ('C0', 'C1', 'C2', 'C4', 'C5', 'C6', 'C8', 'C9')
 BEARING_STYLES = ({'color': 'C0', 'ls': '-', 'marker': 'o', 'mfc': 'C0', 'ms': 4},
                   {'color': 'C3', 'ls': '--', 'marker': 's', 'mfc': 'none', 'ms': 7},
@@ -51,8 +51,8 @@ def fewer_ticks(fig):
     """
     Give every axis that still has matplotlib's automatic linear locator at most ``MAX_TICKS`` nice major ticks.
 
-    Each tick is four artists laid out and drawn one by one: about a fifth of a report's drawing time went into
-    ticks nobody reads.  Axes whose locator a figure function chose (log axes, fixed ticks) are left alone.
+    Each tick is four artists laid out and drawn one by one.  Axes whose locator a figure function chose (log axes,
+    fixed ticks) are left alone.
     """
     from matplotlib.ticker import AutoLocator, MaxNLocator
     for ax in fig.axes:
@@ -76,22 +76,4 @@ def save_png(fig, path, dpi: int = DPI) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(png_bytes(fig, dpi))
-    return path
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _finish(plt, fig, path, title=None) -> Path:
-    """Title, layout, save as PNG (90 dpi) and close a pyplot ``fig``; returns the path."""
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
     return path

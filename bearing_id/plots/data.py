@@ -117,21 +117,6 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
                         threshold=thr, threshold_ratio=ratio, label=label, notes=notes)
 
 
-def forward_branches(cd: CampbellData) -> np.ndarray:
-    """
-    Return (ns, kmax) the k-th lowest forward-whirl frequency at each speed [rad/s], NaN-padded.
-
-    These are the branches critical_speeds follows.
-    """
-    rows = [np.sort(cd.frequency[i][(cd.whirl[i] == 'forward') & np.isfinite(cd.frequency[i])])
-            for i in range(cd.speeds.size)]
-    k = max((r.size for r in rows), default=0)
-    out = np.full((cd.speeds.size, k), np.nan)
-    for i, r in enumerate(rows):
-        out[i, :r.size] = r
-    return out
-
-
 # ------------------------------------------------------------------------------------------------ mode shapes
 @dataclass
 class ModeShape:
@@ -281,17 +266,6 @@ def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
         return None, f'{len(results)} speed(s) only: too few to interpolate the coefficients between them'
     ib = InterpolatedBearings(results)
     return IdentifiedModel(ib, (ib.lo, ib.hi), 'identified (interpolated between test speeds)', 'interpolated'), ''
-
-
-def coefficient_curves(bearing_fn, speeds) -> dict:
-    """{node: (K (ns, 2, 2) [N/m], C (ns, 2, 2) [N s/m])} of ``bearing_fn`` at ``speeds`` [rad/s]."""
-    out: dict = {}
-    for s in speeds:
-        for n, (K, C) in bearing_fn(float(s)).items():
-            out.setdefault(n, ([], []))
-            out[n][0].append(np.asarray(K, float))
-            out[n][1].append(np.asarray(C, float))
-    return {n: (np.array(k), np.array(c)) for n, (k, c) in out.items()}
 
 
 # ------------------------------------------------------------------------------------------------ 1X response
@@ -521,8 +495,8 @@ def diagnosis_curves(diag) -> dict:
     return {'panels': panels, 'orders': orders, 'residual_before': np.array(rb), 'residual_after': np.array(ra)}
 
 
-__all__ = ['ORDERS', 'CampbellData', 'campbell_data', 'forward_branches', 'ModeShape', 'mode_shapes',
+__all__ = ['ORDERS', 'CampbellData', 'campbell_data', 'ModeShape', 'mode_shapes',
            'critical_mode_index', 'InterpolatedBearings', 'IdentifiedModel', 'identified_bearing_fn',
-           'coefficient_curves', 'curve_speeds', 'response_curves', 'response_curves_adaptive', 'align_phase',
+           'curve_speeds', 'response_curves', 'response_curves_adaptive', 'align_phase',
            'journal_positions', 'amplitude_spectrum', 'waterfall_data', 'OrbitData', 'orbit_data',
            'probe_stations', 'diagnosis_curves']

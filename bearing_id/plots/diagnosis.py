@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .common import new_figure, probe_text
+from .data import align_phase
 
 _CURVES = (('nominal', 'nominal model', {'color': '0.5', 'ls': ':', 'lw': 1.0, 'marker': 's', 'ms': 5,
                                          'mfc': 'none'}),
@@ -39,9 +40,9 @@ def diagnosis_bode_figure(panel, *, title=None):
     s = panel['std']
     a.errorbar(rpm, np.abs(m) * 1e6, yerr=s * 1e6, fmt='o', color='k', ms=5, capsize=3, label='measured ±1σ',
                zorder=5)
-    ph = ref + (np.degrees(np.angle(m)) - ref + 180) % 360 - 180
-    p.errorbar(rpm, ph, yerr=np.degrees(np.minimum(s / np.maximum(np.abs(m), 1e-300), np.pi / 2)), fmt='o',
-               color='k', ms=5, capsize=3, zorder=5)
+    p.errorbar(rpm, align_phase(np.degrees(np.angle(m)), ref),
+               yerr=np.degrees(np.minimum(s / np.maximum(np.abs(m), 1e-300), np.pi / 2)), fmt='o', color='k', ms=5,
+               capsize=3, zorder=5)
     a.set_ylabel('1X amplitude [µm]')
     a.set_ylim(bottom=0)
     p.set_ylabel('1X phase [deg]')

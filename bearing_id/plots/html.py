@@ -70,22 +70,6 @@ def _cls(klass) -> str:
     return ' class="' + esc(klass) + '"' if klass else ''
 
 
-class _Image:
-    def __init__(self, png, caption, alt):
-        self.png, self.caption, self.alt = png, caption, alt
-
-    def png_data(self) -> bytes:
-        png = self.png.result() if hasattr(self.png, 'result') else self.png
-        if png[:8] != b'\x89PNG\r\n\x1a\n':
-            raise ValueError(f'{self.alt}: not PNG data')
-        return png
-
-    def html(self) -> str:
-        b64 = base64.b64encode(self.png_data()).decode('ascii')
-        return (f'<figure><img alt="{esc(self.alt)}" src="data:image/png;base64,{b64}">'
-                f'<figcaption>{esc(self.caption)}</figcaption></figure>')
-
-
 class Page:
     """Build the page section by section; :meth:`render` returns the HTML text, :meth:`write` saves it."""
 
@@ -132,15 +116,14 @@ class Page:
         out.append('</table>')
         self.parts.append(''.join(out))
 
-    def image(self, png, caption: str, alt: str) -> None:
-        """
-        Embed PNG bytes as a base64 data URI with a caption.
-
-        ``png`` may also be an object with ``.result()`` returning the bytes (a figure rendered elsewhere); it is
-        resolved when the page is rendered.
-        """
+    def image(self, png: bytes, caption: str, alt: str) -> None:
+        """Embed PNG bytes as a base64 data URI with a caption (ValueError for anything but PNG data)."""
+        if png[:8] != b'\x89PNG\r\n\x1a\n':
+            raise ValueError(f'{alt}: not PNG data')
+        b64 = base64.b64encode(png).decode('ascii')
         self.n_images += 1
-        self.parts.append(_Image(png, caption, alt))
+        self.parts.append(f'<figure><img alt="{esc(alt)}" src="data:image/png;base64,{b64}">'
+                          f'<figcaption>{esc(caption)}</figcaption></figure>')
 
     def row_start(self) -> None:
         """Images until :meth:`row_end` sit side by side (wrapping on narrow screens)."""
@@ -156,13 +139,9 @@ class Page:
                 '<meta name="viewport" content="width=device-width, initial-scale=1">'
                 f'<title>{esc(self.title)}</title><style>{CSS}</style><script>{CHECK_SCRIPT}</script></head>\n'
                 f'<body><main><h1>{esc(self.title)}</h1>{header_html}{nav}\n'
-                + '\n'.join(p.html() if isinstance(p, _Image) else p for p in self.parts)
+                + '\n'.join(self.parts)
                 + f'\n<p class="muted">{esc(footer_text)}</p><div id="render-check">page check: not run '
                   '(scripts disabled?)</div></main></body></html>\n')
-
-    def images(self) -> list:
-        """[(alt, PNG bytes)] of every image, in page order (resolving pending ones)."""
-        return [(p.alt, p.png_data()) for p in self.parts if isinstance(p, _Image)]
 
     def write(self, path, **kw) -> Path:
         path = Path(path)

@@ -46,11 +46,10 @@ def _ref_phase(curves, r, rpm):
     return None
 
 
-def _legend(fig, run_labels, curves, has_meas=True, ncol=None):
+def _legend(fig, run_labels, curves):
     from matplotlib.lines import Line2D
     hs = [Line2D([], [], color=run_color(i), lw=6, alpha=0.6, label=f'run {lab}') for i, lab in enumerate(run_labels)]
-    if has_meas:
-        hs.append(Line2D([], [], ls='', marker='o', color='0.2', label='measured 1X ±1σ'))
+    hs.append(Line2D([], [], ls='', marker='o', color='0.2', label='measured 1X ±1σ'))
     seen = set()
     for c in curves:
         if c.label in seen:
@@ -59,7 +58,7 @@ def _legend(fig, run_labels, curves, has_meas=True, ncol=None):
         st = dict(_STYLE[c.kind])
         st['color'] = '0.2'
         hs.append(Line2D([], [], label=c.label, **st))
-    fig.legend(handles=hs, loc='lower center', ncol=ncol or min(len(hs), 5), fontsize=8, frameon=False)
+    fig.legend(handles=hs, loc='lower center', ncol=min(len(hs), 5), fontsize=8, frameon=False)
 
 
 def bode_figure(probe, rpm, X, X_std, run_labels, curves=(), *, critical_rpm=(), title=None):

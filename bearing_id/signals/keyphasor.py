@@ -28,8 +28,8 @@ Estimating the mark of each edge (``KeyMarks.kind``)
         * dithering (any other run): the sub-sample position of the edge moves from revolution to revolution; each
           mark is the middle of its feasible range (a vernier: a long steady run pins the marks to a small fraction
           of a sample).  A run of 1-2 marks gives k - 0.5 +- 0.5 (the mid-sample estimate, unbiased on average).
-        For comparison, k - 0.5 at every edge (the old mid-level crossing) is half a sample early at a whole number
-        of samples per revolution with marks on samples, and k is +0.5 sample late on average when edges dither.
+        For comparison, k - 0.5 at every edge (a mid-level crossing) is half a sample early at a whole number of
+        samples per revolution with marks on samples, and k is +0.5 sample late on average when edges dither.
     ``sigma`` is per mark, in samples: fold it into a 1X phase uncertainty as 2 pi sigma / N rad (N samples/rev);
     the errors of locked marks are one offset per run (they do not average out), the others vary mark to mark.
 
@@ -94,11 +94,6 @@ class KeyMarks:
     def times(self) -> np.ndarray:
         """(m,) mark times [s] from the first sample."""
         return self.index / self.sample_rate
-
-    @property
-    def sigma_time(self) -> np.ndarray:
-        """(m,) 1-sigma of ``times`` [s]."""
-        return self.sigma / self.sample_rate
 
     def __len__(self) -> int:
         return int(self.index.size)

@@ -80,12 +80,12 @@ def _subsync_peak(sp, ratio_range):
     return idx[int(np.argmax(power[idx]))], idx
 
 
-def _golden_min(cost, lo, hi, steps: int = SUBSYNC_GOLDEN_STEPS) -> float:
-    """Return the midpoint of [lo, hi] after ``steps`` golden-section steps on the unimodal ``cost``."""
+def _golden_min(cost, lo, hi) -> float:
+    """Return the midpoint of [lo, hi] after ``SUBSYNC_GOLDEN_STEPS`` golden-section steps on the unimodal ``cost``."""
     g = (math.sqrt(5) - 1) / 2
     c1, c2 = hi - g * (hi - lo), lo + g * (hi - lo)
     f1, f2 = cost(c1), cost(c2)
-    for _ in range(steps):
+    for _ in range(SUBSYNC_GOLDEN_STEPS):
         if f1 < f2:
             hi, c2, f2 = c2, c1, f1
             c1 = hi - g * (hi - lo)

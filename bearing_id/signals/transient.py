@@ -26,8 +26,8 @@ from a rotor model.  :func:`fit_decaying_modes` is called by :func:`bearing_id.s
 * Two modes closer than the resolution 2 pi / T (forward and backward whirl of one bending mode) beat, and one
   component fitted to them can look steady; before such a component is skipped, the pair is fitted
   (:func:`_close_pair`) and kept when its second component is significant too.  Decay rates closer in frequency
-  than the resolution are judged by their sum (:func:`_decays`).  Without this the pair stayed in the residual and
-  biased a nearby 1X by ~2 sigma on every noise draw (issue 11, the look-alike's 1186 rpm dwell).
+  than the resolution are judged by their sum (:func:`_decays`).  Left in the residual, such a pair can bias a
+  nearby 1X by about 2 sigma.
 * The std of the harmonic coefficients comes from the joint fit: sigma_c^2 diag(D_full^T D_full)^-1 plus the
   propagated uncertainty of (s, w) (D_full^+ dmodel/dp cov_p ...), so a transient nearly collinear with 1X inflates
   the std honestly (:func:`_joint_fit`).

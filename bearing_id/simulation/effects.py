@@ -35,18 +35,14 @@ from ..conventions import dof_index, parse_probe_direction, probe_row
 from ..rotor.assembly import RotorModel
 
 
-def _node_xy(node: int, n_nodes: int) -> int:
-    return dof_index(node, 'x', n_nodes)
-
-
 # --------------------------------------------------------------------------------------------- system effects
 @dataclass
 class SupportFlexibility:
     """
     Flexible pedestal under a bearing (truth: pedestal DOFs appended).
 
-    Flexible pedestal under the bearing at ``bearing_node``: mass ``mass`` [kg], stiffness ``k`` [N/m], damping
-    ``c`` [N s/m] per direction, ``None`` for a rigid direction, e.g. ``k=(None, 3e5)`` = vertical only.
+    Under the bearing at ``bearing_node``: mass ``mass`` [kg], stiffness ``k`` [N/m], damping ``c`` [N s/m] per
+    direction, ``None`` for a rigid direction, e.g. ``k=(None, 3e5)`` = vertical only.
 
     Truth route: one DOF is appended per flexible direction; the oil film (the bearing block that the rig already
     put on the journal DOFs) is re-routed to act on the *relative* journal-pedestal displacement, and the pedestal
@@ -60,7 +56,7 @@ class SupportFlexibility:
 
     def modify_system(self, M, C, K, speed, model):
         n = model.n_nodes
-        i = _node_xy(self.bearing_node, n)
+        i = dof_index(self.bearing_node, 'x', n)
         ii = slice(i, i + 2)
         # the film blocks the simulator added on the journal DOFs (rotor-only part subtracted)
         Kb = K[ii, ii] - model.K[ii, ii]
@@ -115,7 +111,7 @@ class DiscMassError:
         Ip = sum(mm * (a + b) / 2 for a, b, _, mm in ro2)
         Id = sum(mm * ((a + b) / 4 + t * t / 12) for a, b, t, mm in ro2)
         f = self.factor - 1.0
-        i = _node_xy(self.node, model.n_nodes)
+        i = dof_index(self.node, 'x', model.n_nodes)
         M = M.copy()
         C = C.copy()
         M[i, i] += f * m
@@ -150,8 +146,8 @@ class ShaftBow:
     """
     A permanently bent shaft (truth: a half-sine bow).
 
-    A permanently bent shaft: bow ``amplitude`` [m] at its crest, at ``phase`` [rad] from the key mark, shaped as
-    a half sine over the whole shaft (zero at both shaft ends).
+    Bow ``amplitude`` [m] at its crest, at ``phase`` [rad] from the key mark, shaped as a half sine over the whole
+    shaft (zero at both shaft ends).
 
     Truth route: the unstressed shaft is bent, so the elastic force is K_shaft (q - b) and the bow acts as the
     rotating force K_shaft b (1X, forward; constant amplitude with speed, unlike an unbalance).
@@ -192,8 +188,7 @@ class Misalignment:
     """
     Coupling misalignment: a 2X force at the coupling end.
 
-    Coupling misalignment: a 2X force of ``magnitude`` [N] at ``node`` (the coupling end), ``phase`` [rad],
-    ``direction`` 'x', 'y' or 'forward' (rotating at 2X).
+    ``magnitude`` [N] at ``node``, ``phase`` [rad], ``direction`` 'x', 'y' or 'forward' (rotating at 2X).
     """
 
     node: int = 1
@@ -219,9 +214,8 @@ class OilWhirl:
     """
     Oil whirl above an onset speed (truth: a forward sub-synchronous force).
 
-    Oil whirl: above ``onset_rpm`` the film at ``bearing_node`` drives a forward whirl at ``ratio`` x speed,
-    simulated as a forward rotating force of ``magnitude`` [N] at that frequency (a linear stand-in for the
-    limit cycle).
+    Above ``onset_rpm`` the film at ``bearing_node`` drives a forward whirl at ``ratio`` x speed, simulated as a
+    forward rotating force of ``magnitude`` [N] at that frequency (a linear stand-in for the limit cycle).
     """
 
     bearing_node: int = 2
@@ -240,17 +234,13 @@ class OilWhirl:
 
 
 # --------------------------------------------------------------------------------------------- measurement effects
-def _phase_angle(angle):
-    return np.asarray(angle, dtype=float)
-
-
 @dataclass
 class ProbeRunout:
     """
     Runout on one probe: a 1X reading locked to the rotor angle.
 
-    Electrical/mechanical runout on probe ``probe`` (channel name): an extra reading
-    ``amplitude cos(phi + phase)`` [m] locked to the rotor angle, the same at every speed (slow roll included).
+    Electrical/mechanical runout on probe ``probe`` (channel name): an extra reading ``amplitude cos(phi + phase)``
+    [m] locked to the rotor angle, the same at every speed (slow roll included).
     """
 
     probe: str
@@ -262,7 +252,7 @@ class ProbeRunout:
         if self.probe not in names:
             raise ValueError(f'runout probe {self.probe!r} is not recorded ({names})')
         out = np.array(samples, dtype=float, copy=True)
-        out[:, names.index(self.probe)] += self.amplitude * np.cos(_phase_angle(angle) + self.phase)
+        out[:, names.index(self.probe)] += self.amplitude * np.cos(np.asarray(angle, dtype=float) + self.phase)
         return out
 
 
