@@ -1,16 +1,13 @@
 """
-Peak-memory benchmark (issue 13 (e)): peak RSS of ``bearing-id identify`` against the number of speeds and the length.
+Peak-memory benchmark: peak RSS of ``bearing-id identify`` against the number of speeds and the length.
 
 Cases (two runs each, the default probes, ``bearing-id simulate``): 3, 9 and 27 speeds at the default dwell, and
-9 speeds at half and double the dwell.  Each case is run as a fresh process per method, with the window fits in that
-process (``BEARING_ID_WORKERS=0``: its own peak RSS, VmHWM) and as by default (a forked worker shares the
-window fits when there is a spare core: the larger of the command's VmHWM and the largest sum of its resident and
-the worker's private memory seen every 10 ms).  Printed beside
-it: the samples per run, the recording's arrays in memory (both files), the import floor (a process that imports
+9 speeds at half and double the dwell.  Each case is run as a fresh process per method (its own peak RSS, VmHWM).
+Printed beside it: the samples per run, the recording's arrays in memory (both files), the import floor (a process that imports
 what ``identify`` imports, reads nothing and exits), and the least-squares line RSS = a + b x samples over the
 one-process figures with its worst residual (linear when the residuals are small against the growth).
 
-Target (issue 13): peak RSS linear in the recording, <= 150 MiB at 27 speeds.  For the largest case the peak RSS
+Target: peak RSS linear in the recording, <= 150 MiB at 27 speeds.  For the largest case the peak RSS
 after each stage of one process is printed too (imports; the files read and fitted to 1X vectors, ``load_data``;
 ``identify()`` on those vectors), which shows which stage sets the peak.
 
@@ -65,7 +62,6 @@ def import_floor(method: str) -> float:
 
 STAGES = r"""
 import os, resource, sys
-os.environ['BEARING_ID_WORKERS'] = '0'      # every stage in this one process
 sys.path.insert(0, {root!r})
 def rss():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -117,7 +113,7 @@ def main(argv=None):
     else:
         cases = [(f'{n} speeds, {dwell:g} s dwell', speeds_list(n), dwell) for n in (3, 9, 27)]
         cases += [(f'9 speeds, {d:g} s dwell', speeds_list(9), d) for d in (dwell / 2, 2 * dwell)]
-    print(f'# peak RSS of `bearing-id identify` (issue 13 e), {bl.load_note()}')
+    print(f'# peak RSS of `bearing-id identify`, {bl.load_note()}')
     floors = {m: import_floor(m) for m in methods}
     rows, pts = [], {m: [] for m in methods}
     for name, speeds, dw in cases:
@@ -126,19 +122,15 @@ def main(argv=None):
         cells = []
         for m in methods:
             argv = bl.cli('identify', *files, '--method', m, '--allow-undetermined')
-            t = bl.time_process(argv, args.repeats, env={'BEARING_ID_WORKERS': '0'})
-            tw = bl.time_process(argv, args.repeats)
-            cells += [f'{t.rss_max:.0f}', f'{tw.rss_max:.0f}']
+            t = bl.time_process(argv, args.repeats)
+            cells.append(f'{t.rss_max:.0f}')
             pts[m].append((n, t.rss_max, len(speeds), dw))
         target = TARGET_MIB_27 if len(speeds) == 27 and dw == dwell else None
         met = None if target is None else all(float(c) <= target for c in cells)
         rows.append([name, f'{n}', f'{mib:.1f}', *cells, '' if target is None else f'<= {target:.0f}', bl.yes(met)])
     print()
-    heads = [h for m in methods for h in (f'peak RSS MiB, {m}, one process', f'{m}, with its forked worker')]
+    heads = [f'peak RSS MiB, {m}' for m in methods]
     print(bl.table(['case', 'samples per run', 'arrays MiB (2 files)', *heads, 'target', 'met'], rows))
-    print('one process: BEARING_ID_WORKERS=0, the VmHWM of the process; with its forked worker (the default on a '
-          "machine with a spare core): the larger of the command's VmHWM and the largest sum of its resident memory "
-          "and the worker's private memory seen every 10 ms (the two processes' peak, sampled)")
     print()
     print('import floor (imports only, no data) MiB: ' + ', '.join(f'{m} {v:.0f}' for m, v in floors.items()))
     big = max(cases, key=lambda c: (len(c[1]), c[2] == dwell))

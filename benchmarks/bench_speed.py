@@ -1,5 +1,5 @@
 """
-Speed benchmark, like for like (issue 13): every comparison in one run, min/median over repeats, wall and CPU time.
+Speed benchmark, like for like: every comparison in one run, min/median over repeats, wall and CPU time.
 
 (a) The paper's job end to end, file -> coefficients (Kang et al. 2020: 4.4 s): two unbalance runs (A and B of
     params/rig.yaml), 20,480 samples each at 10,240 Hz from the midspan probe pair (node 6, x and y), one speed;
@@ -21,10 +21,10 @@ Speed benchmark, like for like (issue 13): every comparison in one run, min/medi
 (d) ``bearing-id diagnose`` on the same files, as a process and in-process.
 (e) Peak memory: benchmarks/bench_memory.py (peak RSS against the number of speeds and the recording length).
 
-The commands fit the steady windows in a forked worker process when there is a spare core
-(:mod:`bearing_id.commands.workers`); every CPU figure includes the workers' CPU time, and rows marked "one process"
-(``BEARING_ID_WORKERS=0``) show the same job without them.  Peak RSS of a process row is the command's own VmHWM,
-or the largest sum of its resident and its workers' private memory while they run (``benchlib.run_process``).
+``identify`` runs in one process; ``diagnose`` fits identify's 1X vectors for its noise-floor check in one worker
+process while it works (rows marked "one process", ``BEARING_ID_WORKERS=0``, run without it); every CPU figure
+includes the worker's CPU time.  Peak RSS of a process row is the command's own VmHWM, or the largest sum of its
+resident and its worker's private memory while it runs (``benchlib.run_process``).
 
 Targets (issue 13): paper job in-process <= 10 ms (>= 400x the paper); 9-speed identify in-process <= 0.1 s (direct,
 physical), <= 0.3 s (paper); any ``bearing-id identify`` as a process <= 0.8 s; diagnose <= 1.5 s.  "met" is judged
@@ -60,7 +60,7 @@ TARGET_PROCESS = 0.8
 TARGET_INPROC = {'paper': 0.3, 'direct': 0.1, 'physical': 0.1}
 TARGET_PAPER_JOB = 0.010
 TARGET_DIAGNOSE = 1.5
-ONE_PROCESS = {'BEARING_ID_WORKERS': '0'}     # the window fits in the command's own process (no forked worker)
+ONE_PROCESS = {'BEARING_ID_WORKERS': '0'}     # diagnose without its noise-floor worker
 
 
 def paper_job_files(fresh: bool):
@@ -258,10 +258,8 @@ def main(argv=None):
                       'load_rig\nrig = load_rig()\n' + bl.IMPORTS['identify'])
         load_call = f'load_data({list(map(str, files9))!r}, rig)'
         load = bl.time_in_child(load_setup, load_call, args.repeats)
-        load1 = bl.time_in_child(load_setup, load_call, args.repeats, env=ONE_PROCESS)
         rows = [bl.timing_row('files -> 1X vectors (load_data: read, steady windows, 1X fits)', load, None,
-                              extra=('',)),
-                bl.timing_row('the same, one process (BEARING_ID_WORKERS=0)', load1, None, extra=('',))]
+                              extra=('',))]
         for m in methods:
             proc = bl.time_process(bl.cli(*identify_argv(files9, m)), args.process_repeats)
             inproc = bl.cli_in_child(identify_argv(files9, m), args.repeats)
@@ -270,9 +268,6 @@ def main(argv=None):
             rows.append(bl.timing_row(f'{m}: in-process, file -> coefficients', inproc, TARGET_INPROC.get(m),
                                       extra=('',)))
             rows.append(bl.timing_row(f'{m}: identify() on the loaded 1X data', alone, None, extra=('',)))
-        one = bl.time_process(bl.cli(*identify_argv(files9, methods[-1])), args.process_repeats, env=ONE_PROCESS)
-        rows.append(bl.timing_row(f'{methods[-1]}: process, one process (BEARING_ID_WORKERS=0)', one, None,
-                                  extra=(f'{one.rss_max:.0f}',)))
         # what the console script did before it chose one BLAS thread (bearing_id.blas_threads): OpenBLAS's pool
         pool_n = str(os.cpu_count() or 2)
         pool = bl.time_process(bl.cli(*identify_argv(files9, methods[-1])), args.process_repeats,
