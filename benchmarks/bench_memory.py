@@ -3,9 +3,9 @@ Peak-memory benchmark: peak RSS of ``bearing-id identify`` against the number of
 
 Cases (two runs each, the default probes, ``bearing-id simulate``): 3, 9 and 27 speeds at the default dwell, and
 9 speeds at half and double the dwell.  Each case is run as a fresh process per method (its own peak RSS, VmHWM).
-Printed beside it: the samples per run, the recording's arrays in memory (both files), the import floor (a process that imports
-what ``identify`` imports, reads nothing and exits), and the least-squares line RSS = a + b x samples over the
-one-process figures with its worst residual (linear when the residuals are small against the growth).
+Printed beside it: the samples per run, the recording's arrays in memory (both files), the import floor (a process
+that imports what ``identify`` imports, reads nothing and exits), and the least-squares line RSS = a + b x samples
+with its worst residual (linear when the residuals are small against the growth).
 
 Target: peak RSS linear in the recording, <= 150 MiB at 27 speeds.  For the largest case the peak RSS
 after each stage of one process is printed too (imports; the files read and fitted to 1X vectors, ``load_data``;
