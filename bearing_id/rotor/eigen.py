@@ -33,6 +33,12 @@ ITER_TOL = 1e-13          # relative change of the eigenvalue estimate at conver
 RESIDUAL_TOL = 1e-8       # and backward error |A x - lambda B x| / (|A x| + |lambda| |B x|) of the eigenpair
 
 
+def least_stable(lam: np.ndarray, n: int) -> np.ndarray:
+    """Return the indices of the ``n`` eigenvalues of ``lam`` with Im >= 0 (conjugates follow) and the largest Re."""
+    up = np.flatnonzero(lam.imag >= -1e-9 * np.maximum(np.abs(lam), 1.0))
+    return up[np.argsort(-lam[up].real)][:n]
+
+
 class ReducedEigen:
     """
     Reduced screen and full-pencil refinement of the eigenpairs of ``model`` on its bearings (see the module doc).
@@ -97,4 +103,4 @@ class ReducedEigen:
         return complex(vals[k]), vecs[:, k] / np.linalg.norm(vecs[:, k])
 
 
-__all__ = ['ReducedEigen', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL']
+__all__ = ['ReducedEigen', 'least_stable', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL']

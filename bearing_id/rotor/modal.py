@@ -15,7 +15,7 @@ from scipy.linalg import eigh
 from scipy.optimize import brentq
 
 from .assembly import RotorModel, state_space
-from .eigen import ReducedEigen
+from .eigen import least_stable, ReducedEigen
 from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, whirl_direction
 
 
@@ -111,8 +111,7 @@ class FastModes:
         lr, Vr = eig.reduced(speed, coeffs, vectors=True)
         under = np.flatnonzero(lr.imag > 1e-9 * np.maximum(1.0, np.abs(lr)))
         low = under[np.argsort(lr[under].imag)][:n]
-        up = np.flatnonzero(lr.imag >= -1e-9 * np.maximum(np.abs(lr), 1.0))
-        least = up[np.argsort(-lr[up].real)][:N_LEAST_STABLE]
+        least = least_stable(lr, N_LEAST_STABLE)
         if low.size < n or lr[low[-1]].imag > 0.5 * eig.cutoff:
             return self._dense(speed, coeffs, n)
         A = eig.pencil(speed, coeffs)
