@@ -10,8 +10,8 @@ or through the projection): all eigenvalues of a ~30-60 state dense problem, the
 the FULL model by inverse iteration on the sparse pencil A x = lambda B x, A = [[0, I], [-K, -C]],
 B = blkdiag(I, M) (the eigenvalues of :func:`bearing_id.rotor.assembly.state_space`'s matrix): one sparse LU at
 the shift = the reduced eigenvalue, started from the reduced eigenvector mapped by the reduction, accepted on a
-residual check against the pencil, else ARPACK shift-invert decides.  Refined eigenpairs are the full model's to
-rounding (within LAPACK's error bound of the dense eigenvalues: test/test_stability_fast.py, test/test_modal_fast.py).
+residual check against the pencil, else ARPACK shift-invert decides.  Refined eigenpairs are the full model's
+(within LAPACK's error bound of the dense eigenvalues: test/test_stability_fast.py, test/test_modal_fast.py).
 
 The assumption, stated: the modes asked for (the least stable, or the lowest n) are among the reduced model's, i.e.
 below the cutoff; the callers check what they can (distinct refined eigenvalues, modes well below the cutoff) and

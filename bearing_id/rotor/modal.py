@@ -90,9 +90,9 @@ class FastModes:
     [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (one dense solve; without
     ``coeffs_top``, ``cutoff_factor`` x ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
     ``N_LEAST_STABLE`` least stable eigenvalues are refined on the full model, so the frequencies, damping, shapes
-    and the largest real part are the full model's (to rounding).  A speed where the check fails -- fewer than ``n``
-    reduced modes, the n-th above half the cutoff, or two refinements landing on one full eigenvalue -- is solved
-    densely instead (counted in ``fallbacks``).
+    and the largest real part are the full model's (within the dense eigenvalues' error bound).  A speed where the
+    check fails -- fewer than ``n`` reduced modes, the n-th above half the cutoff, or two refinements landing on one
+    full eigenvalue -- is solved densely instead (counted in ``fallbacks``).
     """
 
     def __init__(self, model: RotorModel, speed_top: float, coeffs_top: dict | None = None, n: int = 8,
