@@ -12,6 +12,7 @@ from bearing_id.config.params import load_rig
 from bearing_id.conventions import GRAVITY, rpm_to_rad_s, whirl_direction
 from bearing_id.rotor import supports
 from error_bounds import eigen_with_bounds, EPS_MACH, solve_tol
+from film_oracle import short_film_force
 import numpy as np
 import pytest
 
@@ -30,7 +31,7 @@ def rig():
 def test_short_equilibrium_force_matches_pressure_quadrature(rpm):
     """The closed-form eccentricity/attitude put the journal where the integrated pi-film pressure carries W (+y)."""
     s = short.ocvirk(D, L, C_RAD, MU, W, rpm_to_rad_s(rpm))
-    fx, fy = short.short_film_force(*s.journal_position, 0.0, 0.0, D, L, C_RAD, MU, rpm_to_rad_s(rpm), n=20000)
+    fx, fy = short_film_force(*s.journal_position, 0.0, 0.0, D, L, C_RAD, MU, rpm_to_rad_s(rpm), n=20000)
     assert abs(fx) < 1e-6 * W and abs(fy - W) < 1e-6 * W
     x, y = s.journal_position
     assert x > 0 and y < 0                       # below the centre, shifted in the spin direction (+x)
@@ -54,12 +55,12 @@ def test_short_coefficients_equal_derivatives_of_quadrature_force_in_our_frame(r
     for j in range(2):
         d = np.zeros(2)
         d[j] = 1e-5 * C_RAD
-        fp = np.array(short.short_film_force(x + d[0], y + d[1], 0, 0, D, L, C_RAD, MU, w, n=20000))
-        fm = np.array(short.short_film_force(x - d[0], y - d[1], 0, 0, D, L, C_RAD, MU, w, n=20000))
+        fp = np.array(short_film_force(x + d[0], y + d[1], 0, 0, D, L, C_RAD, MU, w, n=20000))
+        fm = np.array(short_film_force(x - d[0], y - d[1], 0, 0, D, L, C_RAD, MU, w, n=20000))
         Kn[:, j] = -(fp - fm) / (2 * d[j])
         v = d * w
-        fp = np.array(short.short_film_force(x, y, v[0], v[1], D, L, C_RAD, MU, w, n=20000))
-        fm = np.array(short.short_film_force(x, y, -v[0], -v[1], D, L, C_RAD, MU, w, n=20000))
+        fp = np.array(short_film_force(x, y, v[0], v[1], D, L, C_RAD, MU, w, n=20000))
+        fm = np.array(short_film_force(x, y, -v[0], -v[1], D, L, C_RAD, MU, w, n=20000))
         Cn[:, j] = -(fp - fm) / (2 * v[j])
     # tolerance 1e-3 ~ 3 h, h = 2 pi / n = 3.1e-4: the midpoint rule's error for a pressure with a kink at the film
     # rupture, differenced while the rupture moves, is O(h) relative (measured 1e-5 ... 5e-5); the difference steps'

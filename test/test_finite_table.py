@@ -10,6 +10,7 @@ References (independent of the table):
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import time
 
 from bearing_id import bearings
@@ -56,6 +57,36 @@ def test_spline_representation_error_on_the_closed_form_short_bearing():
         e, phi, k, b = tab.evaluate(float(S))
         assert abs(e - ref[0]) < 2e-5 and abs(phi - ref[1]) < 2e-5
         assert rel(k.ravel(), ref[2:6]) < 2e-5 and rel(b.ravel(), ref[6:]) < 2e-5, S
+
+
+def test_tables_written_as_json_read_back_to_the_same_doubles(tmp_path):
+    """
+    write_tables -> read_tables keeps every knot, coefficient and residual (the shipped tables' storage format).
+
+    Bound: write_tables prints floats with repr, the shortest decimal that reads back to the same double, so the
+    stored value is the written one within 0 ulp; allowed here: 1 ulp of each value (np.spacing).
+    The shipped tables (both cavitations, L/D 1 and 0.5) are found in the package data.
+    """
+    s = np.geomspace(finite_table.S_MIN, finite_table.S_MAX, 97)
+    rows = []
+    for v in s:
+        e = short.short_eccentricity(v, 1.0)
+        k, b = short.short_coefficients_lit(e)
+        rows.append(np.r_[e, short.short_attitude_angle(e), k.ravel(), b.ravel()])
+    tabs = [finite_table.fit_table(LD, s, np.array(rows) * LD, (96, 12), knot_every=8, cavitation='gumbel')
+            for LD in (1.0, 0.7)]
+    back = finite_table.read_tables(Path(finite_table.write_tables(tabs, tmp_path / 't.json', 'gumbel')).read_text())
+    assert len(back) == 2
+    for t, r in zip(tabs, back):
+        assert (r.L_over_D, r.s_min, r.s_max, r.grid, r.cavitation) == (t.L_over_D, t.s_min, t.s_max, t.grid, 'gumbel')
+        for name in ('knots', 'coef', 'fit_rms'):
+            a, b = np.asarray(getattr(t, name)), getattr(r, name)
+            assert a.shape == b.shape and np.all(np.abs(b - a) <= np.spacing(np.abs(a))), name
+    for cav in ('swift_stieber', 'gumbel'):
+        for LD in (1.0, 0.5):
+            tab = finite_table.table_for(LD, build=False, cavitation=cav)
+            assert tab is not None and tab.cavitation == cav and tab.grid == finite_table.TABLE_GRID
+            assert (tab.s_min, tab.s_max) == (finite_table.S_MIN, finite_table.S_MAX)
 
 
 @pytest.mark.parametrize('S', [0.03, 0.12, 1.3])

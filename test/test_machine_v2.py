@@ -470,7 +470,7 @@ def test_load_vector_rotates_the_bearing_against_the_film_force_itself(raw):
     form.
     """
     from bearing_id.bearings import solution
-    from bearing_id.bearings.short import short_film_force
+    from film_oracle import short_film_force
     d = copy.deepcopy(raw)
     d['bearings'][0]['load'] = [-2.59, 13.2]
     b = parse_rig(d).bearings[0]

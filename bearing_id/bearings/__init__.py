@@ -19,7 +19,7 @@ C [N s/m] in our (x, y) frame, journal position [m]).  The helpers here apply th
 A rig's bearings under the rotor's static loads: :func:`bearing_id.rotor.supports.bearing_fn`; the onset of oil
 whirl: :mod:`bearing_id.rotor.stability`.
 
-Schema v2: a bearing of kind 'table' is interpolated (``k_scale``/``c_scale`` scale it; the model override and the
+A bearing of kind 'table' is interpolated (``k_scale``/``c_scale`` scale it; the model override and the
 viscosity/clearance factors do not apply to it); a short/finite bearing whose static load is not along -y
 (``bearing.load_direction``: a load vector, or gravity not along -y) has the coefficients for a load along -y rotated
 by :func:`bearing_id.conventions.load_rotation` (the plain journal bearing is axisymmetric); a finite bearing with

@@ -128,7 +128,7 @@ def short_coefficients_lit(eps) -> tuple[np.ndarray, np.ndarray]:
     forces (Lund 1987; Childs 1993 ch. 3; Friswell et al. 2010 eq. 5.80, which states the same numbers directly in a
     horizontal/vertical frame equal to our (x, y): its a_uu is our k_YY, a_vv our k_XX, a_uv = -k_YX, a_vu = -k_XY,
     b_uv = -b_XY), here written in the X = load, Y = 90 deg ahead (spin direction) frame.  Checked against
-    quadrature of the short-bearing pressure in the tests.
+    quadrature of the short-bearing pressure in the tests (test/film_oracle.py).
     """
     eps = np.asarray(eps, dtype=float)
     e2 = eps * eps
@@ -191,24 +191,6 @@ def ocvirk(D: float, L: float, c: float, mu: float, W: float, speed: float) -> B
                            journal_position=journal_position(eps, phi, float(c)), model='short', force_error=0.0)
 
 
-def short_film_force(x, y, vx, vy, D, L, c, mu, speed, n=4000):
-    """
-    Film force (Fx, Fy) [N] on the journal at position (x, y) [m] and velocity (vx, vy) [m/s], pi film.
-
-    Direct quadrature of the short-bearing pressure (midpoint rule with ``n`` points): an independent route to
-    the closed forms above (used by the tests).  h = c - x cos t - y sin t, t from +x towards +y (the spin
-    direction); the axially integrated pressure is -mu L^3 (speed dh/dt + 2 dh/dtime) / (2 h^3), clipped at 0.
-    """
-    R = D / 2
-    t = (np.arange(n) + 0.5) * (2 * math.pi / n)
-    ct, st = np.cos(t), np.sin(t)
-    h = c - x * ct - y * st
-    src = speed * (x * st - y * ct) - 2 * (vx * ct + vy * st)
-    pbar = np.maximum(-mu * L**3 * src / (2 * h**3), 0.0)
-    w = R * 2 * math.pi / n
-    return -w * np.sum(pbar * ct), -w * np.sum(pbar * st)
-
-
 __all__ = ['BearingSolution', 'ocvirk', 'ocvirk_batch', 'sommerfeld_number', 'short_eccentricity',
-           'short_attitude_angle', 'short_load_parameter', 'short_coefficients_lit', 'short_film_force',
-           'journal_position', 'check_inputs']
+           'short_attitude_angle', 'short_load_parameter', 'short_coefficients_lit', 'journal_position',
+           'check_inputs']

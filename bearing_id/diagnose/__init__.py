@@ -7,7 +7,7 @@ Library call::
     d = diagnose(recordings, rig)          # recordings: rig.Recording-like objects, rig: nominal RigParams
     d.verdict                              # 'none' | NAME | [NAME, NAME]
     d.sentences                            # plain words
-    d.as_json()                            # the issue-6 JSON
+    d.as_json()                            # the JSON report (``bearing-id diagnose --json``)
 
 Pipeline: :mod:`.locate` (harmonic vectors, residuals, significance) -> :mod:`.predict` (model prediction with the
 bearing nuisance) -> :mod:`.effects` (candidate physics) -> :mod:`.select` (fit, BIC, held-out validation, greedy
@@ -49,7 +49,7 @@ class Diagnosis:
 
     verdict : 'none', an effect name, or a list of names.   effects : selected effects with their parameters
     (final joint fit): list of dicts {effect, where, parameters, std, sentence}.   mismatch : located mismatches
-    (against the nominal model with refitted bearing factors).   hypotheses : ranked candidate rows (issue-6 JSON).
+    (against the nominal model with refitted bearing factors).   hypotheses : ranked candidate rows (as in the JSON).
     sentences : plain-words verdict.   residual_before / residual_after : RMS normalised residual (units of the
     effective sigma) of "none" and of the selected model over all entries.   residual_before_m / residual_after_m :
     RMS [m] of the *located* mismatch (the entries >= 3 sigma off under "none") before and after.
@@ -117,10 +117,9 @@ def _entry_residuals(prob, f):
 
 def _nuisance_words(prob, theta) -> list:
     """
-    Return sentences flagging refitted bearing factors far from nominal.
+    Return sentences flagging refitted bearing factors far from nominal (beyond 2 prior sigma) or at the bound.
 
-    Sentences flagging refitted bearing factors far from nominal (beyond 2 prior sigma) or at the nuisance bound:
-    there the nuisance may be standing in for missing physics.
+    There the nuisance may be standing in for missing physics.
     """
     if not prob.n_nuis:
         return []

@@ -50,10 +50,9 @@ class AugmentedModel:
 
     def dynamic_stiffness(self, speed: float, omega: float, coeffs: dict) -> np.ndarray:
         """
-        Return the dynamic stiffness of the augmented rotor.
+        Return Z (ndof, ndof) of the rotor on ``coeffs`` ({node: (K, C)}) with the model effects.
 
-        Z (ndof, ndof) of the rotor on ``coeffs`` ({node: (K, C)}) with the model effects, spin ``speed``,
-        frequency ``omega`` [rad/s].
+        At spin ``speed`` and frequency ``omega`` [rad/s].
         """
         return fx.augmented_dynamic_stiffness(self.model, self.rig, speed, omega, coeffs, effects=self._effects)
 

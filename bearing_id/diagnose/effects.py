@@ -12,12 +12,14 @@ forms, two whirl forces on one sub-synchronous line).  Probe orientation comes p
 turned and gained: :class:`ProbePairOrientation`).
 
 The augmented model is stored in a params file under ``extra: {effects: [{effect: NAME, ...parameters}]}``;
-:func:`effects_from_extra` rebuilds the effects from it and :func:`augmented_dynamic_stiffness`,
-:func:`augmented_forces`, :func:`augmented_readings` give identification the augmented system.
+:func:`effects_from_extra` rebuilds the effects from it, :func:`augmented_dynamic_stiffness` and
+:func:`augmented_forces` give identification the augmented system, :func:`measurement_corrections` the probe
+entries.
 """
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 
@@ -319,10 +321,9 @@ class ResidualUnbalance(Effect):
 
 def bow_shape(model, z_a: float, z_b: float) -> np.ndarray:
     """
-    Return the parabolic bow DOF vector of a unit forward bow.
+    Return the parabolic bow DOF vector (ndof,) complex of a unit forward bow midway between ``z_a`` and ``z_b`` [m].
 
-    Parabolic bow DOF vector (ndof,) complex for a unit forward bow at midway between ``z_a`` and ``z_b`` [m],
-    zero at both (the bearing line): x = s(z), y = -j s(z), theta_x = -dy/dz, theta_y = dx/dz.
+    Zero at both (the bearing line): x = s(z), y = -j s(z), theta_x = -dy/dz, theta_y = dx/dz.
     """
     z = np.asarray(model.node_z, dtype=float)
     span = z_b - z_a
@@ -339,10 +340,9 @@ def bow_shape(model, z_a: float, z_b: float) -> np.ndarray:
 
 class ShaftBow(Effect):
     """
-    A bent shaft (parabolic bow between the bearings).
+    A bent shaft: parabolic bow B [m] midway between the bearings, relative to their centre line.
 
-    A bent shaft: bow B [m] at midway between the bearings, relative to the bearing centre line, at ``phase``
-    from the key mark; elastic force K_shaft b (1X, forward, constant with speed: present at slow roll).
+    At ``phase`` from the key mark; elastic force K_shaft b (1X, forward, constant with speed: present at slow roll).
     """
 
     name = 'shaft_bow'
@@ -380,10 +380,10 @@ class ShaftBow(Effect):
 
 class Misalignment(Effect):
     """
-    Coupling misalignment at a shaft end: a 2X force.
+    Coupling misalignment at the shaft end ``node``: a 2X force.
 
-    Coupling misalignment at the shaft end ``node``: a 2X force, forward + backward rotating parts (complex);
-    the peak force is |F_f| + |F_b| [N].  (The static bearing-load part of misalignment is not modelled.)
+    Forward + backward rotating parts (complex); the peak force is |F_f| + |F_b| [N].  (The static bearing-load part
+    of misalignment is not modelled.)
     """
 
     name = 'misalignment'
@@ -439,16 +439,12 @@ class ProbeRunout(Effect):
     def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
         if ratio != 1.0:
             return None
-        c = self._chan(prob, k)
+        c = prob.channel(k, self.probe.name)
         if c is None:
             return None
         col = np.zeros((y_nom.size, 2), complex)
         col[c, 0], col[c, 1] = 1.0, 1j
         return col
-
-    def _chan(self, prob, k):
-        names = [p.name for p in prob.obs.probes(prob.rec_of(k))]
-        return names.index(self.probe.name) if self.probe.name in names else None
 
     def physical(self, nl, lin):
         R = _complex_lin(lin)
@@ -464,17 +460,25 @@ class ProbeRunout(Effect):
                 'phase_deg': phys['phase_deg']}
 
 
-class ProbeOrientation(Effect):
-    """
-    One probe turned and gained.
-
-    Probe turned by an angle a (towards +90 deg from its axis) with gain g: reading = (1 + p0) u + p1 u_perp,
-    g = |1 + p0 + j p1|, a = atan2(p1, 1 + p0).
-    """
+class _Orientation(Effect):
+    """Base of the probe orientation variants (one probe, an x/y pair): two of them cannot share a probe."""
 
     name = 'probe_orientation'
-    n_lin = 2
     key = 'angle_deg'
+    probe_names: tuple = ()
+
+    def conflicts(self, other) -> bool:
+        return other.name == self.name and bool(set(self.probe_names) & set(getattr(other, 'probe_names', ())))
+
+
+class ProbeOrientation(_Orientation):
+    """
+    One probe turned by an angle a (towards +90 deg from its axis) with gain g.
+
+    Reading = (1 + p0) u + p1 u_perp, g = |1 + p0 + j p1|, a = atan2(p1, 1 + p0).
+    """
+
+    n_lin = 2
 
     def __init__(self, channel: int, probe):
         super().__init__()
@@ -483,16 +487,12 @@ class ProbeOrientation(Effect):
         self.where = f'probe {probe.name} (node {probe.node}, {_dir_word(probe.direction)})'
 
     def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
-        names = [p.name for p in prob.obs.probes(prob.rec_of(k))]
-        if self.probe.name not in names:
+        c = prob.channel(k, self.probe.name)
+        if c is None:
             return None
-        c = names.index(self.probe.name)
         col = np.zeros((y_nom.size, 2), complex)
         col[c, 0], col[c, 1] = y_nom[c], y_perp[c]
         return col
-
-    def conflicts(self, other) -> bool:
-        return other.name == self.name and bool(set(self.probe_names) & set(getattr(other, 'probe_names', ())))
 
     def physical(self, nl, lin):
         a, b = 1.0 + lin[0], lin[1]
@@ -506,20 +506,17 @@ class ProbeOrientation(Effect):
         return {'effect': self.name, 'probe': self.probe.name, **phys}
 
 
-class ProbePairOrientation(Effect):
+class ProbePairOrientation(_Orientation):
     """
-    An x/y probe pair turned and gained (both axes).
+    The x/y probe pair at one node turned and gained (both axes).
 
-    The x/y probe pair at one node reads turned and gained: each probe i of the pair reads
-    (1 + a_i) u_i + b_i u_perp_i (u_perp_i: the displacement along its axis turned +90 deg), i.e. it is turned by
-    atan2(b_i, 1 + a_i) with gain |1 + a_i + j b_i|.  Four linear parameters (per probe an angle and a gain); a pair
-    turned as a rigid body has equal angles: ``angle_deg`` is their mean (the pair's rotation) and ``skew_deg`` their
-    difference (non-orthogonality; ~0 for a rigid pair).
+    Each probe i of the pair reads (1 + a_i) u_i + b_i u_perp_i (u_perp_i: the displacement along its axis turned
+    +90 deg), i.e. it is turned by atan2(b_i, 1 + a_i) with gain |1 + a_i + j b_i|.  Four linear parameters (per
+    probe an angle and a gain); a pair turned as a rigid body has equal angles: ``angle_deg`` is their mean (the
+    pair's rotation) and ``skew_deg`` their difference (non-orthogonality; ~0 for a rigid pair).
     """
 
-    name = 'probe_orientation'
     n_lin = 4
-    key = 'angle_deg'
 
     def __init__(self, px, py):
         super().__init__()
@@ -528,17 +525,13 @@ class ProbePairOrientation(Effect):
         self.where = f'probe pair {px.name}/{py.name} (node {px.node}, x and y)'
 
     def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
-        names = [p.name for p in prob.obs.probes(prob.rec_of(k))]
-        if self.px.name not in names or self.py.name not in names:
+        cx, cy = prob.channel(k, self.px.name), prob.channel(k, self.py.name)
+        if cx is None or cy is None:
             return None
-        cx, cy = names.index(self.px.name), names.index(self.py.name)
         col = np.zeros((y_nom.size, 4), complex)
         col[cx, 0], col[cx, 1] = y_nom[cx], y_perp[cx]
         col[cy, 2], col[cy, 3] = y_nom[cy], y_perp[cy]
         return col
-
-    def conflicts(self, other) -> bool:
-        return other.name == self.name and bool(set(self.probe_names) & set(getattr(other, 'probe_names', ())))
 
     def physical(self, nl, lin):
         ax, bx, ay, by = 1.0 + lin[0], lin[1], 1.0 + lin[2], lin[3]
@@ -686,10 +679,9 @@ _FROM_EXTRA = {'support_flexibility': SupportFlexibility, 'disc_mass_error': Dis
 
 def effects_from_extra(rig) -> list[tuple]:
     """
-    Return the model-side augmentations stored in an augmented params set.
+    Return [(effect, nl, lin)] of the model-side augmentations stored in ``rig.extra['effects']``.
 
-    [(effect, nl, lin)] for the model-side augmentations stored in ``rig.extra['effects']`` (measurement-side
-    entries such as probe runout are returned by :func:`measurement_corrections`).
+    Measurement-side entries such as probe runout are returned by :func:`measurement_corrections`.
     """
     out = []
     for d in (rig.extra or {}).get('effects', []) or []:
@@ -707,17 +699,12 @@ def measurement_corrections(rig) -> list[dict]:
 
 def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: dict, effects=None) -> np.ndarray:
     """
-    Return the dynamic stiffness of the rotor with the augmentations of ``rig.extra``.
+    Return Z (ndof, ndof) of the rotor on ``coeffs`` bearings with the augmentations in ``rig.extra``.
 
-    Z (ndof, ndof) of the rotor on ``coeffs`` bearings with the augmentations in ``rig.extra`` (flexible supports
-    condensed onto the journal DOFs, disc mass corrections) at spin ``speed`` and frequency ``omega`` [rad/s].
-    ``effects`` : the :func:`effects_from_extra` list, when already built.
+    Flexible supports condensed onto the journal DOFs, disc mass corrections; at spin ``speed`` and frequency
+    ``omega`` [rad/s].  ``effects`` : the :func:`effects_from_extra` list, when already built.
     """
-
-    class _P:  # the minimal context the hooks read
-        pass
-    p = _P()
-    p.model = model
+    p = types.SimpleNamespace(model=model)      # the minimal context the hooks read
     Z = dynamic_stiffness(model, speed, omega, {})
     effs = effects_from_extra(rig) if effects is None else effects
     for node, (Kb, Cb) in coeffs.items():
@@ -745,16 +732,7 @@ def augmented_forces(model, rig, speed: float, effects=None) -> dict:
 
 
 def _force_cols(e, model, speed, ratio):
-    class _W:
-        pass
-
-    class _P:
-        pass
-    p = _P()
-    p.model = model
-    w = _W()
-    w.speed = speed
-    p.windows = [w]
+    p = types.SimpleNamespace(model=model, windows=[types.SimpleNamespace(speed=speed)])   # what force_columns reads
     return e.force_columns(p, 0, ratio, np.zeros(0))
 
 

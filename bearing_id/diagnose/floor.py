@@ -1,8 +1,5 @@
 """
-Noise-floor check: identify's MODEL MISFIT test inside the diagnosis.
-
-The noise-floor check: identify's MODEL MISFIT criterion applied inside the diagnosis, and the bearing model form
-tested where it shows.
+Noise-floor check: identify's MODEL MISFIT test inside the diagnosis, and the bearing model form tested where it shows.
 
 Why
     The diagnosis compares hypotheses with a *model tolerance* (``rel_tol``, 2 % of the measured amplitude) added to
@@ -57,9 +54,8 @@ def misfit_threshold(dof: int) -> float:
     """
     Return identify's chi2/dof limit for a MODEL MISFIT at ``dof`` degrees of freedom.
 
-    chi2/dof above which identify calls a fit with ``dof`` degrees of freedom a MODEL MISFIT: the identify side
-    owns the test (:func:`bearing_id.identify.determined.misfit_threshold`, the 99.9 % point of chi-square(dof)/dof);
-    the diagnosis applies the same one, so the two never disagree on the same vectors.
+    The identify side owns the test (:func:`bearing_id.identify.determined.misfit_threshold`, the 99.9 % point of
+    chi-square(dof)/dof); the diagnosis applies the same one, so the two never disagree on the same vectors.
     """
     return float(thr(max(int(dof), 1)))
 
@@ -105,10 +101,9 @@ class FloorCheck:
 
 def identify_vectors(recordings) -> Observations:
     """
-    Return the 1X vectors identify uses, as Observations.
+    Return the 1X vectors identify uses (:func:`identify.harmonics.from_recordings`) as Observations.
 
-    Observations holding the 1X vectors of :func:`identify.harmonics.from_recordings` (one window per run and
-    speed, 1-sigma per real/imaginary part); runs whose speeds differ are taken one by one.
+    One window per run and speed, 1-sigma per real/imaginary part; runs whose speeds differ are taken one by one.
     """
     recordings = list(recordings)
     try:
@@ -152,11 +147,11 @@ def chi2_dof(f) -> float:
 
 def form_row(fprob, effects, form, *, dbic_min: float = 10.0, min_reduction: float = 0.5, base=None, folds=None):
     """
-    Test whether ``form`` explains the noise-floor misfit of the hypothesis ``effects``.
+    Test whether ``form`` (a BearingModelForm) explains the noise-floor misfit of the hypothesis ``effects``.
 
-    Does ``form`` (a BearingModelForm) explain the noise-floor misfit of the hypothesis ``effects`` (without
-    it)?  (row dict, fit with the form) -- row: form, chi2_dof (with it), delta_bic, explained (chi2 share removed),
-    validated (held-out on these vectors, both ways, nothing re-fitted on the held-out half), heldout_reduction.
+    Returns (row dict, fit with the form) -- row: form, chi2_dof (with it), delta_bic, explained (chi2 share
+    removed), validated (held-out on these vectors, both ways, nothing re-fitted on the held-out half),
+    heldout_reduction.
     """
     effects = [e for e in effects if e is not form]
     base = fit(fprob, effects, uncertainty=False) if base is None else base
@@ -178,10 +173,9 @@ def noise_floor_check(fprob, effects, form_candidates, *, dbic_min: float = 10.0
     """
     Apply identify's misfit test to the hypothesis ``effects``; try the model forms when it trips.
 
-    Identify's misfit criterion on the hypothesis ``effects`` (fitted on the noise-floor problem ``fprob``,
-    :func:`floor_problem`); when it trips, each of ``form_candidates`` (BearingModelForm) is tried in place of the
-    nominal form with the same effects (module docstring).  ``threshold`` : chi2/dof limit (default identify's,
-    :func:`misfit_threshold` at this fit's dof).
+    ``effects`` are fitted on the noise-floor problem ``fprob`` (:func:`floor_problem`); when the test trips, each of
+    ``form_candidates`` (BearingModelForm) is tried in place of the nominal form with the same effects (module
+    docstring).  ``threshold`` : chi2/dof limit (default identify's, :func:`misfit_threshold` at this fit's dof).
     """
     base = fit(fprob, list(effects), uncertainty=False)
     thr = misfit_threshold(base.n - base.k) if threshold is None else float(threshold)
@@ -204,10 +198,9 @@ def noise_floor_check(fprob, effects, form_candidates, *, dbic_min: float = 10.0
 
 def adopt(out: FloorCheck, fprob, effects, form, row, path: str = 'form') -> FloorCheck:
     """
-    Record ``form`` as adopted in ``out``.
+    Record ``form`` as adopted in ``out``, with the noise-floor fit of ``effects`` (which hold it) and its 1-sigma.
 
-    Record ``form`` as adopted in ``out``, with the noise-floor fit of ``effects`` (which hold it) and its
-    1-sigma: the bearing factors under the form come from these vectors.
+    The bearing factors under the form come from these vectors.
     """
     out.adopted, out.adopted_row, out.path = form, row, path
     out.adopted_fit = fit(fprob, list(effects))

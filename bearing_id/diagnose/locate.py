@@ -82,16 +82,14 @@ class Observations:
     """
     Measured harmonic vectors of all recordings: ``windows`` (list of Window), ``orders``, and the recordings.
 
-    ``sub_present`` is True when a sub-synchronous line above the SNR threshold was found in some window.
+    ``sub_present``: the windows carry sub-synchronous data (some window holds a whirl, :meth:`assign_sub`).
     """
 
     recordings: list
     windows: list
     orders: tuple
     sub_present: bool = False
-    sub_snr_threshold: float = 10.0
     notes: list = field(default_factory=list)
-    sub_ratio_train: float | None = None
     sub_cache: dict = field(default_factory=dict, repr=False)     # (window, ratio) -> sub-synchronous vector
 
     def probes(self, rec: int):
@@ -99,11 +97,10 @@ class Observations:
 
     def sub_vector(self, k: int, ratio: float):
         """
-        Return the sub-synchronous vector of window ``k`` at ``ratio`` x speed.
+        Return (X_sub (nch,), std_sub (nch,)) [m], the sub-synchronous vector of window ``k`` at ``ratio`` x speed.
 
-        (X_sub (nch,), std_sub (nch,)) of window k at ``ratio`` x speed: the window's own fit when ``ratio`` is
-        the whirl it holds, else a regression at that ratio (jointly with the nX orders and the window's
-        free-vibration line), cached.
+        The window's own fit when ``ratio`` is the whirl it holds, else a regression at that ratio (jointly with the
+        nX orders and the window's free-vibration line), cached.
         """
         w = self.windows[k]
         if w.own_ratio is not None and abs(ratio - w.own_ratio) < 1e-12 and w.own_sub is not None:
@@ -127,13 +124,12 @@ class Observations:
 
     def assign_sub(self, train=None):
         """
-        Return a copy whose sub-synchronous data come from the windows ``train`` only.
+        Return a copy whose sub-synchronous data come from the windows ``train`` only (default all).
 
-        Copy of these observations whose sub-synchronous data come from the windows ``train`` only (default
-        all): a whirl window of ``train`` keeps its own ratio; every other window (of ``train`` or held out) gets
-        the median whirl ratio of ``train``'s whirl windows, and its vector at that ratio.  Without a whirl window in
-        ``train`` no window has sub-synchronous data (``sub_present`` False): nothing about a whirl is learnt from
-        held-out windows.
+        A whirl window of ``train`` keeps its own ratio; every other window (of ``train`` or held out) gets the median
+        whirl ratio of ``train``'s whirl windows, and its vector at that ratio.  Without a whirl window in ``train`` no
+        window has sub-synchronous data (``sub_present`` False): nothing about a whirl is learnt from held-out
+        windows.
         """
         train = set(range(len(self.windows)) if train is None else train)
         own = [k for k in self.whirl_windows() if k in train]
@@ -151,7 +147,6 @@ class Observations:
             wins.append(w2)
         out.windows = wins
         out.sub_present = med is not None
-        out.sub_ratio_train = med
         return out
 
 
@@ -167,8 +162,8 @@ def _stationary(x, ang, ratio, keep: float = 0.6) -> bool:
     """
     Return True when the ``ratio`` component keeps its amplitude over the window (a whirl).
 
-    True when the ``ratio`` component has about the same amplitude in both halves of the window (a whirl);
-    False when it decays (the free vibration left by a speed change).
+    Its amplitude in the second half is at least ``keep`` x that in the first; False when it decays (the free
+    vibration left by a speed change).
     """
     h = x.shape[0] // 2
     amp = []
@@ -237,8 +232,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
             windows.append(w)
     # the nX vectors of a window come from its own regression only (its own whirl / free-vibration lines); the
     # sub-synchronous data of the windows without a whirl of their own are assigned per fit (assign_sub)
-    obs = Observations(recordings=list(recordings), windows=windows, orders=tuple(orders),
-                       sub_present=False, sub_snr_threshold=sub_snr, notes=notes)
+    obs = Observations(recordings=list(recordings), windows=windows, orders=tuple(orders), notes=notes)
     return obs.assign_sub() if obs.whirl_windows() else obs
 
 
@@ -247,9 +241,8 @@ FLOOR_TOL = 0.003   # harmonic content below 0.3 % of the channel's 1X is not di
 
 def sigma(X, std, rel_tol: float, floor_tol: float = FLOOR_TOL):
     """
-    Return the effective 1-sigma of harmonic vectors.
+    Return the effective 1-sigma [m] of harmonic vectors X (n_orders, nch) [m] with their fit 1-sigma ``std``.
 
-    Effective 1-sigma of harmonic vectors X (n_orders, nch) [m]:
     sqrt(std^2 + (rel_tol |X|)^2 + (floor_tol |X_1X|)^2), floored at 1e-15 m.  The last term (first row of X is
     taken as the 1X) keeps leakage and residual transients of a strong 1X from posing as nX content.
     """
@@ -264,9 +257,9 @@ class Mismatch:
     """
     A located mismatch.
 
-    A located mismatch: ``where`` (probe text), ``order`` ('1X', '2X', '1X slow roll', '0.45X forward' ...),
-    ``speeds_rpm`` where it is significant, ``size`` [m] (largest |residual|), ``relative`` (size / |measured|
-    there), ``significance`` (largest |residual| / sigma).
+    ``where`` (probe text), ``order`` ('1X', '2X', '1X slow roll', '0.45X forward' ...), ``speeds_rpm`` where it is
+    significant, ``size`` [m] (largest |residual|), ``relative`` (size / |measured| there), ``significance`` (largest
+    |residual| / sigma).
     """
 
     where: str

@@ -61,9 +61,8 @@ class Problem:
     Attributes
     ----------
     obs : Observations.   rig : RigParams (nominal).   model : RotorModel.
-    y, sig : flat complex measured vectors and their effective sigma [m] over all (window, order, channel) entries.
-    win_of : (n_entries,) window index of each entry.   sub_y, sub_sig : per window (nch,) sub-synchronous data.
-    n_nuis : number of nuisance parameters (2 per bearing, or 0).
+    y, sig : flat complex measured vectors and their effective sigma [m] over all (window, order, channel) entries;
+    ``slices[k]`` the entries of window k.   n_nuis : number of nuisance parameters (2 per bearing, or 0).
 
     """
 
@@ -86,29 +85,23 @@ class Problem:
             P = np.zeros((len(rec.probes), self.model.ndof))
             Q = np.zeros_like(P)
             for c, p in enumerate(rec.probes):
-                # measurement rows (probes at any angle, issue 12); Q reads the axis turned +90 deg (x -> y, y -> -x)
+                # measurement rows (probes at any angle); Q reads the axis turned +90 deg (x -> y, y -> -x)
                 a, g = parse_probe_direction(p.direction)
                 P[c] = measurement_row(self.model, p.node, p.direction)
                 Q[c] = measurement_row(self.model, p.node, probe_direction(a + 90.0, g))
             self.P.append(P)
             self.Pperp.append(Q)
-        ys, ss, wk, ok, ck = [], [], [], [], []
+        ys, ss = [], []
         self.slices = []
         i = 0
-        for k, w in enumerate(obs.windows):
+        for w in obs.windows:
             no, nch = w.X.shape
             ys.append(w.X.reshape(-1))
             ss.append(sigma(w.X, w.std, rel_tol, floor_tol).reshape(-1))
-            wk += [k] * (no * nch)
-            ok += [o for o in range(no) for _ in range(nch)]
-            ck += [c for _ in range(no) for c in range(nch)]
             self.slices.append(slice(i, i + no * nch))
             i += no * nch
         self.y = np.concatenate(ys) if ys else np.zeros(0, complex)
         self.sig = np.concatenate(ss) if ss else np.zeros(0)
-        self.win_of = np.array(wk, dtype=int)
-        self.order_of = np.array(ok, dtype=int)
-        self.chan_of = np.array(ck, dtype=int)
         self.has_sub = bool(obs.sub_present)
         self.known = [harmonic_forces(obs.recordings[w.rec].run.excitation, w.speed, n, self.model.ndof)
                       for w in obs.windows]
@@ -124,8 +117,8 @@ class Problem:
         """
         Return this problem as a fit on the windows ``train`` sees it.
 
-        This problem with its sub-synchronous data assigned from the windows ``train`` only
-        (:meth:`locate.Observations.assign_sub`): all that a fit on ``train`` may know about a whirl.
+        Its sub-synchronous data assigned from the windows ``train`` only (:meth:`locate.Observations.assign_sub`):
+        all that a fit on ``train`` may know about a whirl.
         """
         p = copy.copy(self)
         p.obs = self.obs.assign_sub(train)
@@ -138,6 +131,11 @@ class Problem:
 
     def rec_of(self, k: int) -> int:
         return self.obs.windows[k].rec
+
+    def channel(self, k: int, name: str) -> int | None:
+        """Return the channel index of probe ``name`` in window ``k``'s recording, or None when it has no such probe."""
+        names = [p.name for p in self.obs.probes(self.rec_of(k))]
+        return names.index(name) if name in names else None
 
     def Z0(self, k: int, ratio: float) -> np.ndarray:
         """Rotor-only dynamic stiffness (no bearings) of window k at ``ratio`` x speed (cached)."""
@@ -267,11 +265,11 @@ class Problem:
         """
         Model prediction over the entries of ``windows`` (default all).
 
-        Returns (y0, A, q_by_window) with y0 complex (n_sel,) the readings from the known excitation, A complex
-        (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and the
-        selected entry indices.  ``nls`` holds each effect's nonlinear parameter vector.  The dynamic stiffness of
-        every (window, order) is assembled at once (:meth:`systems`), and the systems with right-hand sides of equal
-        shape are solved in one stacked ``numpy.linalg.solve``.
+        Returns (y0, A, idx) with y0 complex (n_sel,) the readings from the known excitation, A complex
+        (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and idx (n_sel,)
+        the selected entries' indices into ``y``.  ``nls`` holds each effect's nonlinear parameter vector.  The
+        dynamic stiffness of every (window, order) is assembled at once (:meth:`systems`), and the systems with
+        right-hand sides of equal shape are solved in one stacked ``numpy.linalg.solve``.
         """
         windows = range(len(self.obs.windows)) if windows is None else windows
         nlin = [e.n_lin for e in effects]

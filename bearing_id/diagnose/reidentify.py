@@ -27,9 +27,8 @@ class Reidentification:
     """
     Before/after identification.
 
-    Before/after identification.  before, after : list[IdentResult] (one per speed).   truth : list of
-    {node: (K, C)} per speed or None.   error_before / error_after : eq. 38 error dicts [%] or None.
-    effects : names of the augmentations used.
+    before, after : list[IdentResult] (one per speed).   truth : list of {node: (K, C)} per speed or None.
+    error_before / error_after : eq. 38 error dicts [%] or None.   effects : names of the augmentations used.
     """
 
     method: str
@@ -50,10 +49,10 @@ class Reidentification:
 
 def refitted_bearings(rig):
     """
-    Return ``rig`` with the bearing factors the diagnosis refitted.
+    Return ``rig`` with each bearing's viscosity and clearance scaled by the factors the diagnosis refitted.
 
-    ``rig`` with each bearing's viscosity and clearance scaled by the factors the diagnosis refitted
-    (``extra['diagnose_bearing_factors']``; unchanged without them): the start / theory of the re-run.
+    The factors are ``extra['diagnose_bearing_factors']`` (``rig`` unchanged without them): the start / theory of
+    the re-run.
     """
     f = (rig.extra or {}).get('diagnose_bearing_factors') or {}
     vf, cf = f.get('viscosity_factor'), f.get('clearance_factor')
@@ -67,12 +66,11 @@ def refitted_bearings(rig):
 def reidentify(recordings, rig, augmented_rig, method: str = 'physical', options=None,
                data=None) -> Reidentification:
     """
-    Run ``method`` on the nominal and on the augmented model.
+    Run ``method`` on the nominal model ``rig`` and on the augmented model ``augmented_rig``.
 
-    Run ``method`` on the nominal model ``rig`` and on ``augmented_rig`` (a params set with ``extra.effects``,
-    e.g. :func:`report.augmented_rig` of a diagnosis or a loaded augmented params file).  The augmented run starts
-    from the bearing theory with the diagnosis' refitted factors (:func:`refitted_bearings`), the nominal run from
-    the nominal theory.
+    ``augmented_rig``: a params set with ``extra.effects``, e.g. :func:`report.augmented_rig` of a diagnosis or a
+    loaded augmented params file.  The augmented run starts from the bearing theory with the diagnosis' refitted
+    factors (:func:`refitted_bearings`), the nominal run from the nominal theory.
 
     recordings : rig.Recording list (one per excitation run, same probes).   options : method options (both runs).
     data : their :func:`harmonics.from_recordings` when already computed (e.g. :attr:`Diagnosis.harmonic_data`).

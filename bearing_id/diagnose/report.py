@@ -1,9 +1,8 @@
 """
-Write a diagnosis: the issue-6 JSON, the augmented params YAML (``extra: {effects: [...]}``), and plots.
+Write a diagnosis: its JSON, the augmented params YAML (``extra: {effects: [...]}``) and ``summary.txt``.
 
-Plots (PNG, matplotlib Agg), one set per probe: 1X Bode (amplitude [µm] and phase [deg] vs rpm: measured,
-nominal, augmented), 1X polar plot, 1X orbits per speed (measured vs predicted, first x/y pair), residual spectra
-(measured minus predicted, per order, before and after), and ``summary.txt`` with the verdict and residual numbers.
+``summary.txt`` holds the verdict, the sentences, the residual numbers, the noise-floor check, the located mismatch
+and the notes.  The plots of ``bearing-id diagnose --report`` are drawn by :mod:`bearing_id.plots`.
 """
 from __future__ import annotations
 

@@ -70,7 +70,6 @@ class Fit:
     sub_info: dict = field(default_factory=dict)
     phys: list = field(default_factory=list)     # per effect: dict of physical parameters
     std: list = field(default_factory=list)      # per effect: dict of their 1-sigma
-    resid_m: float = float('nan')                # RMS |measured - predicted| over 1X/2X/3X entries [m]
 
     @property
     def bic(self) -> float:
@@ -163,7 +162,8 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
     for z0 in starts:
         if nz:
             z0 = np.clip(z0, lo, hi)
-            res = _least_squares(lambda z: _residual(prob, effects, full(z), windows)[0], z0, lo, hi, max_nfev)
+            res = least_squares(lambda z: _residual(prob, effects, full(z), windows)[0], z0, bounds=(lo, hi),
+                                x_scale='jac', max_nfev=max_nfev, method='trf')
             z, cost = res.x, 2 * res.cost
         else:
             z = z0
@@ -176,32 +176,21 @@ def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: in
     return f
 
 
-def _least_squares(fun, z0, lo, hi, max_nfev):
-    """Minimise 0.5 ||fun(z)||^2 on [lo, hi] by scipy's trf with x_scale='jac' (returns .x and .cost)."""
-    return least_squares(fun, z0, bounds=(lo, hi), x_scale='jac', max_nfev=max_nfev, method='trf')
-
-
 def evaluate(prob: Problem, effects: list, z, windows=None, lin=None) -> Fit:
     """
-    Return the Fit of ``effects`` at given parameters, without optimising.
+    Return the Fit of ``effects`` at given parameters, without optimising (no 1-sigma).
 
-    The Fit of ``effects`` at parameters ``z`` = [nuisance, nonlinear per effect] (and linear ``lin``, or
-    profiled when None) on ``windows`` (default all), without optimising (no 1-sigma).
+    ``z`` = [nuisance, nonlinear per effect], linear ``lin`` (profiled when None), on ``windows`` (default all).
     """
     windows = list(range(len(prob.windows))) if windows is None else list(windows)
     z = np.asarray(z, float)
-    r, lin, (pred, info, kk, ndata, y0, A, idx) = _residual(prob, effects, z, windows,
-                                                            lin=None if lin is None or not len(lin) else lin)
+    r, lin, (pred, info, kk, ndata, *_) = _residual(prob, effects, z, windows,
+                                                    lin=None if lin is None or not len(lin) else lin)
     th, nls = _split(prob, effects, z)
     chi2 = float(np.sum(r[:ndata] ** 2))
     k = prob.n_nuis + sum(len(e.nl_names) + getattr(e, 'k_extra', 0) for e in effects) + lin.size + kk
-    d = prob.y[idx] - y0 - (A @ lin if lin.size else 0)
-    d = np.concatenate([np.atleast_1d(d)] + [prob.windows[k].X_sub - pred.get(k, 0.0)
-                                             for k in _sub_windows(prob, windows)])
-    f = Fit(effects=list(effects), theta=th, nls=nls, lin=lin, chi2=chi2, chi2_total=float(np.sum(r ** 2)),
-            n=int(ndata), k=int(k), windows=windows, sub_pred=pred, sub_info=info,
-            resid_m=float(np.sqrt(np.mean(np.abs(d) ** 2))) if d.size else 0.0)
-    return f
+    return Fit(effects=list(effects), theta=th, nls=nls, lin=lin, chi2=chi2, chi2_total=float(np.sum(r ** 2)),
+               n=int(ndata), k=int(k), windows=windows, sub_pred=pred, sub_info=info)
 
 
 NULL_RCOND = 1e-9     # singular values of the column-scaled Jacobian below this x the largest: not determined
@@ -211,10 +200,10 @@ def covariance(J: np.ndarray) -> np.ndarray:
     """
     Return (J^T J)^-1 of a residual Jacobian, robust to parameter scales and null directions.
 
-    (J^T J)^-1 of a residual Jacobian, computed on the column-scaled J (parameters of very different scales --
-    a runout in metres next to a log stiffness -- must not lose their variance to a pseudo-inverse cut-off).
-    A parameter with a component along a null direction of J gets an infinite variance (NaN covariances): the data
-    do not determine it, and every quantity derived from it inherits that.
+    Computed on the column-scaled J (parameters of very different scales -- a runout in metres next to a log
+    stiffness -- must not lose their variance to a pseudo-inverse cut-off).  A parameter with a component along a
+    null direction of J gets an infinite variance (NaN covariances): the data do not determine it, and every quantity
+    derived from it inherits that.
     """
     n = J.shape[1]
     if n == 0:
@@ -312,12 +301,12 @@ def speed_folds(prob: Problem) -> tuple[list, list]:
 
 def heldout_chi2(prob: Problem, f: Fit, windows) -> float:
     """
-    Return the data chi2 of fit ``f`` on held-out windows, nothing re-fitted there.
+    Return the data chi2 of fit ``f`` on the held-out ``windows``, nothing re-fitted there.
 
-    Data chi2 on the held-out ``windows`` of fit ``f`` (fitted on the training windows of the fold problem
-    ``prob``, :meth:`Problem.for_fold`), with *every* quantity frozen at its training value: bearing nuisance,
-    nonlinear and linear effect parameters, and for an oil whirl its force, onset and ratio (the held-out windows'
-    sub-synchronous vectors are taken at the training ratio).  Nothing is re-fitted on held-out data.
+    ``f`` was fitted on the training windows of the fold problem ``prob`` (:meth:`Problem.for_fold`); *every*
+    quantity is frozen at its training value: bearing nuisance, nonlinear and linear effect parameters, and for an
+    oil whirl its force, onset and ratio (the held-out windows' sub-synchronous vectors are taken at the training
+    ratio).
 
     nX entries: complex residuals over their effective sigma.  Sub-synchronous entries: a whirl is not locked to the
     key mark, so its phase in a window the fit has not seen is unknown; the held-out comparison uses the phase-free
@@ -389,19 +378,15 @@ class Selection:
     ambiguous: dict = field(default_factory=dict)
 
 
-def _key(e):
-    return e.label
-
-
 def conflicts(a, b) -> bool:
     """
     Return True when candidate ``a`` cannot be added to a hypothesis holding ``b``.
 
-    True when candidate ``a`` cannot be added to a hypothesis holding ``b``: the same variant, or two variants
-    the data cannot hold together (:meth:`effects.Effect.conflicts`, e.g. two orientations of one probe).  Any
-    other effect may repeat at another location (another bearing, plane, probe, disc or coupling end).
+    The same variant, or two variants the data cannot hold together (:meth:`effects.Effect.conflicts`, e.g. two
+    orientations of one probe).  Any other effect may repeat at another location (another bearing, plane, probe, disc
+    or coupling end).
     """
-    return _key(a) == _key(b) or bool(a.conflicts(b)) or bool(b.conflicts(a))
+    return a.label == b.label or bool(a.conflicts(b)) or bool(b.conflicts(a))
 
 
 def peak_significance(prob: Problem, f: Fit) -> float:

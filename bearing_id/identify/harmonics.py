@@ -7,7 +7,7 @@ Rule for each run
     fitted over whole revolutions (:func:`bearing_id.signals.harmonics.harmonic_vectors`) jointly with up to
     ``transients`` exponentially decaying sinusoids (default 3: the rotor's lightly damped modes ring for seconds after
     every speed change, and a mode near running speed biases a plain 1X fit by percent).  The 1X std is the joint fit's.
-     A window-halves check on the signal minus the fitted transients adds a bias bound for anything left unmodelled
+    A window-halves check on the signal minus the fitted transients adds a bias bound for anything left unmodelled
     (:func:`stationarity_excess`).
     Speeds from different runs are matched when they agree within ``tol_rel``; only speeds present in every run are
     kept (identification stacks the runs at one speed).
@@ -58,10 +58,6 @@ class HarmonicData:
         if self.plain is not None and self.plain.X.shape != np.shape(self.X):
             raise ValueError(f'plain fit of shape {self.plain.X.shape} for vectors of shape {np.shape(self.X)}')
 
-    @property
-    def n_runs(self) -> int:
-        return self.X.shape[0]
-
     def truth_at(self, speed: float, tol_rel: float = defaults.SPEED_TOLERANCE):
         """Return the true coefficients {node: (K, C)} nearest ``speed`` [rad/s], or None."""
         if not self.truth:
@@ -83,8 +79,8 @@ class PlainFit:
     """
     The plain 1X fit (1X + offset over whole revolutions, no decaying components) of windows' fitted parts.
 
-    What the paper method's Kalman filter takes, as the paper does: its time-domain reference filters the same samples,
-    a mode still ringing included, and fits the 1X of the estimates plainly.  X complex [m]; var_re, var_im [m^2] the
+    What the paper method's Kalman filter takes: the paper filters the samples as they are, a mode still ringing
+    included, and fits the 1X of the estimates plainly.  X complex [m]; var_re, var_im [m^2] the
     variances of its real and imaginary parts; noise_var [m^2] the residual variance per probe (the filter's R: probe
     noise plus whatever the plain fit leaves).  Shapes (nch,) for one window, (n_runs, n_speeds, nch) stacked.
     """
@@ -249,10 +245,10 @@ class RunStream:
 
     def peek(self) -> list[ClosedWindow]:
         """Return the windows :meth:`close` would return now, marked provisional; the stream itself is unchanged."""
-        twin = copy.copy(self)
-        twin.tracker = copy.copy(self.tracker)
-        twin._chunks = list(self._chunks)       # its close() appends the held sample to this list; arrays are shared
-        return [replace(w, provisional=True) for w in twin.close()]
+        snap = copy.copy(self)
+        snap.tracker = copy.copy(self.tracker)
+        snap._chunks = list(self._chunks)       # its close() appends the held sample to this list; arrays are shared
+        return [replace(w, provisional=True) for w in snap.close()]
 
     def _gap(self) -> list[ClosedWindow]:
         out = self.close()

@@ -1,7 +1,7 @@
 """
 Physical plausibility gates on identification results.
 
-A result from data the model cannot describe is not "determined", whatever its rank (issue 10, item 3).  Applied by
+A result from data the model cannot describe is not "determined", whatever its rank.  Applied by
 :func:`bearing_id.identify.identify`, so the CLI and the identifier node apply the same gates.
 
 Per speed:

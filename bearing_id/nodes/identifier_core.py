@@ -1,10 +1,6 @@
 """
 The ``identifier`` node's core (no ROS): 1X harmonic vectors per (run, speed), the record, the solve.
 
-Consumes ``/rotor/displacement`` (measured) and ``/rotor/excitation``; monitors ``/bearing_id/bearing_displacement``
-(the kf_estimator's bearing-node estimates: their rate and health only); publishes ``/bearing_id/coefficients``
-(BearingCoefficients, latched) and /diagnostics.
-
 Data path (the offline route, call for call)
     Each block's samples and per-sample keyphasor angles (``sample_angles``) are appended to the stream of its run
     (the run its ``run_id`` names, else the one announced last before its stamp; a block whose run is not announced
@@ -117,7 +113,7 @@ class IdentifierCore:
     tolerance, fewer iterations: :func:`bearing_id.identify.physical.fit_physical` ``p0``).
     Every method, paper included, identifies from the measured probes' vectors as ``bearing-id identify`` does (the
     paper method's filter acts on them through its closed-form 1X transfer); the kf_estimator's estimates are not
-    accumulated (records written before 27 Nov 2026 may hold such 'estimated' vectors: not resumed).
+    accumulated (an 'estimated' vector in a record of an older version is not resumed).
     Vectors are kept per probe set: a probe set that changes (between runs, or across a restart that resumes the
     record) is never stacked with another; the latest probe set is the one identified.
     """
@@ -165,13 +161,13 @@ class IdentifierCore:
                         self.runs[run.id] = run
                         self.run_starts.append((float(e.get('stamp', -math.inf)), run))
                 elif e.get('source', 'measured') != 'measured':
-                    continue                                # an 'estimated' vector of an old record: never used
+                    continue                                # an 'estimated' vector (older records): never used
                 elif e['type'] == 'vector' and e.get('used', True):
                     probes = tuple(Probe(str(n), int(k), str(d)) for n, k, d in e['probes'])
                     X = np.asarray(e['X']).astype(complex).reshape(-1)
                     Xs = np.asarray(e['X_std'], dtype=float).reshape(-1)
                     plain = None
-                    if e.get('plain_X') is not None:        # (absent from records written before 27 Nov 2026)
+                    if e.get('plain_X') is not None:        # (absent from records of older versions)
                         var = np.asarray(e['plain_var'], dtype=float).reshape(3, -1)
                         plain = PlainFit(np.asarray(e['plain_X']).astype(complex).reshape(-1), *var)
                     if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
@@ -382,8 +378,8 @@ class IdentifierCore:
                 if self.method == 'paper' and any(v[4] is None for v in out):
                     if not self._noted_no_plain:
                         self._noted_no_plain = True
-                        self.notes.append('method paper: vectors resumed from a record written before 27 Nov 2026 '
-                                          "lack the plain 1X fit the paper method's filter takes; they are not used "
+                        self.notes.append('method paper: vectors resumed from a record of an older version lack '
+                                          "the plain 1X fit the paper method's filter takes; they are not used "
                                           '(start with an empty record_dir to identify those speeds again)')
                     out = [v for v in out if v[4] is not None]
                 return out

@@ -13,7 +13,6 @@ import math
 import sys
 import time
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 
@@ -30,15 +29,6 @@ from .topics import (relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, T
 from ..config.params import load_rig
 from ..conventions import rpm_to_rad_s
 from ..io import messages as M
-
-
-def sec_to_stamp(t: float) -> Time:
-    """Return ``builtin_interfaces/Time`` of ``t`` [s] (nanoseconds rounded, carried into seconds)."""
-    sec = math.floor(t)
-    ns = int(round((t - sec) * 1e9))
-    if ns >= 1_000_000_000:
-        sec, ns = sec + 1, ns - 1_000_000_000
-    return Time(sec=int(sec), nanosec=ns)
 
 
 class KFEstimator(Node):
@@ -156,7 +146,7 @@ class KFEstimator(Node):
     def drain(self):
         for o in self.core.drain():
             b = o.block
-            stamp = sec_to_stamp(o.stamp)
+            stamp = b.stamp_ns                 # the input block's stamp, to the nanosecond
             ang = b.sample_angles
             self.pub_est.publish(M.block_to_msg(
                 samples=o.estimates, sequence=o.seq, sample_rate=b.sample_rate, speed=b.speed, angle=b.angle,

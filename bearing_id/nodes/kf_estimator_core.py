@@ -1,11 +1,9 @@
 """
 The ``kf_estimator`` node's core (no ROS): the paper's Kalman filter (section 3.1) block by block.
 
-Consumes ``/rotor/displacement``, ``/rotor/speed``, ``/rotor/excitation``; publishes
-``/bearing_id/bearing_displacement`` (DisplacementBlock, x and y at each bearing node, same sequence and stamp as the
-input block) and ``/bearing_id/innovation`` (DisplacementBlock, probe channels, innovations in m), and /diagnostics
-(input checks, filter consistency: mean NIS against its 95 % chi-square band, model validity: orbit against 30 % of
-the clearance, speed against the stability threshold).
+Besides the filter: the node's health items for /diagnostics (filter consistency: mean NIS against its 95 %
+chi-square band; model health: 1X/2X-coherent or correlated innovations; model validity: orbit against
+``ORBIT_LIMIT`` of the clearance, speed against the stability threshold).
 
 Model cache
     The discretised FE model (theoretical bearing coefficients at the speed, :func:`bearing_id.estimation.kalman.
@@ -32,11 +30,11 @@ from ..config.params import Probe
 from ..conventions import rad_s_to_rpm
 from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
 from ..excitation import harmonic_forces
+from ..identify.plausibility import ORBIT_LIMIT
 from ..rotor import stability, supports
 from ..rotor.assembly import RotorModel
 
 NAME = 'kf_estimator'
-ORBIT_LIMIT = 0.30     # fraction of radial clearance (same rule as rig.check_validity)
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
@@ -315,8 +313,9 @@ class EstimatorCore:
             issues.append(self.errors[-1])
         if issues:
             return DiagItem(name, WARN, '; '.join(issues), vals)
-        return DiagItem(name, OK, 'orbits within 30 % of clearance, speed below the stability threshold'
-                        if self.threshold is not None else 'orbits within 30 % of clearance', vals)
+        ok = f'orbits within {ORBIT_LIMIT:.0%} of clearance'
+        return DiagItem(name, OK, ok + (', speed below the stability threshold' if self.threshold is not None else ''),
+                        vals)
 
     def close(self):
         self._jobs.put(None)

@@ -96,11 +96,8 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
             print(f'{prog}: parameter error: {exc}', file=sys.stderr)
             code = 2
             return code
-        except (FileNotFoundError, ValueError) as exc:
-            print(f'{prog}: cannot start: {exc}', file=sys.stderr)
-            code = 2
-            return code
-        except RCLError as exc:     # e.g. ROS_SECURITY_ENABLE with a Fast DDS built without security, bad enclave
+        except (FileNotFoundError, ValueError, RCLError) as exc:
+            # RCLError: e.g. ROS_SECURITY_ENABLE with a Fast DDS built without security, a bad enclave
             print(f'{prog}: cannot start: {str(exc).strip()}', file=sys.stderr)
             code = 2
             return code

@@ -89,8 +89,5 @@ def subscribe_latched(node, msg_type, topic: str, callback, depth: int = QOS_LAT
     """
     quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _event: None)
     latched = node.create_subscription(msg_type, topic, callback, qos_latched(depth), event_callbacks=quiet, raw=raw)
-    volatile = node.create_subscription(
-        msg_type, topic, callback,
-        QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, durability=DurabilityPolicy.VOLATILE,
-                   reliability=_reliability(input_reliability(node))), raw=raw)
+    volatile = node.create_subscription(msg_type, topic, callback, qos_input(node, depth), raw=raw)
     return latched, volatile

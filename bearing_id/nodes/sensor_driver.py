@@ -1,16 +1,14 @@
 """
 ``sensor_driver``: publishes what a DAQ on the rig would: displacement blocks, rotor speed, the known excitation.
 
-Sources
-    ``sim`` (default): the simulated rig of ``rig_params`` (:func:`bearing_id.simulation.rig.simulate_run`, truth
-    bearings != theory), one recording per excitation run of the chosen scenario, paced in real time times
-    ``rate_factor``. ``file``: DAQ exports (CSV or NPZ, :mod:`bearing_id.io.daq`), one per run, same pacing.
+Sources (the simulated rig or DAQ exports, one recording per excitation run) and the message stream are
+:mod:`bearing_id.nodes.sensor_driver_core`; this module paces the blocks in real time times ``rate_factor``.
 
 Topics
     ``/rotor/displacement`` (DisplacementBlock, ``block_size`` samples; sequence +1 per block across runs; stamps
     continuous across runs, wall time of the first sample), ``/rotor/speed`` (RotorSpeed, one per block),
     ``/rotor/excitation`` (Excitation, latched; sent at each run change, stamped with the run's first block).
-    QoS: see :mod:`bearing_id.nodes.qos`.  Sources and messages: :mod:`bearing_id.nodes.sensor_driver_core`.
+    QoS: see :mod:`bearing_id.nodes.qos`.
 """
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 import sys
 import textwrap
-from typing import Any, Callable
+from typing import Any
 
 import yaml
 
@@ -25,8 +25,7 @@ class ParamSpec:
     """
     One node parameter: its default, what it means (with unit) and the allowed values.
 
-    ``lo``/``hi`` bound numbers (and every element of a number list); ``choices`` restricts strings;
-    ``check`` is an extra predicate ``value -> error text or None``.
+    ``lo``/``hi`` bound numbers (and every element of a number list); ``choices`` restricts strings.
     """
 
     name: str
@@ -36,7 +35,6 @@ class ParamSpec:
     lo: float | None = None
     hi: float | None = None
     choices: tuple | None = None
-    check: Callable[[Any], str | None] | None = None
     type_: str | None = None       # needed when default is None ("unset": the node falls back, e.g. to the rig file)
 
     @property
@@ -115,10 +113,6 @@ def validate_value(spec: ParamSpec, v):
                 _check_number(spec, x, f'{spec.name}[{i}]')
         if kind == 'float[]':
             v = [float(x) for x in v]
-    if spec.check is not None:
-        msg = spec.check(v)
-        if msg:
-            raise ParamError(f"parameter '{spec.name}' = {v!r}: {msg}")
     return v
 
 
@@ -199,7 +193,7 @@ def yaml_block(node_name: str, specs: list[ParamSpec]) -> str:
     out = [f'{PARAMS_KEY}:  # the {node_name} node, under any namespace', '  ros__parameters:']
     for s in specs:
         out.append('')
-        for ln in _wrap(s.doc(), 110):
+        for ln in textwrap.wrap(s.doc(), 110) or ['']:
             out.append(f'    # {ln}')
         if s.default is None:
             out.append(f'    # {s.name}: (unset)')
@@ -229,10 +223,6 @@ def write_params_file(path, node_name: str, specs: list[ParamSpec]) -> str:
     text = ('\n'.join(header) + '\n\n' if header else '') + yaml_block(node_name, with_common(specs))
     path.write_text(text)
     return text
-
-
-def _wrap(text: str, width: int) -> list[str]:
-    return textwrap.wrap(text, width) or ['']
 
 
 PARAMS_DIR = Path(__file__).resolve().parents[2] / 'params'

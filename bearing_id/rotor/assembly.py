@@ -10,7 +10,7 @@ node, from ``coeffs = {node (1-based): (K (2,2) [N/m], C (2,2) [N s/m])}``.  Rot
 *shaft* matrices, C = alpha M_shaft + beta K_shaft (shaft.damping_alpha [1/s], shaft.damping_beta [s]); the rigid
 discs add no damping (the same definition as ROSS's per-element alpha/beta).
 
-Schema v2 (issue 12)
+Model contents
     * shaft elements per section (own E, G, density, mass-only added layers, full concentric ``layers`` with their
       own phi, a per-element shear coefficient), the shear coefficient option, discs by
       m/Ip/Id and point masses (rigid :class:`DiscElement` at their node);

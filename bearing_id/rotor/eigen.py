@@ -10,8 +10,8 @@ or through the projection): all eigenvalues of a ~30-60 state dense problem, the
 the FULL model by inverse iteration on the sparse pencil A x = lambda B x, A = [[0, I], [-K, -C]],
 B = blkdiag(I, M) (the eigenvalues of :func:`bearing_id.rotor.assembly.state_space`'s matrix): one sparse LU at
 the shift = the reduced eigenvalue, started from the reduced eigenvector mapped by the reduction, accepted on a
-residual check against the pencil, else ARPACK shift-invert decides.  Refined eigenpairs are the full model's to
-rounding (within LAPACK's error bound of the dense eigenvalues: test/test_stability_fast.py, test/test_modal_fast.py).
+residual check against the pencil, else ARPACK shift-invert decides.  Refined eigenpairs are the full model's
+(within LAPACK's error bound of the dense eigenvalues: test/test_stability_fast.py, test/test_modal_fast.py).
 
 The assumption, stated: the modes asked for (the least stable, or the lowest n) are among the reduced model's, i.e.
 below the cutoff; the callers check what they can (distinct refined eigenvalues, modes well below the cutoff) and
@@ -31,6 +31,12 @@ from .reduction import craig_bampton, film_and_known_dofs
 ITER_MAX = 30             # inverse iterations per refined eigenvalue before ARPACK takes over
 ITER_TOL = 1e-13          # relative change of the eigenvalue estimate at convergence
 RESIDUAL_TOL = 1e-8       # and backward error |A x - lambda B x| / (|A x| + |lambda| |B x|) of the eigenpair
+
+
+def least_stable(lam: np.ndarray, n: int) -> np.ndarray:
+    """Return the indices of the ``n`` eigenvalues of ``lam`` with Im >= 0 (conjugates follow) and the largest Re."""
+    up = np.flatnonzero(lam.imag >= -1e-9 * np.maximum(np.abs(lam), 1.0))
+    return up[np.argsort(-lam[up].real)][:n]
 
 
 class ReducedEigen:
@@ -97,4 +103,4 @@ class ReducedEigen:
         return complex(vals[k]), vecs[:, k] / np.linalg.norm(vecs[:, k])
 
 
-__all__ = ['ReducedEigen', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL']
+__all__ = ['ReducedEigen', 'least_stable', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL']

@@ -18,11 +18,11 @@ Shear deformation
     6 (1 + nu)(1 + r^2)^2 / [(7 + 6 nu)(1 + r^2)^2 + (20 + 12 nu) r^2] (0.8864) is available with
     ``shear_method='cowper'``; a number as ``shear_method`` is kappa itself.
 
-Added mass (schema v2)
+Added mass
     ``added_mass`` = ((rho A, rho I) per unit length, ...) of mass-only layers (sleeves, impeller hubs): they add
     translational and rotary inertia and gyroscopics with the element's own shape functions (same phi), no stiffness.
 
-Layers (schema v2, ``shaft.elements[i].layers``)
+Layers (``shaft.elements[i].layers``)
     ``layers`` = concentric full ShaftElements of the same length on the same two nodes (ROSS's several elements on
     one station, e.g. the impeller hubs of its compressor example): each with its own section, E, G, density and shear
     coefficient, hence its own shear parameter phi; their M, K and G are added to the host's (exactly as ROSS sums

@@ -15,7 +15,7 @@ from scipy.linalg import eigh
 from scipy.optimize import brentq
 
 from .assembly import RotorModel, state_space
-from .eigen import ReducedEigen
+from .eigen import least_stable, ReducedEigen
 from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, whirl_direction
 
 
@@ -90,9 +90,9 @@ class FastModes:
     [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (one dense solve; without
     ``coeffs_top``, ``cutoff_factor`` x ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
     ``N_LEAST_STABLE`` least stable eigenvalues are refined on the full model, so the frequencies, damping, shapes
-    and the largest real part are the full model's (to rounding).  A speed where the check fails -- fewer than ``n``
-    reduced modes, the n-th above half the cutoff, or two refinements landing on one full eigenvalue -- is solved
-    densely instead (counted in ``fallbacks``).
+    and the largest real part are the full model's (within the dense eigenvalues' error bound).  A speed where the
+    check fails -- fewer than ``n`` reduced modes, the n-th above half the cutoff, or two refinements landing on one
+    full eigenvalue -- is solved densely instead (counted in ``fallbacks``).
     """
 
     def __init__(self, model: RotorModel, speed_top: float, coeffs_top: dict | None = None, n: int = 8,
@@ -111,8 +111,7 @@ class FastModes:
         lr, Vr = eig.reduced(speed, coeffs, vectors=True)
         under = np.flatnonzero(lr.imag > 1e-9 * np.maximum(1.0, np.abs(lr)))
         low = under[np.argsort(lr[under].imag)][:n]
-        up = np.flatnonzero(lr.imag >= -1e-9 * np.maximum(np.abs(lr), 1.0))
-        least = up[np.argsort(-lr[up].real)][:N_LEAST_STABLE]
+        least = least_stable(lr, N_LEAST_STABLE)
         if low.size < n or lr[low[-1]].imag > 0.5 * eig.cutoff:
             return self._dense(speed, coeffs, n)
         A = eig.pencil(speed, coeffs)

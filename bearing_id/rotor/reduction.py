@@ -1,5 +1,5 @@
 """
-Reduced-order rotor models for the Kalman filter (issue 12 item 4): Craig-Bampton, the kept DOFs physical.
+Reduced-order rotor models for the Kalman filter: Craig-Bampton, the kept DOFs physical.
 
 Why
     The paper method solves a discrete Riccati equation on the 2 ndof states of the FE rotor per speed and noise level;

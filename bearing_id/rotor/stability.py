@@ -6,19 +6,13 @@ is unstable when an eigenvalue has a positive real part.  :func:`threshold_speed
 sign change of the largest real part and refines it with brentq; :func:`whirl_ratio` gives the frequency of the
 least stable mode over the spin speed (about 0.4-0.5 for oil whirl, the first forward mode's frequency for whip).
 
-Fast path for large models (issue 12 item 4), :class:`FastStability`: the dense eigenvalues of the 2 ndof state
-matrix cost ~1.3 s per speed at 160 elements, and a threshold search needs ~20 of them.  Only the least stable modes
-decide the onset, so at each speed (1) a Craig-Bampton reduction of the rotor (:func:`bearing_id.rotor.reduction.
-craig_bampton`, bearing, pedestal and known-element DOFs kept physical, fixed-interface modes up to ``cutoff_factor``
-x the top speed of the search, built once; the speed-dependent films, pedestals, seals and gyroscopics act on it
-exactly or through the projection) screens all its eigenvalues (a ~30-state dense problem), then (2) each of the
-``n_refine`` least stable ones is refined on the FULL model (:class:`bearing_id.rotor.eigen.ReducedEigen`: inverse
-iteration on the sparse pencil, a residual check, else ARPACK shift-invert).  Models above ``FAST_NDOF`` DOFs take
-it, smaller ones the dense eigenvalues.  The refined eigenvalues are full-model eigenvalues to rounding
-(test/test_stability_fast.py: within LAPACK's error bound of the dense ones, the threshold within brentq's tolerance).
-The assumption stated: the mode that goes unstable first is among the ``n_refine`` least stable modes of the reduced
-model, i.e. below the cutoff (the interior modes above it are the shaft's high bending modes, stiffness-damped and far
-from the films' cross-coupling).
+Large models (more than ``FAST_NDOF`` DOFs) take :class:`FastStability`: only the least stable modes decide the
+onset, so at each speed the ``n_refine`` least stable eigenvalues of a Craig-Bampton reduction (fixed-interface modes
+up to ``cutoff_factor`` x the top speed of the search) are refined on the full model
+(:class:`bearing_id.rotor.eigen.ReducedEigen`, whose docstring states the method and its assumption: the mode that
+goes unstable first is among them, i.e. below the cutoff: the interior modes above it are the shaft's high bending
+modes, stiffness-damped and far from the films' cross-coupling).  The refined eigenvalues are the full model's within
+LAPACK's error bound of the dense ones (test/test_stability_fast.py).
 """
 from __future__ import annotations
 
@@ -28,7 +22,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .assembly import state_space
-from .eigen import ReducedEigen
+from .eigen import least_stable, ReducedEigen
 
 
 def _eigs(model, bearing_fn, speed: float) -> np.ndarray:
@@ -76,8 +70,7 @@ class FastStability:
         """
         coeffs = self.bearing_fn(speed)
         lr, V = self.eig.reduced(speed, coeffs, vectors=True)
-        up = np.flatnonzero(lr.imag >= -1e-9 * np.maximum(np.abs(lr), 1.0))
-        cand = up[np.argsort(-lr[up].real)][:self.n_refine]
+        cand = least_stable(lr, self.n_refine)
         A = self.eig.pencil(speed, coeffs)
         out = np.array([self.eig.refine(A, lr[j], self.eig.lift(V[:, j]))[0] for j in cand])
         return out[np.argsort(-out.real)]
