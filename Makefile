@@ -3,6 +3,8 @@
 VENV   ?= $(CURDIR)/.venv
 PYTHON := $(VENV)/bin/python
 PYTEST_ARGS ?= -q
+# the suite on every core (pytest-xdist; one test file per worker, so a module's fixtures are built once)
+PYTEST_PARALLEL ?= -n auto --dist loadfile
 TESTS ?= test
 
 # DDS stays on this machine: LOCALHOST discovery, and the Fast DDS profile params/fastdds_localhost.xml, which binds
@@ -21,7 +23,7 @@ setup:
 	@bash scripts/setup_env.sh
 
 test: setup
-	$(PYTHON) -m pytest $(TESTS) $(PYTEST_ARGS)
+	$(PYTHON) -m pytest $(TESTS) $(PYTEST_PARALLEL) $(PYTEST_ARGS)
 
 demo: setup
 	$(PYTHON) -m bearing_id.demo $(DEMO_ARGS)
