@@ -118,6 +118,8 @@ class VariableProjection:
         key = p.tobytes()
         if key != self._key:
             E = exp_outer(self.tt, _rates(p), self.dt).view(float)            # (N, 2m) [Re z, Im z]
+            if not np.isfinite(E).all():           # a growth rate the window's length overflows
+                raise ValueError('the decay-rate search left the range the window can represent')
             n, m2 = E.shape
             L0, nch = self.D0.shape[1], self.xw.shape[1]
             L = L0 + m2
@@ -133,6 +135,8 @@ class VariableProjection:
                 c1 = np.linalg.solve(R[:L, :L], R[:L, L + m2:])[L0:]        # (2m, nch) on [Re z, Im z]
             except np.linalg.LinAlgError:
                 c1 = np.linalg.lstsq(E - self.Q0 @ (self.Q0.T @ E), self.xp, rcond=None)[0]
+            if not np.isfinite(c1).all():          # components numerically collinear: this p describes nothing
+                raise ValueError('the decaying components are collinear at this point of the search')
             rho = R[L:, L + m2:]                                       # (2m + nch, nch): residual coordinates
             RT = R[L:, L:L + m2]                                       # P t E coordinates (rows past 2m are 0)
             a, b = c1[0::2], c1[1::2]                                  # (m, nch)
