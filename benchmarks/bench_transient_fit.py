@@ -43,7 +43,7 @@ def _parts(recordings):
             n = win.i1 - win.i0
             if win.duration < 0.2:
                 continue
-            j0 = 0 if win.continued else int(math.ceil(harmonics.DEFAULT_SETTLE * n))
+            j0 = 0 if win.continued else int(math.ceil(defaults.SETTLE_FRACTION * n))
             out.append((win.samples[j0:], win.angle[j0:], win.sample_rate))
     return out
 

@@ -9,7 +9,6 @@ half-film closed form, and its perturbation coefficients equal central differenc
 import json
 import math
 from pathlib import Path
-import time
 
 from bearing_id.bearings import finite, short
 from bearing_id.conventions import lit_to_xy
@@ -277,11 +276,3 @@ def test_matches_someya_table_L_over_D_1():
         n_checked += 1
     assert n_checked == 7
 
-
-def test_one_coefficient_set_is_fast():
-    L = D
-    w = speed_for(0.2, L)
-    finite.grid_for.cache_clear()
-    t0 = time.perf_counter()
-    finite.reynolds(D, L, C_RAD, MU, W, w)
-    assert time.perf_counter() - t0 < 1.0

@@ -4,9 +4,9 @@ Hostile and malformed input files: every reader refuses them with exit 2 and one
 No traceback, no hang, no huge allocation -- and `bearing-id record` survives kill -9 and stores offered QoS.
 
 The campaign is table-driven (:data:`CASES`): each malformed input (npz, bag, CSV, YAML) is built from one small
-valid simulated recording, then each of the listed commands runs as a subprocess with a timeout (two at a time) and
-must exit 2 within its time bound, saying what is wrong in one paragraph (no 'Traceback'); ``-s`` prints the table.
-In-process companions: YAML bombs refused in < 1 s of parsing, every field of the rig file with every wrong type
+valid simulated recording, then each of the listed commands runs as a subprocess (two at a time; a generous timeout
+is a hang watchdog, not the verdict) and must exit 2, saying what is wrong in one paragraph (no 'Traceback'); ``-s``
+prints the table.  In-process companions: YAML bombs refused by their bounds before any object is built, every field of the rig file with every wrong type
 is a ParamError, randomly damaged .npz files are ValueErrors, legitimate anchors still load, an unfinished bag is
 salvaged and recovered, and a BagWriter SIGKILLed mid-stream (mcap and sqlite3) loses at most its flush period.
 Offline tests need no ROS.
@@ -462,7 +462,7 @@ def mk_yaml_scalar(base, d):
 
 REC = ('identify', 'diagnose')
 PAR = ('identify', 'diagnose', 'model')
-# name -> (builder, commands, time bound [s] per command, what the message must mention)
+# name -> (builder, commands, expected seconds per command (sets the hang watchdog), what the message must mention)
 CASES = {
     'npz truncated': (mk_npz_truncated, REC, 10, 'zip'),
     'npz corrupt zip member': (mk_npz_corrupt_member, REC, 10, 'corrupt'),
@@ -576,16 +576,20 @@ def test_malformed_input_exits_2_with_one_paragraph(case, command, campaign):
     text = err.strip()
     assert text.startswith(f'bearing-id {command}:') and '\n' not in text, msg      # one paragraph
     assert mention.lower() in text.replace(str(path), '').lower(), msg                # says what, not only where
-    assert dt < bound, msg
 
 
-def test_billion_laughs_parse_is_refused_in_under_a_second(base, built):
+def test_yaml_bombs_are_refused_by_their_bounds_before_anything_is_built(base, built, monkeypatch):
+    """A billion-laughs file, deep nesting and a huge file stop at the bound they exceed; no object is constructed."""
+    import yaml
     from bearing_id.config.params import load_yaml_bounded, ParamError
-    for case in ('yaml billion laughs', 'yaml 10,000-deep lists', 'yaml 10,000-deep maps', 'yaml 100 MB file'):
-        t = time.perf_counter()
-        with pytest.raises(ParamError):
+
+    def constructed(*a, **k):
+        raise AssertionError('a hostile YAML file reached the constructor')
+    monkeypatch.setattr(yaml.constructor.SafeConstructor, 'construct_document', constructed)
+    for case, says in (('yaml billion laughs', 'alias'), ('yaml 10,000-deep lists', 'nest'),
+                       ('yaml 10,000-deep maps', 'nest'), ('yaml 100 MB file', 'bytes')):
+        with pytest.raises(ParamError, match=says):
             load_yaml_bounded(built(case))
-        assert time.perf_counter() - t < 1.0, case
 
 
 def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():

