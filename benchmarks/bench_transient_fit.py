@@ -27,6 +27,7 @@ import time
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from bearing_id.config import defaults  # noqa: E402
 from bearing_id.config.params import load_rig  # noqa: E402
 from bearing_id.identify import harmonics  # noqa: E402
 from bearing_id.signals.harmonics import harmonic_vectors  # noqa: E402

@@ -275,4 +275,3 @@ def test_matches_someya_table_L_over_D_1():
         assert abs(ours['Kyx'] - r['Kyx']) <= 0.25 * max(abs(r[c]) for c in ('Kxx', 'Kxy', 'Kyy')), (r, ours)
         n_checked += 1
     assert n_checked == 7
-
