@@ -7,8 +7,9 @@ The campaign is table-driven (:data:`CASES`): each malformed input (npz, bag, CS
 valid simulated recording, then each of the listed commands runs as a subprocess (two at a time; a generous timeout
 is a hang watchdog, not the verdict) and must exit 2, saying what is wrong in one paragraph (no 'Traceback'); ``-s``
 prints the table.  In-process companions: YAML bombs refused by their bounds before any object is built, every field
-of the rig file with every wrong type is a ParamError, randomly damaged .npz files are ValueErrors, legitimate anchors still load, an unfinished bag is
-salvaged and recovered, and a BagWriter SIGKILLed mid-stream (mcap and sqlite3) loses at most its flush period.
+of the rig file with every wrong type is a ParamError, randomly damaged .npz files are ValueErrors, legitimate anchors
+still load, an unfinished bag is salvaged and recovered, and a BagWriter SIGKILLed mid-stream (mcap and sqlite3) loses
+at most its flush period.
 Offline tests need no ROS.
 
 The recorder tests (marked ``ros``) run `bearing-id record` twice against a publisher peer -- this file run as a
