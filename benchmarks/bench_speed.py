@@ -21,10 +21,7 @@ Speed benchmark, like for like: every comparison in one run, min/median over rep
 (d) ``bearing-id diagnose`` on the same files, as a process and in-process.
 (e) Peak memory: benchmarks/bench_memory.py (peak RSS against the number of speeds and the recording length).
 
-``identify`` runs in one process; ``diagnose`` fits identify's 1X vectors for its noise-floor check in one worker
-process while it works (rows marked "one process", ``BEARING_ID_WORKERS=0``, run without it); every CPU figure
-includes the worker's CPU time.  Peak RSS of a process row is the command's own VmHWM, or the largest sum of its
-resident and its worker's private memory while it runs (``benchlib.run_process``).
+Every command runs in one process; peak RSS of a process row is the command's own VmHWM (``benchlib.run_process``).
 
 Targets (issue 13): paper job in-process <= 10 ms (>= 400x the paper); 9-speed identify in-process <= 0.1 s (direct,
 physical), <= 0.3 s (paper); any ``bearing-id identify`` as a process <= 0.8 s; diagnose <= 1.5 s.  "met" is judged
@@ -60,7 +57,6 @@ TARGET_PROCESS = 0.8
 TARGET_INPROC = {'paper': 0.3, 'direct': 0.1, 'physical': 0.1}
 TARGET_PAPER_JOB = 0.010
 TARGET_DIAGNOSE = 1.5
-ONE_PROCESS = {'BEARING_ID_WORKERS': '0'}     # diagnose without its noise-floor worker
 
 
 def paper_job_files(fresh: bool):
@@ -285,10 +281,7 @@ def main(argv=None):
         proc = bl.time_process(bl.cli(*argv_d), args.process_repeats, ok_codes=(0, 1))
         inproc = bl.cli_in_child(argv_d, args.repeats)
         print(f'\n## (d) `bearing-id diagnose` on the same files ({bl.load_note()})\n')
-        one = bl.time_process(bl.cli(*argv_d), args.process_repeats, ok_codes=(0, 1), env=ONE_PROCESS)
         rows = [bl.timing_row('diagnose: process', proc, TARGET_DIAGNOSE, extra=(f'{proc.rss_max:.0f}',)),
-                bl.timing_row('diagnose: process, one process (BEARING_ID_WORKERS=0)', one, None,
-                              extra=(f'{one.rss_max:.0f}',)),
                 bl.timing_row('diagnose: in-process (cli.main, imports done, caches cold)', inproc, TARGET_DIAGNOSE,
                               extra=('',))]
         print(bl.table(bl.TIMING_HEADER + ['peak RSS MiB', 'target', 'met'], rows))

@@ -6,22 +6,13 @@ Exit codes: 0 a verdict was reached ('none' included), 2 bad input.
 from __future__ import annotations
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from dataclasses import replace
 import json
-import multiprocessing
-from multiprocessing.connection import wait
-import os
 from pathlib import Path
-import signal
-import threading
 
 from .inputs import attach_excitation, check_probe_nodes, load_recordings
 from .report import report_for_diagnosis
 from ..config.params import load_rig, ParamError
 from ..diagnose import diagnose
-from ..diagnose.floor import identify_vectors
 from ..diagnose.reidentify import format_table, reidentify
 from ..diagnose.report import augmented_rig, write_json, write_params, write_summary
 
@@ -85,87 +76,17 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-WORKERS_ENV = 'BEARING_ID_WORKERS'     # 0: no worker process (everything in this one)
-
-
-def _floor_vectors(recs):
-    """
-    Return :func:`bearing_id.diagnose.floor.identify_vectors` of ``recs`` without the recordings in its HarmonicData.
-
-    What the worker sends back (the 1X vectors, not the samples); :func:`_with_recordings` puts them back.
-    """
-    obs = identify_vectors(recs)
-    if getattr(obs, 'harmonic_data', None) is not None:
-        obs.harmonic_data = replace(obs.harmonic_data, recordings=[])
-    return obs
-
-
-def _with_recordings(obs, recs):
-    """Return ``obs`` from :func:`_floor_vectors` with the recordings back in its HarmonicData."""
-    if getattr(obs, 'harmonic_data', None) is not None:
-        obs.harmonic_data = replace(obs.harmonic_data, recordings=list(recs))
-    return obs
-
-
-def _worker_init() -> None:
-    """In the worker: leave Ctrl-C to the command, and end with the command's process (SIGKILL included)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    parent = multiprocessing.parent_process()
-    if parent is not None:          # its sentinel becomes readable when the parent process is gone
-
-        def end_with_parent():
-            wait([parent.sentinel])
-            os._exit(1)
-        threading.Thread(target=end_with_parent, daemon=True).start()
-
-
-def _floor_pool() -> ProcessPoolExecutor | None:
-    """
-    Return a one-process pool for the noise-floor vectors, or None (no spare core, or ``BEARING_ID_WORKERS=0``).
-
-    The noise-floor check's 1X vectors (identify's window fits) are fitted there while this process locates and
-    selects effects.  Forked (the recordings and the imported
-    package are inherited; POSIX); the worker ignores Ctrl-C and ends with this process (:func:`_worker_init`).
-    """
-    if os.environ.get(WORKERS_ENV, '').strip() == '0' or len(os.sched_getaffinity(0)) < 2:
-        return None
-    try:
-        ctx = multiprocessing.get_context('fork')
-    except ValueError:                           # no fork on this platform: everything here
-        return None
-    return ProcessPoolExecutor(1, mp_context=ctx, initializer=_worker_init)
-
-
-def _floor_source(pool, recs):
-    """Return the ``floor_vectors`` callable :func:`bearing_id.diagnose.diagnose` takes: the worker's result."""
-    future = pool.submit(_floor_vectors, recs)
-
-    def vectors():
-        try:
-            obs = future.result()
-        except BrokenProcessPool:                # the worker died (killed, out of memory): fitted here instead
-            obs = _floor_vectors(recs)
-        return _with_recordings(obs, recs)
-    return vectors
-
-
 def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
         raise ParamError('--rel-tol must be in [0, 1)')
     rig = load_rig(args.params)
     recs = attach_excitation(load_recordings(args.recordings), rig, required=False)   # checked before the heavy work
     check_probe_nodes(recs, rig.shaft.n_nodes)
-    # identify's 1X vectors for the noise-floor check, fitted in a worker while this process locates and selects
-    pool = None if args.no_noise_floor else _floor_pool()
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings,
-                     noise_floor=not args.no_noise_floor,
-                     floor_vectors=None if pool is None else _floor_source(pool, recs))
+                     noise_floor=not args.no_noise_floor)
     except ValueError as exc:
         raise ParamError(f'cannot diagnose these recordings: {exc}') from None
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
     aug = args.augmented or (Path(args.report) / 'augmented_params.yaml' if args.report else
                              (Path(args.json).with_name(Path(args.json).stem + '_augmented_params.yaml')
                               if args.json else None))

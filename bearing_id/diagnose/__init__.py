@@ -170,8 +170,7 @@ def _settle_form(prob, fprob, s, cands, dbic_min):
 
 def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02, nuisance: bool = True,
              effects=EFFECT_NAMES, max_effects: int = 3, dbic_min: float = 10.0, threshold: float = 5.0,
-             chi2_floor: float = 1.5, unbalance_planes=None, model=None, noise_floor: bool = True,
-             floor_vectors=None) -> Diagnosis:
+             chi2_floor: float = 1.5, unbalance_planes=None, model=None, noise_floor: bool = True) -> Diagnosis:
     """
     Diagnose what physics the nominal model ``rig`` (RigParams) misses in ``recordings``.
 
@@ -185,9 +184,6 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     effects : candidate effect names (default all of :data:`EFFECT_NAMES`, the bearing model form included).
     noise_floor : run the noise-floor check (:mod:`.floor`: identify's MODEL MISFIT criterion on identify's 1X
         vectors, and the bearing model forms tried there when it trips).
-    floor_vectors : a callable returning :func:`.floor.identify_vectors` of ``recordings`` (identify's 1X vectors,
-        e.g. fitted meanwhile in another process: :mod:`bearing_id.commands.diagnose`); default: computed here when
-        the noise-floor check needs them.
     """
     recordings = list(recordings)
     obs = observe(recordings)
@@ -207,8 +203,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                folds=folds)
     # noise-floor check: the same test identify applies; the bearing model form tried there when it trips
     fc = None
-    fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance, vectors=floor_vectors)
-                    if noise_floor else (None, ''))
+    fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance) if noise_floor
+                    else (None, ''))
     if fprob is not None:
         have_form = any(e.name == 'bearing_model_form' for e in s.final.effects)
         if have_form:

@@ -125,15 +125,10 @@ def identify_vectors(recordings) -> Observations:
     return obs
 
 
-def floor_problem(recordings, rig, *, model=None, nuisance: bool = True, vectors=None):
-    """
-    (Problem on identify's 1X vectors with their 1-sigma only, note): the noise-floor problem, or (None, why).
-
-    ``vectors``: a callable returning :func:`identify_vectors` of ``recordings`` (e.g. computed meanwhile in another
-    process); default: computed here.
-    """
+def floor_problem(recordings, rig, *, model=None, nuisance: bool = True):
+    """(Problem on identify's 1X vectors with their 1-sigma only, note): the noise-floor problem, or (None, why)."""
     try:
-        obs = identify_vectors(recordings) if vectors is None else vectors()
+        obs = identify_vectors(recordings)
     except (ValueError, RuntimeError, KeyError, IndexError, np.linalg.LinAlgError) as exc:
         return None, f'noise-floor check skipped: {exc}'
     if len(obs.windows) < 2:
