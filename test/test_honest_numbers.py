@@ -21,6 +21,7 @@ from pathlib import Path
 import subprocess
 import sys
 
+from agreement import assert_results_agree
 from bearing_id.config.params import Probe
 from bearing_id.identify import determined as dt
 from bearing_id.identify.harmonics import from_recordings
@@ -288,10 +289,11 @@ def test_paper_kf_removes_static_offset_nis_in_band_and_coefficients_unchanged(r
     for nis, n in zip(r1.extra['nis'], n_steps):
         lo, hi = nis_band(n, 2)
         assert lo <= nis <= hi, (nis, lo, hi)
+    # the window's mean removed: the offset estimated from the window, known to the 1 % noise / sqrt(N) (~1e-7 m)
     assert np.allclose(r1.extra['dc_removed'], dc, atol=1e-7)
-    both = r0.K_determined & r1.K_determined
-    assert np.all(np.abs(r1.K - r0.K)[both] <= 0.1 * r0.K_std[both])
-    assert np.all(np.abs(r1.K - r0.K) <= 1e-3 * np.abs(r0.K).max())
+    # the 1X fits carry an offset regressor, so the two data sets give the same 1X vectors and the same result:
+    # two routes to one quantity, within 0.01 of its stated 1-sigma (undetermined ones to eps x condition)
+    assert_results_agree([r1], [r0], 'DC added and removed vs none')
     (rk,) = identify_paper(model, rig, d1, P6, d1.runs, {**opts, 'remove_dc': False})
     assert min(rk.extra['nis']) > 100
 

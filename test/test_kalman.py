@@ -277,7 +277,6 @@ def test_streaming_equals_batch_and_checks_band():
 # ------------------------------------------------------------------------------------------------ rotor
 @pytest.fixture(scope='module')
 def rotor_case():
-    pytest.importorskip('bearing_id.rotor.assembly')
     from bearing_id.simulation import rig as rigmod
     from bearing_id.excitation import harmonic_forces
     from bearing_id.config.params import load_rig

@@ -79,17 +79,21 @@ def test_element_matrix_properties():
     u[[0, 4]] = 1.0
     mass = RHO * math.pi / 4 * (0.04**2 - 0.01**2) * 0.1
     assert abs(u @ M @ u - mass) <= sum_tol(M[np.ix_([0, 4], [0, 4])]) + 16 * EPS_MACH * mass
-    assert np.abs(K @ u).max() < 1e-6 * np.abs(K).max()
+
+    # K v of a rigid-body motion v is a sum of 8 terms that cancel exactly: its rounding is at most 8 eps sum |K_ij v_j|
+    def rigid_tol(v):
+        return 8 * EPS_MACH * (np.abs(K) @ np.abs(v)).max()
+    assert np.abs(K @ u).max() <= rigid_tol(u)
     # rigid tilt in the x-z plane: x = z, ty = 1 -> no strain energy
     t = np.zeros(8)
     t[[3, 7]] = 1.0
     t[4] = 0.1
-    assert np.abs(K @ t).max() < 1e-9 * np.abs(K).max()
+    assert np.abs(K @ t).max() <= rigid_tol(t)
     # rigid tilt in y-z: y = z, tx = -dy/dz = -1
     s = np.zeros(8)
     s[[2, 6]] = -1.0
     s[5] = 0.1
-    assert np.abs(K @ s).max() < 1e-9 * np.abs(K).max()
+    assert np.abs(K @ s).max() <= rigid_tol(s)
 
 
 def test_element_matrices_from_nelson_shape_functions():
@@ -287,6 +291,8 @@ def test_critical_speed_matches_unbalance_peak(model):
         q = harmonic_response(model, W, W, F, co)
         amp.append(abs(q[dof_index(6, 'x')]))
     peak = speeds[int(np.argmax(amp))]
+    # the response peak of a mode with damping ratio zeta lies within ~zeta^2 of its 1X crossing (zeta = 0.03 here:
+    # 9e-4), plus half the grid step (0.4 c1 / 800 / 2 = 2.5e-4 c1)
     assert peak == pytest.approx(c1, rel=2e-3)
     # the crossing really is on the 1X line: forward frequency there equals the speed
     m = damped_modes(model, c1, co, 4)

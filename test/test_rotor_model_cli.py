@@ -7,13 +7,9 @@ Campbell data within the grid spacing.
 """
 import json
 
+from bearing_id.cli import main
 import numpy as np
 import pytest
-
-pytest.importorskip('bearing_id.bearings')
-pytest.importorskip('bearing_id.rotor.stability')
-
-from bearing_id.cli import main  # noqa: E402, I100  (after the importorskip guards)
 
 
 def test_model_command_on_paper_rig(tmp_path, capsys):

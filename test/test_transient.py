@@ -81,7 +81,9 @@ def test_1x_and_2x_beside_ringing_modes_lie_within_their_stated_sigma():
     x, angle, t = _window(0, RINGING)
     fit = harmonic_vectors(x, angle, transients=3, sample_rate=FS)
     k = int(np.argmin(np.abs(fit.transient_rates - (-1.0 + 2j * math.pi * 33.0))))
-    assert fit.transient_rates[k] == pytest.approx(-1.0 + 2j * math.pi * 33.0, abs=0.1)
+    # the joint fit's Gauss-Newton covariance gives this mode's rate and frequency a 1-sigma of 1.1e-3 (1/s, rad/s)
+    # at this noise: 0.01 is 9 of those
+    assert fit.transient_rates[k] == pytest.approx(-1.0 + 2j * math.pi * 33.0, abs=0.01)
     tr = fit.transient_part(t)
     ref = sum(np.real(np.outer(np.exp((-s + 2j * math.pi * f) * t), np.asarray(A))) for f, s, A in RINGING)
     assert np.sqrt(np.mean((tr - ref) ** 2)) < 0.1 * np.sqrt(np.mean(ref ** 2))
