@@ -25,8 +25,10 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from .config import defaults
 from .config.params import load_rig
 from .conventions import COEFF_ORDER, rad_s_to_rpm
+from .identify import METHODS
 from .identify.result import IdentResult
 from .io import messages as M
 from .nodes.dds import loopback_dds_env
@@ -214,8 +216,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog='python -m bearing_id.demo', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--out', default='out/demo', help='output directory (plots, node logs, record)')
-    ap.add_argument('--method', default='physical', choices=('paper', 'conventional', 'direct', 'physical'),
-                    help='identification method (default physical: identifies from the single midspan probe)')
+    ap.add_argument('--method', default=defaults.METHOD, choices=METHODS,
+                    help=f'identification method (default {defaults.METHOD}, as bearing-id identify: here physical, '
+                         'which the single midspan probe determines)')
     ap.add_argument('--rate', type=float, default=2.0, help='playback speed relative to real time (default 2)')
     ap.add_argument('--params', default='', help='rig YAML (default the packaged params/rig.yaml)')
     ap.add_argument('--speeds', help="comma-separated speeds [rpm] (default: the rig's simulation.speeds_rpm)")

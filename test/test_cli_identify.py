@@ -106,6 +106,7 @@ def test_default_method_identifies_the_default_simulated_data(npz_runs, capsys):
     assert out.startswith('method: physical (auto: ') and 'rank 8 of 16' in out.splitlines()[0]
     doc = json.loads(out_json.read_text())
     assert doc['method'] == 'physical' and doc['requested'] == 'auto'
+    assert all(r['auto']['method'] == 'physical' and 'design check' in r['auto']['reason'] for r in doc['results'])
     from bearing_id.io.recordings import load_npz
     truth = load_npz(paths[0]).truth['coefficients']
     for r in doc['results']:
@@ -125,15 +126,18 @@ def test_default_method_is_direct_where_the_plan_determines_every_coefficient(ca
     code = main(['identify', str(bag)])
     out = capsys.readouterr().out
     assert code == 0
-    assert out.startswith('method: direct (auto: the design check on these data determines all 16 coefficients')
+    assert out.startswith('method: direct (auto: the design check on these data (each speed at its measured noise) '
+                          'determines all 16 coefficients at every speed')
     assert 'method direct  rank 16 of 16' in out
 
 
 def test_method_options_need_their_method(npz_runs, capsys):
     """A method's own option with the default method is an error naming the method (exit 2), not ignored."""
     d, paths = npz_runs
-    assert main(['identify', *paths, '--bearing-model', 'finite']) == 2
+    assert main(['identify', *paths, '--method', 'direct', '--bearing-model', 'finite']) == 2
     assert '--bearing-model applies to --method physical only' in capsys.readouterr().err
+    assert main(['identify', *paths, '--Q', '1e-18']) == 2              # auto never runs the paper method
+    assert '--Q applies to --method paper only' in capsys.readouterr().err
 
 
 def test_the_cli_and_the_nodes_share_their_defaults():

@@ -329,3 +329,37 @@ def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, m
     assert data.plain is not None and not data.recordings
     assert len(ref) == 2
     agreement.assert_results_agree(live, ref, method)
+
+
+@pytest.mark.parametrize('bag, chosen', [('unbalance_ab_sweep', 'physical'), ('force_plan', 'direct')])
+def test_the_default_method_auto_chooses_by_the_data_and_says_so(tmp_path, bag, chosen):
+    """
+    The node's default, auto, chooses by the data, as `bearing-id identify` does.
+
+    On the packaged bags: physical for unbalance runs at one probe station (rank 8 of 16), direct for the
+    directional-force plan; the choice and its reason in every result and on /diagnostics, and the same results as
+    `bearing-id identify` on the bag (within 0.01 of their 1-sigma).
+    """
+    from pathlib import Path
+    from bearing_id.identify import identify
+    from bearing_id.io.recordings import from_bag, recordings_from_bag
+    from bearing_id.nodes.identifier_core import identifiability_item
+    from bearing_id.rotor.assembly import RotorModel
+    path = Path(__file__).resolve().parent.parent / 'bags' / bag
+    rig = load_rig()
+    recs = recordings_from_bag(path)
+    core = IdentifierCore(rig, 'auto', tmp_path / 'record')
+    assert core.method == 'auto'
+    for r in recs:
+        core.add_excitation(r.run)
+    for r in recs:
+        _feed_all(core, list(blocks(r)), r.run)
+    res, _ = core.solve()
+    core.close()
+    assert res and {r.method for r in res} == {chosen}
+    assert all(r.extra['auto']['method'] == chosen and r.notes[0].startswith(f'method auto chose {chosen}: ')
+               for r in res)
+    item = identifiability_item(res)
+    assert item.values['method'].startswith(f'{chosen} (auto: the design check on these data')
+    ref = identify('auto', RotorModel.from_params(rig), rig, from_bag(path))
+    agreement.assert_results_agree(res, ref, f'auto on {bag}')

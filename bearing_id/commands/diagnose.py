@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .inputs import attach_excitation, check_probe_nodes, load_recordings
 from .report import report_for_diagnosis
+from ..config import defaults
 from ..config.params import load_rig, ParamError
 from ..diagnose import diagnose
 from ..diagnose.reidentify import format_table, reidentify
@@ -125,7 +126,7 @@ def run(args) -> int:
     if args.report:
         files = [write_summary(d, args.report)]
         info = report_for_diagnosis(d, recs, rig, args.report, reidentification=ri,
-                                    method=args.identify or 'physical', cli_text='\n'.join(out),
+                                    method=args.identify or defaults.METHOD, cli_text='\n'.join(out),
                                     command='bearing-id diagnose ' + ' '.join(args.recordings), write_png=True,
                                     data=d.harmonic_data)
         for n in info.notes:

@@ -111,8 +111,8 @@ def bearing_vectors_plot(model, data, results, plot_path):
 
 
 def _only(flag: str, method: str) -> ParamError:
-    return ParamError(f'{flag} applies to --method {method} only (name it: the default, auto, chooses the method '
-                      'from the data)')
+    return ParamError(f'{flag} applies to --method {method} only (name it: the default, auto, chooses between direct '
+                      'and physical)')
 
 
 def run(args) -> int:
@@ -136,16 +136,18 @@ def run(args) -> int:
             raise _only('--reduce', 'paper')
         opts['reduce'] = True
     if args.bearing_model is not None:
-        if args.method != 'physical':
+        if args.method not in ('physical', 'auto'):
             raise _only('--bearing-model', 'physical')
         opts['bearing_model'] = args.bearing_model
+    if args.method == 'auto':               # auto's options are per method: a bearing model is physical's
+        opts = {'physical': opts} if opts else {}
     try:
         results = identify(args.method, model, rig, data, options=opts or None)
     except ValueError as exc:   # the data cannot feed this method (e.g. conventional without two probes per bearing)
         raise ParamError(f'--method {args.method}: {exc}') from exc
     ran = results[0].method if results else args.method
     if args.method == 'auto' and results:
-        print(f'method: {ran} (auto: {results[0].notes[0].split(": ", 1)[-1]})')
+        print(f"method: {ran} (auto: {results[0].extra['auto']['reason']})")
     print('units: speed rpm, K N/m, C N s/m')
     print(format_results(results, args.allow_undetermined))
     undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined]

@@ -74,6 +74,8 @@ def run(args) -> int:
     info = build_report(rig, recs, args.out, method=args.method, max_rpm=args.max_rpm, write_png=args.png,
                         command='bearing-id report ' + ' '.join(args.inputs)
                                 + (f' --method {args.method}' if args.method != defaults.METHOD else ''))
+    if info.method:
+        print(f'identification method: {info.method}')
     for n in info.notes:
         print(f'note: {n}')
     print(f'wrote {info.path} ({info.n_figures} figures, {info.seconds:.1f} s)')
@@ -86,7 +88,8 @@ class ReportInfo:
     """
     What :func:`build_report` wrote.
 
-    ``path`` of the page, figure count, wall time [s], notes (what the data did not support), the figures
+    ``path`` of the page, figure count, wall time [s], notes (what the data did not support), ``method`` (the
+    identification method that ran, with auto's reason), the figures
     (``figures``: name -> Figure, with ``keep_figures``) and the numbers drawn (``data``), for tests.
     """
 
@@ -94,6 +97,7 @@ class ReportInfo:
     n_figures: int
     seconds: float
     notes: list = field(default_factory=list)
+    method: str = ''
     figures: dict = field(default_factory=dict, repr=False)
     data: dict = field(default_factory=dict, repr=False)
 
@@ -564,13 +568,15 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
               + '; SI inside, rpm / µm / degrees for people; conventions: bearing_id/conventions.py')
     header_html = f'<p class="muted">{esc(command)}</p>' if command else ''
     path = page.write(out / REPORT_NAME, header_html=header_html, footer_text=footer)
-    return ReportInfo(path=path, n_figures=page.n_images, seconds=seconds, notes=notes,
+    auto = results[0].extra.get('auto') if results else None
+    ran = (f"{auto['method']} (auto: {auto['reason']})" if auto else results[0].method) if results else ''
+    return ReportInfo(path=path, n_figures=page.n_images, seconds=seconds, notes=notes, method=ran,
                       figures=dict(R.figures), data=fdata)
 
 
-def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification=None, method: str = 'physical',
-                         cli_text: str | None = None, command: str | None = None, write_png: bool = False,
-                         data=None) -> ReportInfo:
+def report_for_diagnosis(diagnosis, recordings, rig, outdir, *, reidentification=None,
+                         method: str = defaults.METHOD, cli_text: str | None = None, command: str | None = None,
+                         write_png: bool = False, data=None) -> ReportInfo:
     """
     Return the page for ``bearing-id diagnose --report DIR``.
 

@@ -2,10 +2,11 @@
 The default method, ``auto``: the method these data can carry, chosen by the design check on the data themselves.
 
 ``direct`` (the 16 coefficients per speed, no bearing model) when the recording's probes, runs and measured noise
-determine every coefficient at every speed -- the design check (:func:`bearing_id.identify.design.check_design`)
-linearised at the theory, judged by the one rule of :mod:`bearing_id.identify.determined`; otherwise ``physical``
-(the bearings' viscosity and clearance, or a table bearing's scales, fitted across all speeds), which unbalance runs at
-one probe station do determine. The choice and its reason lead every result's notes.
+determine every coefficient at every speed -- the design check (:func:`bearing_id.identify.design.check_design`) at
+each speed with that speed's measured noise, linearised at the theory, judged by the one rule of
+:mod:`bearing_id.identify.determined`; otherwise ``physical`` (the bearings' viscosity and clearance, or a table
+bearing's scales, fitted across all speeds), which unbalance runs at one probe station do determine. Every result
+carries the choice and its reason (``extra['auto']`` and the first note).
 """
 from __future__ import annotations
 
@@ -20,36 +21,40 @@ from ..rotor.supports import bearing_fn
 CHOICES = {'direct': identify_direct, 'physical': identify_physical}
 
 
-def data_noise_rel(data) -> float:
+def noise_rel_per_speed(data) -> np.ndarray:
     """
-    Return the 1X vectors' noise relative to their amplitude, as the design check takes it (median over runs, speeds).
+    Return the 1X vectors' noise relative to their amplitude at each speed (ns,), as the design check takes it.
 
     Per run and speed: the mean 1-sigma of Re and Im over the channels [m] divided by the RMS amplitude of the
-    channels [m].
+    channels [m]; the median over the runs.
     """
     amp = np.sqrt(np.mean(np.abs(data.X) ** 2, axis=-1))
-    rel = np.mean(data.X_std, axis=-1) / np.where(amp > 0, amp, np.nan)
-    rel = rel[np.isfinite(rel)]
-    if not rel.size:
-        raise ValueError('auto: the 1X vectors carry no finite noise estimate to judge the design by')
-    return float(np.median(rel))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        rel = np.where(amp > 0, np.mean(data.X_std, axis=-1) / amp, np.nan)
+    out = np.nanmedian(np.where(np.isfinite(rel), rel, np.nan), axis=0) if rel.size else np.zeros(0)
+    if not out.size or not np.all(np.isfinite(out)):
+        raise ValueError('auto: the 1X vectors carry no finite noise estimate at every speed to judge the design by')
+    return out
 
 
 def choose_method(model, rig, data, probes, runs) -> tuple[str, str]:
     """Return (method, reason): 'direct' when these data determine every coefficient at every speed, else 'physical'."""
-    reports = check_design(model, probes, runs, data.speeds, bearing_fn(rig), noise_rel=data_noise_rel(data),
-                           advice=False)
-    short = [r for r in reports if r.rule_determined is None or not np.all(r.rule_determined)]
+    theory = bearing_fn(rig)
+    reports = [check_design(model, probes, runs, [w], theory, noise_rel=nr, advice=False)[0]
+               for w, nr in zip(data.speeds, noise_rel_per_speed(data))]
     n = reports[0].data.unknowns if reports else 0
+    counts = [int(np.count_nonzero(r.rule_determined)) if r.rule_determined is not None else 0 for r in reports]
+    short = [(r, c) for r, c in zip(reports, counts) if c < n]
     if reports and not short:
-        worst = max(reports, key=lambda r: r.data.condition)
-        return 'direct', (f'the design check on these data determines all {n} coefficients at every speed (rank '
-                          f'{worst.data.rank} of {n}, condition up to {worst.data.condition:.3g})')
-    r = short[0] if short else None
-    where = (f'rank {r.data.rank} of {r.data.unknowns} at {r.speed_rpm:.0f} rpm, {len(short)} of {len(reports)} '
-             f'speeds short' if r is not None else 'no speed to judge')
-    return 'physical', (f'the design check on these data does not determine the {n} coefficients per speed ({where}); '
-                        "physical fits the bearings' parameters across all speeds")
+        return 'direct', (f'the design check on these data (each speed at its measured noise) determines all {n} '
+                          f'coefficients at every speed (design-check condition up to '
+                          f'{max(r.data.condition for r in reports):.3g})')
+    if not reports:
+        return 'physical', 'no speed to judge the design by'
+    r, c = min(short, key=lambda rc: rc[1])
+    return 'physical', (f'the design check on these data determines {c} of {n} coefficients at {r.speed_rpm:.0f} rpm '
+                        f'(design-check rank {r.data.rank} of {r.data.unknowns}; {len(short)} of {len(reports)} '
+                        f"speeds short); physical fits the bearings' parameters across all speeds")
 
 
 def identify_auto(model, rig, data, probes, runs, options=None) -> list[IdentResult]:
@@ -65,8 +70,9 @@ def identify_auto(model, rig, data, probes, runs, options=None) -> list[IdentRes
     method, reason = choose_method(model, rig, data, probes, runs)
     results = CHOICES[method](model, rig, data, probes, runs, opts.get(method))
     for r in results:
+        r.extra['auto'] = {'method': method, 'reason': reason}
         r.notes.insert(0, f'method auto chose {method}: {reason}')
     return results
 
 
-__all__ = ['choose_method', 'identify_auto', 'data_noise_rel', 'CHOICES']
+__all__ = ['choose_method', 'identify_auto', 'noise_rel_per_speed', 'CHOICES']

@@ -45,7 +45,8 @@ class IdentResult:
     residual : relative residual norm ||A x - b|| / ||b|| of the fit (dimensionless).
     notes : free-text remarks for people (what was done, warnings, how much the prior dominates).
     extra : method-specific data (e.g. the KF bearing-node estimates, the theory used) -- not serialised, except
-        ``extra['fit_quality']`` and ``extra['parameters']`` (see the module docstring).
+        ``extra['fit_quality']``, ``extra['parameters']`` (see the module docstring) and ``extra['auto']`` (the
+        method ``auto`` chose and why).
     flags : machine-readable warnings every printer must show: 'misfit' (see the module docstring).
 
     """
@@ -141,6 +142,8 @@ class IdentResult:
             out['fit_quality'] = fq.to_dict() if hasattr(fq, 'to_dict') else dict(fq)
         if self.extra.get('parameters'):
             out['parameters'] = _jsonable(self.extra['parameters'])
+        if self.extra.get('auto'):                       # method auto: the method it chose and why
+            out['auto'] = dict(self.extra['auto'])
         return out
 
 

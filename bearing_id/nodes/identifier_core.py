@@ -145,6 +145,7 @@ class IdentifierCore:
         self.results: dict = {}                # speed -> IdentResult (latest)
         self.warm_start = bool(warm_start)
         self._warm = None                      # (parameter names, values [SI]) of the last physical fit
+        self._ran = None                       # the method the last solve ran (auto chooses per solve)
         self.lock = threading.Lock()
         get_method(method)
         self.record = Record(record_dir)
@@ -428,6 +429,11 @@ class IdentifierCore:
         fit = results[0].extra.get('fit') if results else None
         if results and results[0].method == 'physical' and fit is not None and np.all(np.isfinite(fit.values)):
             self._warm = (fit.names, np.array(fit.values))
+        ran = results[0].method if results else None
+        if self.method == 'auto' and ran is not None and ran != self._ran and self._ran is not None:
+            self.notes.append(f'method auto now runs {ran} (it ran {self._ran}): '
+                              f"{results[0].extra['auto']['reason']}")
+        self._ran = ran or self._ran
         for r in results:
             self.results[float(r.speed)] = r
         if record:
@@ -466,6 +472,9 @@ def identifiability_item(results, publish_undetermined: bool = False) -> DiagIte
     if not results:
         return DiagItem(name, OK, 'no complete speed yet (waiting for every required run)', {})
     vals = {}
+    auto = results[0].extra.get('auto')
+    if auto:                                  # method auto: which method ran, and why
+        vals['method'] = f"{auto['method']} (auto: {auto['reason']})"
     bad = []
     for r in results:
         rpm = rad_s_to_rpm(r.speed)
