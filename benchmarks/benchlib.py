@@ -245,7 +245,7 @@ IMPORTS = {     # what each command imports on its way (imported before the cloc
                  'bearing_id.identify, bearing_id.identify.harmonics, bearing_id.identify.plausibility, '
                  'bearing_id.identify.physical, bearing_id.identify.direct, bearing_id.estimation.kalman, '
                  'bearing_id.signals.harmonics, bearing_id.bearings, bearing_id.rotor.assembly, bearing_id.diagnose, '
-                 'bearing_id.diagnose.locate, bearing_id.diagnose.select, bearing_id.diagnose.effects, '
+                 'bearing_id.diagnose.locate, bearing_id.diagnose.selection, bearing_id.diagnose.effects, '
                  'bearing_id.diagnose.report'),
 }
 

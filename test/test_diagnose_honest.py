@@ -164,7 +164,7 @@ def test_whirl_only_in_held_out_windows_does_not_validate():
     from bearing_id.diagnose import effects as fx
     from bearing_id.diagnose.locate import observe
     from bearing_id.diagnose.predict import Problem
-    from bearing_id.diagnose.select import fit, heldout_chi2, speed_folds, validate
+    from bearing_id.diagnose.selection import fit, heldout_chi2, speed_folds, validate
     matched = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     recs = simulate([te.OilWhirl(10, 2600.0, 0.45, 0.5)], truth=matched)
     nominal = load_rig()

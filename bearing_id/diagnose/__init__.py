@@ -37,9 +37,9 @@ import numpy as np
 
 from .effects import candidates, EFFECT_NAMES
 from .floor import adopt, chi2_dof, floor_problem, form_row, noise_floor_check, refine
-from .locate import locate, Mismatch, Observations, observe
+from .locate import locate_mismatch, Mismatch, Observations, observe
 from .predict import Problem
-from .select import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
+from .selection import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
 
 
 @dataclass
@@ -254,7 +254,7 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
             fc.chi2_dof_after = chi2_dof(ff)
     base, final = s.base, s.final
     pred_base = prob.prediction_by_window(base.theta, [], [], np.zeros(0))
-    mism = locate(obs, pred_base, None, rel_tol=rel_tol, threshold=threshold)
+    mism = locate_mismatch(obs, pred_base, None, rel_tol=rel_tol, threshold=threshold)
     hyps = []
     for step, (before, rows) in enumerate(s.rounds):
         for f, v in rows:
@@ -366,4 +366,4 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                      harmonic_data=getattr(fprob.obs, 'harmonic_data', None) if fprob is not None else None)
 
 
-__all__ = ['diagnose', 'Diagnosis', 'EFFECT_NAMES', 'observe', 'locate', 'Observations', 'Mismatch']
+__all__ = ['diagnose', 'Diagnosis', 'EFFECT_NAMES', 'observe', 'locate_mismatch', 'Observations', 'Mismatch']

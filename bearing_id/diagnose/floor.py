@@ -45,7 +45,7 @@ import numpy as np
 
 from .locate import Observations, Window
 from .predict import Problem
-from .select import evaluate, fit, NUIS_BOUND, speed_folds, validate
+from .selection import evaluate, fit, NUIS_BOUND, speed_folds, validate
 from ..identify.determined import misfit_threshold as thr
 from ..identify.harmonics import from_recordings
 

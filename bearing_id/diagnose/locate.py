@@ -20,7 +20,7 @@ Noise floor
     matches a machine to the noise floor, and a mismatch smaller than that is not worth a verdict.
     ``sigma = sqrt(std^2 + (rel_tol |X|)^2)``; significance = |residual| / sigma.
 
-Located mismatch (:func:`locate`)
+Located mismatch (:func:`locate_mismatch`)
     Residuals (measured minus predicted) are grouped by probe and harmonic order (slow-roll windows, i.e. speeds
     below ``slow_roll_rpm``, separately); a group is reported when its largest significance exceeds ``threshold``:
     where (probe, node, direction), order, the speeds [rpm] where it is significant, its size [m] (largest |residual|)
@@ -279,7 +279,7 @@ def _probe_text(p) -> str:
     return f"{p.name} (node {p.node}, {'horizontal x' if p.direction == 'x' else 'vertical y'})"
 
 
-def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel_tol: float = 0.02,
+def locate_mismatch(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel_tol: float = 0.02,
            threshold: float = 5.0, slow_roll_rpm: float = 400.0) -> list[Mismatch]:
     """
     Group the residuals ``measured - predicted`` and report the significant groups.
@@ -320,4 +320,4 @@ def locate(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel
     return out
 
 
-__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate', 'DEFAULT_ORDERS']
+__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate_mismatch', 'DEFAULT_ORDERS']

@@ -1,4 +1,3 @@
-# noqa: A005  (imported only as bearing_id.diagnose.select; renaming the module would change the public API)
 """
 Fit hypotheses (nominal + candidate effects), compare them, validate on held-out speeds, select greedily.
 
@@ -30,8 +29,8 @@ Selection (:func:`select`)
     BIC that is also validated, stop when the BIC gain
     falls below ``dbic_min``, validation fails, or the current residual is no longer significant: chi2 per residual
     below ``chi2_floor`` (with the model tolerance in sigma a clean recording sits near 1 or below) *and* no single
-    entry off by ``peak_sigma`` or more (the :func:`locate` threshold).  The second condition keeps a mismatch that is
-    highly significant but confined to a few entries (a weak whirl at the top speeds, a runout seen on one probe of
+    entry off by ``peak_sigma`` or more (the threshold of :func:`bearing_id.diagnose.locate.locate_mismatch`).  The
+    second condition keeps a mismatch that is highly significant but confined to a few entries (a weak whirl at the top speeds, a runout seen on one probe of
     many) from being averaged away by the many entries the model already fits.
 """
 from __future__ import annotations
