@@ -280,7 +280,7 @@ def _probe_text(p) -> str:
 
 
 def locate_mismatch(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel_tol: float = 0.02,
-           threshold: float = 5.0, slow_roll_rpm: float = 400.0) -> list[Mismatch]:
+                    threshold: float = 5.0, slow_roll_rpm: float = 400.0) -> list[Mismatch]:
     """
     Group the residuals ``measured - predicted`` and report the significant groups.
 

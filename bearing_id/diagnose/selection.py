@@ -30,8 +30,9 @@ Selection (:func:`select`)
     falls below ``dbic_min``, validation fails, or the current residual is no longer significant: chi2 per residual
     below ``chi2_floor`` (with the model tolerance in sigma a clean recording sits near 1 or below) *and* no single
     entry off by ``peak_sigma`` or more (the threshold of :func:`bearing_id.diagnose.locate.locate_mismatch`).  The
-    second condition keeps a mismatch that is highly significant but confined to a few entries (a weak whirl at the top speeds, a runout seen on one probe of
-    many) from being averaged away by the many entries the model already fits.
+    second condition keeps a mismatch that is highly significant but confined to a few entries (a weak whirl at the
+    top speeds, a runout seen on one probe of many) from being averaged away by the many entries the model already
+    fits.
 """
 from __future__ import annotations
 
