@@ -415,9 +415,10 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
             'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip',
             'pydantic': 'python3-pydantic2-pip', 'pydantic_core': 'python3-pydantic2-pip'}
     own = yaml.safe_load((REPO / 'rosdep' / 'bearing_id.yaml').read_text())
-    assert own == {'python3-pint-pip': {'*': {'pip': {'packages': ['pint']}}},
-                   'python3-mcap-pip': {'*': {'pip': {'packages': ['mcap']}}},
-                   'python3-pydantic2-pip': {'*': {'pip': {'packages': ['pydantic']}}}}
+    pip_keys = {'python3-pint-pip': 'pint', 'python3-mcap-pip': 'mcap', 'python3-pydantic2-pip': 'pydantic',
+                'python3-import-linter-pip': 'import-linter', 'python3-threadpoolctl-pip': 'threadpoolctl',
+                'python3-pytest-xdist-pip': 'pytest-xdist'}
+    assert own == {k: {'*': {'pip': {'packages': [v]}}} for k, v in pip_keys.items()}
     imported: dict[str, str] = {}
     for f in sorted((REPO / 'bearing_id').rglob('*.py')):
         for n in ast.walk(ast.parse(f.read_text(), str(f))):

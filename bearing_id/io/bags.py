@@ -67,6 +67,7 @@ def _msg_dir_candidates() -> list[Path]:
         for loc in spec.submodule_search_locations:
             prefixes.append(Path(loc).resolve().parents[3])
     cands += [p / 'share' / PACKAGE / 'msg' for p in prefixes]
+    cands.append(Path(sys.prefix) / 'share' / 'bearing_id' / 'msg')     # `pip install .` (setup.py's data_files)
     return cands
 
 
@@ -74,7 +75,8 @@ def msg_files() -> dict[str, Path]:
     """
     Return ``{'bearing_id_msgs/msg/Name': path}`` of the interface definitions; ``BagError`` when none are found.
 
-    The source tree first, then the installed ``share/bearing_id_msgs/msg``.
+    The source tree first, then the installed ``share/bearing_id_msgs/msg``, then the copy a plain ``pip install``
+    puts in ``share/bearing_id/msg``.
     """
     for d in _msg_dir_candidates():
         files = sorted(d.glob('*.msg')) if d.is_dir() else []
