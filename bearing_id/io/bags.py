@@ -42,6 +42,14 @@ import sys
 import tempfile
 import time
 
+from mcap.exceptions import EndOfFile, InvalidMagic
+from mcap.records import Channel, Chunk, Message, Schema
+from mcap.stream_reader import breakup_chunk, StreamReader
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
+from rosbags.rosbag2.metadata import parse_qos
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+
 from ..config.params import load_yaml_bounded, ParamError
 
 PACKAGE = 'bearing_id_msgs'
@@ -87,8 +95,6 @@ def msg_files() -> dict[str, Path]:
 
 def make_typestore():
     """Make a new ROS 2 Jazzy typestore with the bearing_id_msgs types registered from their .msg text."""
-    from rosbags.typesys import get_types_from_msg, get_typestore, Stores
-
     ts = get_typestore(Stores.ROS2_JAZZY)
     types = {}
     for name, path in msg_files().items():
@@ -125,7 +131,6 @@ def _qtime(v):
 
     None is unspecified = 0.
     """
-    from rosbags.interfaces import QosTime
     if v is None:
         return QosTime(0, 0)
     if isinstance(v, dict):
@@ -148,7 +153,6 @@ def qos_profile(reliability='reliable', durability='volatile', depth: int = 10, 
     ...) or as the rclpy enums; durations as nanoseconds, rclpy Durations, (sec, nsec) or {sec, nsec}; None =
     unspecified.
     """
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
     return Qos(_enum(QosHistory, history), max(0, int(depth)), _enum(QosReliability, reliability),
                _enum(QosDurability, durability), _qtime(deadline), _qtime(lifespan),
                _enum(QosLiveliness, liveliness), _qtime(liveliness_lease_duration),
@@ -203,7 +207,6 @@ def _serialize(ts, msg, msgtype: str) -> bytes:
 
 
 def _storage_plugin(storage: str):
-    from rosbags.rosbag2 import StoragePlugin
 
     s = str(storage).lower()
     if s == 'mcap':
@@ -231,8 +234,6 @@ class BagWriter:
 
     def __init__(self, path, storage: str = 'mcap', *, types=None, overwrite: bool = False,
                  flush_period: float | None = 1.0, fsync: bool = True):
-        from rosbags.rosbag2 import Writer, WriterError
-
         self.path = Path(path)
         self.storage = 'sqlite3' if str(storage).lower() in ('sqlite3', 'sqlite', 'db3') else str(storage).lower()
         self.types = types if types is not None else typestore()
@@ -406,7 +407,6 @@ def _check_metadata(path: Path) -> None:
 
 
 def _open_reader(path: Path):
-    from rosbags.rosbag2 import Reader
 
     if not path.exists():
         raise BagError(f'{path}: no such bag')
@@ -439,8 +439,6 @@ def _open_reader(path: Path):
 
 def _ensure_types(ts, reader, path: Path, conns) -> None:
     """Register types the bag defines but the typestore lacks (from the bag's embedded .msg definitions)."""
-    from rosbags.typesys import get_types_from_msg
-
     missing = {c.msgtype: c for c in conns if c.msgtype not in ts.types}
     for msgtype, c in missing.items():
         md = getattr(c, 'msgdef', None)
@@ -645,11 +643,6 @@ def _mcap_events(path: Path):
     or the first incomplete or damaged record: a recorder killed mid-write).  Chunk CRCs are checked; a chunk
     declaring more than :data:`MAX_CHUNK_BYTES` uncompressed is refused before it is decompressed.
     """
-    from mcap.exceptions import EndOfFile, InvalidMagic
-    from mcap.records import Channel, Chunk, Message, Schema
-    from mcap.stream_reader import breakup_chunk, StreamReader
-    from rosbags.rosbag2.metadata import parse_qos
-
     schemas: dict[int, Schema] = {}
     channels: dict[int, tuple[str, str]] = {}
     valid, reason = 0, 'end of file'
@@ -717,7 +710,6 @@ def salvage_bag(path) -> Salvage:
             raise BagError(f'{path}: {part.name} is not a readable mcap file ({sv.stopped})')
         return sv
 
-    from rosbags.rosbag2.metadata import parse_qos
     try:
         con = sqlite3.connect(str(part))        # read-write: a hot journal of the killed transaction is rolled back
         try:
@@ -744,7 +736,6 @@ def salvage_bag(path) -> Salvage:
 
 
 def _salvage_typestore(sv: Salvage, types=None):
-    from rosbags.typesys import get_types_from_msg
     ts = types if types is not None else typestore()
     missing = [t for t in sv.topics.values() if t.msgtype not in ts.types]
     if missing and types is None:
