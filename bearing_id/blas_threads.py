@@ -4,11 +4,8 @@ One BLAS thread per process, unless the user chose otherwise: imported for its e
 The linear algebra here is small and dense (matrices of at most a few hundred rows: 44-268 DOF models, 2x2 to 20x20
 least-squares blocks, tall-skinny QR of one window).  On such sizes a BLAS thread pool costs more than it gains:
 OpenBLAS's threads spin and hand work back and forth, numpy and scipy each bring an OpenBLAS with its own pool, and
-with the three nodes (or the report's two figure workers) on two cores they also fight each other.  Measured on this
-project's 2-core machine on the 9-speed benchmark files (README, "Speed"; OPENBLAS_NUM_THREADS=2 is OpenBLAS's
-default here): ``bearing-id identify --method direct`` 4.4-4.8 s CPU against 2.3-2.4 s with one thread, wall no
-shorter; ``bearing-id diagnose`` 4.4-6.0 s against 2.7-2.9 s; ``--method physical`` while it still loaded scipy
-8.6-9.8 s CPU and 5.1-5.6 s wall against 2.0-2.5 s and 2.1-2.6 s.
+with the three nodes on two cores they also fight each other: on the 9-speed benchmark files (benchmarks/bench_speed.py)
+a pool of two doubled the CPU of ``bearing-id identify`` and ``diagnose`` without shortening their wall time.
 
 The thread counts are read by the BLAS library when numpy is first imported, so this module must be imported before
 numpy: the console scripts (:mod:`bearing_id.cli`, the nodes' package :mod:`bearing_id.nodes`) import it first.  A

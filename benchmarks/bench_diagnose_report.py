@@ -6,7 +6,7 @@ Cases (each a fresh process, as a user runs it):
 * ``diagnose``: the demo recordings (``bearing-id simulate`` of params/rig.yaml: runs A and B, 9 speeds, 2 s dwells,
   ramps; written to ``--data`` once), with the noise-floor check (default) and with ``--no-noise-floor``;
 * ``diagnose --report DIR`` on the same recordings (the page with the before / after, every figure as PNG);
-* ``report``: ``bearing-id report bags/unbalance_ab_sweep`` (the README's demo page), and the plant-like example
+* ``report``: ``bearing-id report bags/unbalance_ab_sweep`` (the demo recording's page), and the plant-like example
   (``bearing-id simulate --params params/examples/plant_like.yaml``: 33 elements, a pedestal, a seal, +-45 deg probe
   pairs at three stations, runs A, F13x, F13y, F21x, F21y x 6 speeds; written to ``--plant-data`` once).
 

@@ -186,7 +186,7 @@ CHILD = r"""
 import json, os, sys, time
 sys.path.insert(0, {root!r})
 {setup}
-def cpu():  # this process and its reaped children (the forked workers of bearing_id.commands.workers), in us
+def cpu():  # this process and its reaped children, in us
     import resource
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return time.process_time() + r.ru_utime + r.ru_stime

@@ -1,5 +1,5 @@
 """
-Make the README's worked example: recordings of the default rig with two effects the nominal model lacks.
+Make the worked example of docs/METHODS.md: recordings of the default rig with two effects the nominal model lacks.
 
 Hidden in the truth (simulator side, bearing_id.simulation.effects): a flexible pedestal under bearing 2 (node 10),
 vertical, k = 2.5e5 N/m, c = 40 N s/m; and 3 um of electrical runout at 120 deg on probe p6y.  Everything else is the

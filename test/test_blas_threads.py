@@ -1,7 +1,7 @@
 """
 The console scripts start numpy with one BLAS thread unless the user chose a thread count (bearing_id.blas_threads).
 
-Why it matters (README, "Speed"; bearing_id/blas_threads.py): with OpenBLAS's default pool ``bearing-id identify
+Why it matters (bearing_id/blas_threads.py): with OpenBLAS's default pool ``bearing-id identify
 --method direct`` of the 9-speed benchmark files took 4.4-4.8 s CPU on this project's 2-core machine, 2.3-2.4 s with
 one thread.
 """

@@ -1,5 +1,5 @@
 """
-The README's main command, shortened: `python -m bearing_id.demo`.
+`make demo`'s command, shortened: `python -m bearing_id.demo`.
 
 It starts the three nodes as separate processes (localhost-only DDS, own domain id), identifies, prints identified vs
 true, writes the plot and stops them cleanly.  The truth check is the live route's accuracy from one probe (issue 9

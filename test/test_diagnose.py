@@ -173,7 +173,7 @@ def test_augmented_measurement_corrections_invert_the_truth_probe_effects():
     """
     Check that the augmented model's phasor correction undoes truth runout and a turned probe.
 
-    Runout and a turned probe applied in the time domain (truth_effects) are removed by the augmented model's
+    Runout and a turned probe applied in the time domain (simulation.effects) are removed by the augmented model's
     phasor correction (a different route: harmonic domain, inverse map).
     """
     from bearing_id.signals import harmonics as signals

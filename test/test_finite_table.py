@@ -5,7 +5,7 @@ References (independent of the table):
 * the direct finite-volume Reynolds solver (bearings/finite.py) on the table's grid and on its default grid, at
   Sommerfeld numbers between the table's samples, with the stated tolerances of finite_table.py;
 * the closed-form short bearing (bearings/short.py) for the spline's representation error;
-* simulated data with known truth parameters for the fit (harmonics.simulate_data, a linear solve per speed).
+* simulated data with known truth parameters for the fit (simulation.rig.simulate_data, a linear solve per speed).
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ paper method's static offset, and no import circle in identify/.
 Independent references only (never numbers copied from the code's output):
 * the chi-square quantile against scipy.stats (imported here, in the test, not by the package);
 * Monte-Carlo truth: linear-Gaussian problems drawn with numpy whose estimator distribution is known in closed form,
-  and simulated rigs whose true coefficients/parameters are known (rig.simulate_run / harmonics.simulate_data);
+  and simulated rigs whose true coefficients/parameters are known (rig.simulate_run / rig.simulate_data);
 * the Kalman filter's NIS against its chi-square band (kalman.nis_band, scipy.stats);
 * the import graph read from the source files with ast, and fresh interpreters.
 """

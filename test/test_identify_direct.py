@@ -171,7 +171,7 @@ def test_unknown_option_is_refused(rig, model):
 # ------------------------------------------------------------------------------------------------ the rig's schedule
 # Time-domain recordings on the rig's own schedule (2 s dwells joined by 0.5 s ramps, params/rig.yaml): the rotor's
 # lightly damped ~33 Hz and ~103 Hz modes ring after every speed change.  Reference: the exact steady-state phasors
-# of the truth system (identify.harmonics.simulate_data, a linear solve, no time series).
+# of the truth system (simulation.rig.simulate_data, a linear solve, no time series).
 # The whole default schedule (600..3000 rpm): the target is the mean over the benchmark's speeds.
 
 

@@ -366,11 +366,7 @@ def small_npz(tmp_path_factory):
 
 
 def test_cli_report(small_npz, tmp_path, capsys):
-    """
-    `bearing-id report`: exit 0 and the page (figures rendered by the worker processes); bad input exit 2.
-
-    (The README's timing is measured on the demo recording by hand: this machine is shared.)
-    """
+    """`bearing-id report`: exit 0 and the page with its figures; bad input exit 2."""
     from bearing_id.cli import main
     assert main(['report', *small_npz, '--out', str(tmp_path / 'r'), '--png']) == 0
     out = capsys.readouterr().out

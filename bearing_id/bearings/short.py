@@ -158,8 +158,8 @@ def ocvirk_batch(D: float, L: float, c, mu, W, speed) -> tuple[np.ndarray, np.nd
     Short-bearing K [N/m], C [N s/m] in our frame, (..., 2, 2), for arrays of clearance, viscosity, load and speed.
 
     One bearing geometry (D, L [m]); c [m], mu [Pa s], W [N] (acting on the journal along -y) and speed [rad/s] > 0
-    broadcast to a common shape (...).  The computation of :func:`ocvirk` (which is this for one entry), for the
-    physical method's fits, which need the coefficients at every speed and difference step of an iteration.
+    broadcast to a common shape (...).  The computation of :func:`ocvirk` (which is this for one entry), for
+    :func:`bearing_id.bearings.coefficients_at` (a bearing's coefficients at every speed of a prediction).
     """
     c, mu, W, speed = (np.asarray(v, dtype=float) for v in np.broadcast_arrays(c, mu, W, speed))
     check_inputs(D, L, c, mu, W, speed)

@@ -1,7 +1,7 @@
 """
 The recordings the offline commands read (``identify``, ``diagnose``): files or a rosbag2 bag.
 
-``.npz`` files (``bearing-id simulate``, :meth:`bearing_id.signals.recording.Recording.save_npz`), ``.csv`` DAQ exports
+``.npz`` files (``bearing-id simulate``, :func:`bearing_id.io.recordings.save_npz`), ``.csv`` DAQ exports
 (:mod:`bearing_id.io.daq`) or a rosbag2 bag.
 
 Every way a file can be wrong -- missing, unreadable, truncated, corrupt, hostile (a zip bomb, a crafted header),
@@ -51,7 +51,7 @@ def precheck_bag(path: Path) -> dict:
     """
     Open a bag (metadata, index) and check it has the topics identification needs; ParamError if not.
 
-    Done before the (slower) full read and the import of the signal-processing modules.
+    Done before the (slower) full read.
     """
     try:
         topics = bag_topics(path)

@@ -1,5 +1,5 @@
 """
-The QoS of the bearing_id topics (the choice, documented also in params/*.yaml and the README).
+The QoS of the bearing_id topics (the choice, documented also in params/*.yaml and docs/ROS.md).
 
 * displacement blocks (``/rotor/displacement``, ``/bearing_id/bearing_displacement``, ``/bearing_id/innovation``):
   RELIABLE, KEEP_LAST with a deep queue (``QOS_STREAM_DEPTH`` blocks = 40 s of data at 1024 samples/10,240 Hz):

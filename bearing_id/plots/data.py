@@ -332,7 +332,8 @@ def journal_positions(bearing_fn, speeds) -> dict | None:
     """
     Return {node: {'xy' (ns, 2) m, 'clearance' m, 'eps' (ns,), 'attitude' (ns,) rad}} from a bearing model.
 
-    The model needs ``solutions(speed)`` (:class:`bearing_id.supports.BearingFunction`); None for a model without one.
+    The model needs ``solutions(speed)`` (:class:`bearing_id.rotor.supports.BearingFunction`); None for a model
+    without one.
     """
     sol = getattr(bearing_fn, 'solutions', None)
     if sol is None:
