@@ -16,6 +16,7 @@ EXCLUDE = ['build', 'install', 'log', 'out']
 
 @pytest.mark.flake8
 @pytest.mark.linter
+@pytest.mark.slow(reason='flake8 with its plugins over every file of the repository (~8-14 s)')
 def test_flake8(monkeypatch):
     monkeypatch.chdir(ROOT)
     rc, errors = main_with_errors(argv=['--linelength', '120', '--exclude', *EXCLUDE])
