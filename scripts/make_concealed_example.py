@@ -9,9 +9,9 @@ default simulated rig of params/rig.yaml (bearings 25 % off theory, 1 % noise, 6
     .venv/bin/bearing-id diagnose out/example/run_A.npz out/example/run_B.npz --json out/example/diagnosis.json \
         --report out/example/report --identify physical
 """
+import argparse
 import math
 from pathlib import Path
-import sys
 
 from bearing_id.config.params import load_rig
 from bearing_id.io.recordings import save_npz
@@ -30,4 +30,6 @@ def main(out='out/example'):
 
 
 if __name__ == '__main__':
-    main(*sys.argv[1:])
+    ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    ap.add_argument('out', nargs='?', default='out/example', help='output directory (default: %(default)s)')
+    main(ap.parse_args().out)

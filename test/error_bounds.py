@@ -1,9 +1,12 @@
 """
 Error bounds the tests derive their tolerances from, and an eigenvalue oracle (not a test module).
 
-* :func:`solve_tol`: two solutions of one linear system by backward-stable solves (LU with partial pivoting,
-  Higham 2002 thm. 9.4, growth factor of a few) differ by at most 8 n eps cond(Z) ||q|| each.
+* :func:`solve_tol`: a linear solve by LAPACK (LU with partial pivoting) is off by at most p(n) eps cond(Z) ||q||
+  (LAPACK Users' Guide, 3rd ed., section 4.4.1, the approximate error bound for linear systems; p(n) = P_N as for
+  the eigenvalues below); two solutions of one system differ by at most the sum of their bounds.
 * :func:`sum_tol`: a floating-point sum of terms is within n eps sum |terms| of the exact one (Higham 2002 eq. 4.4).
+* :func:`richardson_check`: a central difference against an analytic derivative, with Richardson's truncation
+  estimate and the evaluation's rounding (derivation in its docstring).
 * :func:`eigen_with_bounds`: the eigenvalue oracle below.
 * :func:`state_backward_error`: backward error of a computed mode in the oracle's balanced state matrix; a
   backward-stable eigensolver keeps it below n eps (the classic p(n) = n, n the state dimension).
@@ -44,14 +47,45 @@ def eigen_with_bounds(A: np.ndarray):
 
 
 def solve_tol(*Zs) -> float:
-    """Relative (to ||q||) agreement of the solutions of the systems ``Zs`` (n, n) by backward-stable solves."""
-    return sum(8 * Z.shape[0] * EPS_MACH * np.linalg.cond(Z) for Z in Zs)
+    """Relative (to ||q||) agreement of the solutions of the systems ``Zs`` (n, n) by LAPACK solves [-]."""
+    return sum(P_N * EPS_MACH * np.linalg.cond(Z) for Z in Zs)
 
 
 def sum_tol(terms) -> float:
     """Absolute error bound n eps sum |terms| of a floating-point sum of ``terms`` (any shape, summed entirely)."""
     t = np.abs(np.asarray(terms))
     return t.size * EPS_MACH * float(np.sum(t))
+
+
+RICCATI_RESIDUAL = 1e-10    # relative Riccati residual bearing_id.estimation.kalman.steady_state_gain accepts
+
+
+def richardson_check(fd_of, h: float, exact, acc: float, scale: float) -> tuple[float, float]:
+    """
+    Assert that the central difference ``fd_of(h / 2)`` is the derivative ``exact`` within its derived error.
+
+    ``fd_of(h)`` = (f(x + h) - f(x - h)) / (2 h); ``acc``: relative accuracy of one evaluation of f, ``scale``: the
+    size of f (max |f|), so each evaluation is off by at most acc scale and fd(h) by nu(h) = acc scale / h.  With
+    fd(h) = f' + c h^2 + O(h^4) + N(h), |N(h)| <= nu(h): fd(h) - fd(h/2) = 3 c h^2 / 4 + N(h) - N(h/2), so
+    |fd(h/2) - f'| <= |fd(h) - fd(h/2)| / 3 + (nu(h) + nu(h/2)) / 3 + nu(h/2) = |fd(h) - fd(h/2)| / 3 + 3 nu(h) (+ the
+    O(h^4) rest).  Allowed: 2 |fd(h) - fd(h/2)| (6x the estimate, for the O(h^4) rest) + 3 nu(h).
+    Returns (error, tolerance).
+    """
+    f1, f2 = np.asarray(fd_of(h)), np.asarray(fd_of(h / 2))
+    err = float(np.abs(f2 - exact).max())
+    tol = 2 * float(np.abs(f1 - f2).max()) + 3 * acc * scale / h
+    assert err <= tol, (err, tol)
+    return err, tol
+
+
+def lstsq_acc(cond: float) -> float:
+    """
+    Relative accuracy of a least-squares solve (QR or SVD) with condition number ``cond`` [-].
+
+    P_N eps (cond + cond^2): LAPACK Users' Guide, 3rd ed., section 4.5.1 (the approximate error bound of the linear
+    least squares problem) with the residual term bounded by cond^2 (zero for a consistent system: an over-estimate).
+    """
+    return P_N * EPS_MACH * (cond + cond * cond)
 
 
 def nearest(lam: np.ndarray, value: complex) -> int:

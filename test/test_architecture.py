@@ -28,7 +28,6 @@ def test_import_contracts_are_kept():
 
 def test_a_broken_contract_is_reported(tmp_path):
     """The check can fail: a physics module that imports the CLI breaks the layers contract."""
-    import shutil
     shutil.copytree(ROOT / 'bearing_id', tmp_path / 'bearing_id', ignore=shutil.ignore_patterns('__pycache__'))
     shutil.copy(ROOT / 'pyproject.toml', tmp_path / 'pyproject.toml')
     conv = tmp_path / 'bearing_id' / 'rotor' / 'elements.py'

@@ -120,7 +120,8 @@ def test_coefficients_at_many_speeds_are_each_speeds(model):
             for got, name in ((K[j], 'K'), (C[j], 'C')):
                 tol, ref = batch_tol(float(b.diameter), float(b.length), 60e-6, 0.04, 9.7, float(w[j]), name)
                 assert np.abs(got - ref).max() <= tol
-        else:                                         # the same call at each speed
-            assert np.array_equal(K[j], Kr) and np.array_equal(C[j], Cr)
+        else:                                         # the same call at each speed: a few ulp (another SIMD path)
+            for got, ref in ((K[j], Kr), (C[j], Cr)):
+                assert np.abs(got - ref).max() <= 8 * np.spacing(np.abs(ref).max())
     with pytest.raises(ValueError, match='speed'):
         bearings.coefficients_at(b, -w, 9.7, model=model)

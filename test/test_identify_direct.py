@@ -25,6 +25,7 @@ from bearing_id.identify.direct import beta_to_coeffs, Case, coeffs_to_beta, fit
 from bearing_id.identify.direct import SpeedResponse
 from bearing_id.rotor.assembly import dynamic_stiffness, harmonic_response, probe_matrix
 from bearing_id.simulation.rig import scenario, simulate_data
+from error_bounds import solve_tol
 import numpy as np
 import pytest
 
@@ -62,8 +63,8 @@ def test_jacobian_matches_finite_differences(model):
 
     Tolerance per coefficient k (derived): Z is linear in beta, so y(beta + t e_k) = sum_n (-t)^n P (Z^-1 dZ_k)^n q
     and the central difference with step h is off the derivative by h^2 |P (Z^-1 dZ_k)^3 q| (+ O(h^4): twice that
-    is allowed), plus the rounding of the two solves, eps cond(Z) max|y| / h, plus the route's own bound
-    eps cond(Z) max|dy| (test/test_direct_fast.py).
+    is allowed), plus the rounding of the two solves, s max|y| / h, plus the route's own bound s max|dy|, with s the
+    backward-stable solve's bound 8 n eps cond(Z) (test/error_bounds.py solve_tol).
     """
     W = rpm_to_rad_s(1700.0)
     nodes = (2, 10)
@@ -74,8 +75,7 @@ def test_jacobian_matches_finite_differences(model):
     F = np.stack([c.F for c in cases], axis=1)
     Z = dynamic_stiffness(model, W, W, TRUTH_ARB)
     Z_empty = dynamic_stiffness(model, W, W, {n: (np.zeros((2, 2)), np.zeros((2, 2))) for n in nodes})
-    condZ = np.linalg.cond(Z)
-    eps = np.finfo(float).eps
+    s = solve_tol(Z)
 
     def y_of(b):
         return (P @ np.linalg.solve(dynamic_stiffness(model, W, W, beta_to_coeffs(b, nodes)), F)).T.reshape(-1)
@@ -91,8 +91,7 @@ def test_jacobian_matches_finite_differences(model):
             third = np.linalg.solve(Z, dZ @ third)
         h = 1e-5 * scale[k]
         fd = (y_of(beta + h * e) - y_of(beta - h * e)) / (2 * h)
-        tol = (2 * h ** 2 * np.abs(P @ third).max() + eps * condZ * np.abs(y0).max() / h
-               + eps * condZ * np.abs(dy[:, k]).max())
+        tol = 2 * h ** 2 * np.abs(P @ third).max() + s * np.abs(y0).max() / h + s * np.abs(dy[:, k]).max()
         assert np.abs(dy[:, k] - fd).max() <= tol, (k, np.abs(dy[:, k] - fd).max(), tol)
 
 

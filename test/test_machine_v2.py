@@ -19,6 +19,7 @@ from bearing_id.config.params import default_rig_path, load_rig, PACKAGE_PARAMS,
 from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
 from bearing_id.rotor.modal import free_free_frequencies
 from bearing_id.rotor.supports import bearing_fn
+from error_bounds import solve_tol
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -348,9 +349,9 @@ def test_pedestal_in_series_equals_the_condensed_impedance():
         i = cv.dof_index(30, 'x', bare.n_nodes)
         Z[i:i + 2, i:i + 2] += Keff
         q_cond = np.linalg.solve(Z, F[:bare.ndof])
-        # two backward-stable solves (LU, partial pivoting): each off by a few EPS times its condition number (the
-        # 2 x 2 condensation, condition ~1.5, adds a few EPS)
-        tol = 4 * EPS * (np.linalg.cond(Z_full) + np.linalg.cond(Z))
+        # two backward-stable solves (LU, partial pivoting; test/error_bounds.py solve_tol) and the 2 x 2
+        # condensation's own solve
+        tol = solve_tol(Z_full, Z, Zf + Zs)
         assert np.max(np.abs(q_full - q_cond)) <= tol * np.max(np.abs(q_cond))
 
 

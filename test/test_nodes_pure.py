@@ -10,7 +10,7 @@ from bearing_id.io import recordings
 from bearing_id.io.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
 from bearing_id.io.record import Record
 from bearing_id.nodes.monitor import StreamMonitor
-from bearing_id.nodes.specs import ParamSpec, validate_values, with_common, yaml_block
+from bearing_id.nodes.specs import ParamSpec, validate_values, yaml_block
 import numpy as np
 import pytest
 
@@ -174,27 +174,6 @@ def test_csv_round_trip_with_units_and_bad_headers(tmp_path):
     bad.write_text('# sample_rate: 100\n# channels: p6x@6q\nt,angle,p6x\n0,0,1\n')
     with pytest.raises(DaqError, match='p6x@6q'):
         read_csv(bad)
-
-
-@pytest.mark.parametrize('node', ['sensor_driver', 'kf_estimator', 'identifier'])
-def test_params_yaml_documents_every_parameter_with_its_default(node):
-    """params/<node>.yaml holds every declared parameter (set ones equal the default, unset ones commented)."""
-    import importlib
-
-    from bearing_id.config.params import PACKAGE_PARAMS
-    import yaml
-    mod = importlib.import_module(f'bearing_id.nodes.{node}')
-    text = (PACKAGE_PARAMS / f'{node}.yaml').read_text()
-    d = yaml.safe_load(text)['/**']['ros__parameters']
-    specs = with_common(mod.SPECS)
-    for s in specs:
-        if s.default is None:
-            assert f'# {s.name}:' in text and s.name not in d
-        else:
-            assert d[s.name] == (list(s.default) if isinstance(s.default, tuple) else s.default), s.name
-        assert s.description.split(' (')[0][:40] in text.replace('\n    # ', ' '), s.name
-    assert set(d) <= {s.name for s in specs}
-    validate_values(specs, d)
 
 
 @pytest.mark.parametrize('pauses', ['none', 'after every block', 'after every 7th block'])

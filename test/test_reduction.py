@@ -15,9 +15,11 @@ import dataclasses
 from bearing_id.config.params import load_rig, Probe
 from bearing_id.estimation import kalman
 from bearing_id.identify import harmonics, paper
+from bearing_id.identify.lsq import coefficient_scales
 from bearing_id.rotor import reduction
 from bearing_id.rotor.assembly import dynamic_stiffness, RotorModel
 from bearing_id.simulation import rig as rigmod
+from error_bounds import RICCATI_RESIDUAL, richardson_check, solve_tol
 import numpy as np
 import pytest
 import scipy.linalg as sla
@@ -67,9 +69,8 @@ def test_transformation_and_left_inverse(setup):
 
 
 def _exact_bound(model, red, w, omega):
-    """Return the rounding of the two receptances when the reduction is exact: eps (cond Z + cond Z_r), relative."""
-    Z = dynamic_stiffness(model, w, omega, theory_fn(w))
-    return EPS * (np.linalg.cond(Z) + np.linalg.cond(red.dynamic_stiffness(w, omega, theory_fn(w))))
+    """Return the rounding of the two receptances when the reduction is exact: two solves' bounds, relative."""
+    return solve_tol(dynamic_stiffness(model, w, omega, theory_fn(w)), red.dynamic_stiffness(w, omega, theory_fn(w)))
 
 
 def test_guyan_static_receptance_is_exact(setup):
@@ -148,7 +149,6 @@ def test_reduced_jacobian_matches_finite_differences_on_the_reduced_filter(setup
     th = theory_fn(w)
     dz = paper.kf_phasor_jacobian(model, th, P6, w, X, F, FS, R=R, kf_rotor=red)
     th0 = paper.coeffs_to_theta(th, w, model.bearing_nodes)
-    from bearing_id.identify.lsq import coefficient_scales
     sc = coefficient_scales(th, w, model.bearing_nodes)
 
     def z_of(k, h):
@@ -158,14 +158,11 @@ def test_reduced_jacobian_matches_finite_differences_on_the_reduced_filter(setup
         co = {n: (K[i], C[i]) for i, n in enumerate(model.bearing_nodes)}
         return paper.kf_bearing_phasors(model, co, P6, w, X, F, FS, R=R, kf_rotor=red)
 
-    # Richardson's error estimate: fd(h/2) - f' ~ (fd(h) - fd(h/2)) / 3; allowed 2 |fd(h) - fd(h/2)| (the O(h^4)
-    # rest and the Riccati solution's ~1e-11 relative accuracy divided by the step)
+    # Richardson's error estimate plus the filter's rounding (test/error_bounds.py richardson_check)
     for k in (0, 5, 10, 15):
-        h = 2e-3 * sc[k]
-        fd1 = (z_of(k, h) - z_of(k, -h)) / (2 * h)
-        fd2 = (z_of(k, h / 2) - z_of(k, -h / 2)) / h
-        assert np.abs(fd2 - dz[..., k]).max() <= 2 * np.abs(fd1 - fd2).max()
-        assert np.abs(fd1 - fd2).max() <= 1e-4 * np.abs(dz[..., k]).max()       # the check has teeth
+        _, tol = richardson_check(lambda h: (z_of(k, h) - z_of(k, -h)) / (2 * h), 2e-3 * sc[k], dz[..., k],
+                                  RICCATI_RESIDUAL, np.abs(z_of(k, 0.0)).max())
+        assert tol <= 2e-4 * np.abs(dz[..., k]).max()       # the check has teeth
 
 
 def test_identify_paper_on_a_reduced_filter_reports_it_and_stays_close(setup):

@@ -10,7 +10,7 @@ Library call::
     d.as_json()                            # the JSON report (``bearing-id diagnose --json``)
 
 Pipeline: :mod:`.locate` (harmonic vectors, residuals, significance) -> :mod:`.predict` (model prediction with the
-bearing nuisance) -> :mod:`.effects` (candidate physics) -> :mod:`.select` (fit, BIC, held-out validation, greedy
+bearing nuisance) -> :mod:`.effects` (candidate physics) -> :mod:`.selection` (fit, BIC, held-out validation, greedy
 selection) -> :mod:`.floor` (identify's noise-floor misfit test on the result; the bearing model form tried there)
 -> :mod:`.report` (JSON, augmented params YAML, plots).
 

@@ -7,11 +7,11 @@ files after a node's SPECS changed.
 """
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 import importlib
 import math
 from pathlib import Path
-import sys
 import textwrap
 from typing import Any
 
@@ -231,7 +231,14 @@ NODES = ('sensor_driver', 'kf_estimator', 'identifier')
 
 if __name__ == '__main__':  # python -m bearing_id.nodes.specs [PARAMS_DIR]: regenerate params/<node>.yaml
     from bearing_id.nodes import specs as _specs  # the module the nodes' specs refer to, not this __main__ copy
-    _dir = Path(sys.argv[1]) if len(sys.argv) > 1 else _specs.PARAMS_DIR
+    _ap = argparse.ArgumentParser(prog='python -m bearing_id.nodes.specs',
+                                  description="regenerate params/<node>.yaml from the nodes' parameter specs "
+                                              '(each file keeps its comment header)')
+    _ap.add_argument('params_dir', nargs='?', type=Path, default=_specs.PARAMS_DIR,
+                     help='the directory holding <node>.yaml (default: %(default)s)')
+    _dir = _ap.parse_args().params_dir
+    if not _dir.is_dir():
+        _ap.error(f'{_dir} is not a directory')
     for _node in NODES:
         _node_specs = importlib.import_module(f'bearing_id.nodes.{_node}_core').SPECS
         _specs.write_params_file(_dir / f'{_node}.yaml', _node, _node_specs)
