@@ -716,13 +716,15 @@ import sys, time
 sys.path.insert(0, sys.argv[1])
 from bearing_id.io import bags
 ts = bags.typestore()
-w = bags.BagWriter(sys.argv[2], sys.argv[3], flush_period=0.25)
+w = bags.BagWriter(sys.argv[2], sys.argv[3], flush_period=None)
 log = open(sys.argv[4], "a", buffering=1)
 U = ts.types["std_msgs/msg/UInt32"]
 w.write("/rotor/excitation", "std_msgs/msg/UInt32", 1, U(data=0))
 for k in range(100000):
     w.write("/hostile/stream", "std_msgs/msg/UInt32", 2 + k, U(data=k))
-    log.write(f"{k} {time.time():.6f}\\n")
+    if k % 20 == 19:
+        w.flush()
+        log.write(f"{k}\\n")     # every message up to k is durable
     time.sleep(0.004)
 """
 
@@ -732,8 +734,9 @@ def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
     """
     Offline half of the kill test, both storages: a bag SIGKILLed mid-stream is read and recovered.
 
-    A BagWriter (flush every 0.25 s) SIGKILLed mid-stream leaves a bag that read_bag(salvage=True) reads and --recover
-    completes, missing at most the last flush period.
+    A BagWriter SIGKILLed mid-stream (it flushes every 20 messages and then logs the last one flushed) leaves a bag
+    that read_bag(salvage=True) reads and --recover completes, holding every message the writer had flushed: no
+    timing in the verdict (the periodic flush of `bearing-id record` is checked by the ROS test below).
     """
     from bearing_id.io import bags
     bag, log = tmp_path / 'bag', tmp_path / 'log'
@@ -741,23 +744,22 @@ def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
                              start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         t_end = time.monotonic() + 30
-        while time.monotonic() < t_end and (not log.exists() or len(log.read_text().splitlines()) < 200):
+        while time.monotonic() < t_end and (not log.exists() or len(log.read_text().splitlines()) < 10):
             assert child.poll() is None, child.stderr.read().decode()
             time.sleep(0.02)
-        t_kill = time.time()
         os.killpg(child.pid, 9)
         child.wait(10)
     finally:
         if child.poll() is None:
             os.killpg(child.pid, 9)
             child.wait(10)
-    sent = {int(k): float(t) for k, t in (ln.split() for ln in log.read_text().splitlines() if ln.count(' ') == 1)}
+    flushed = max(int(ln) for ln in log.read_text().splitlines() if ln.strip().isdigit())   # a cut line: smaller
     salvaged = [m.data for t, _, _, m in bags.read_bag(bag, salvage=True) if t == STREAM_TOPIC]
     rc, out, err, _ = run_cli(['record', bag, '--recover'])
     assert rc == 0, out + err
     got = [m.data for t, _, _, m in bags.read_bag(bag) if t == STREAM_TOPIC]
     assert got == salvaged == list(range(len(got)))
-    assert {k for k, t in sent.items() if t < t_kill - 0.5} <= set(got), (len(sent), len(got))
+    assert len(got) > flushed, (flushed, len(got))     # 0 ... flushed all there (a gap-free prefix, above)
     assert bags.offered_qos(bag)['/rotor/excitation'][0].durability.name == 'TRANSIENT_LOCAL'
 
 
@@ -779,7 +781,7 @@ def recording_session(tmp_path_factory):
     """
     Run two recorders against one peer; A (mcap) is SIGKILLed, B (sqlite3) is stopped on SIGINT.
 
-    A is SIGKILLed after 160 messages (~3.2 s into the stream), B records on until the peer has sent 220 and is stopped,
+    A is SIGKILLed after 300 messages (~6 s into the stream), B records on until the peer has sent 360 and is stopped,
     then stops on SIGINT.  Returns (bag A, kill wall time, bag B, peer log {k: wall time}, outputs).
     """
     py = rosutil.require_ros()
@@ -802,14 +804,14 @@ def recording_session(tmp_path_factory):
         return '\n'.join(x.output() for x in (p, a, b))
     try:
         t_end = time.monotonic() + 60
-        while time.monotonic() < t_end and lines() < 160:
+        while time.monotonic() < t_end and lines() < 300:
             assert p.alive() and a.alive() and b.alive(), outputs()
             time.sleep(0.02)
-        assert lines() >= 160, outputs()
+        assert lines() >= 300, outputs()
         t_kill = time.time()
         os.killpg(a.pid, 9)                       # SIGKILL the recorder (and its process group) mid-stream
         a.wait(10)
-        while time.monotonic() < t_end and lines() < 220:
+        while time.monotonic() < t_end and lines() < 360:
             time.sleep(0.02)
         rc_p, _ = p.interrupt(within=20)
         assert rc_p == 0, outputs()
@@ -839,7 +841,9 @@ def test_record_killed_with_sigkill_loses_at_most_about_a_second(recording_sessi
     with Reader(bag) as r:                    # stock rosbags reads the recovered bag
         assert {c.topic for c in r.connections} == {'/rotor/excitation', STREAM_TOPIC}
     assert got == list(range(len(got))), 'the readable messages are a gap-free prefix'
-    before = [k for k, t in sent.items() if t < t_kill - 1.5]    # 1 s flush period + delivery/scheduling slack
+    # the promise is time-based (flush every 1 s), so this check is too: 1 s flush period + 2 s for delivery and a
+    # loaded 2-core machine's scheduling
+    before = [k for k, t in sent.items() if t < t_kill - 3.0]
     assert len(before) > 50, (len(sent), t_kill)
     assert set(before) <= set(got), (len(before), len(got), outs[0])
     lost = t_kill - sent[got[-1]]
