@@ -16,6 +16,11 @@ import random
 import sys
 import time
 
+from bearing_id.config.params import load_rig
+from bearing_id.io import messages as M
+from bearing_id.nodes.sensor_driver_core import stream_messages
+from bearing_id.simulation import rig as R
+
 
 def _block_mutations(rng):
     def nan(m):
@@ -114,10 +119,6 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     seed, count = int(argv[0]), int(argv[1])
     rng = random.Random(seed)
-    from bearing_id.simulation import rig as R
-    from bearing_id.io import messages as M
-    from bearing_id.nodes.sensor_driver_core import stream_messages
-    from bearing_id.config.params import load_rig
     from bearing_id_msgs.msg import DisplacementBlock, Excitation, RotorSpeed
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy

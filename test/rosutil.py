@@ -23,8 +23,10 @@ Run as a script it is a ROS peer for the transport tests (``python rosutil.py pu
 """
 from __future__ import annotations
 
+import array
 import fcntl
 import functools
+import importlib
 import json
 import math
 import os
@@ -361,9 +363,6 @@ def msg_from_dict(msgtype: str, values: dict):
 
     Independent of bearing_id.io.messages, so the transport tests check the wire, not our converters.
     """
-    import array
-    import importlib
-
     parts = msgtype.split('/')  # 'pkg/msg/Name' or 'pkg/Name'
     pkg, name = parts[0], parts[-1]
     cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
@@ -439,7 +438,6 @@ def _peer(role: str, spec_path: str) -> int:
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
     rclpy.init()
     node = rclpy.create_node(f'bearing_id_test_{role}_{os.getpid()}')
-    import importlib
     received: dict = {}
     keep = []
     try:

@@ -10,6 +10,7 @@ process goes through test/rosutil.py (localhost-only DDS, own domain id, kill ti
 """
 from __future__ import annotations
 
+import array
 import json
 import math
 from pathlib import Path
@@ -28,8 +29,6 @@ BLOCKS_PER_SPEED = int(DWELL * 10240 / BLOCK)      # 10
 # ------------------------------------------------------------------------------------------------ peer process
 def _inject(msgs, fault: str, arg):
     """Apply ``fault`` to the (topic, t_ns, msg, end_ns) list; returns the new list."""
-    import array
-
     def disp(seq):
         return next(i for i, m in enumerate(msgs) if m[0] == '/rotor/displacement' and m[2].sequence == seq)
 
@@ -139,6 +138,12 @@ if __name__ == '__main__':
 
 # ------------------------------------------------------------------------------------------------ tests
 import agreement  # noqa: E402
+from bearing_id.config.params import load_rig  # noqa: E402
+from bearing_id.identify import harmonics, identify  # noqa: E402
+from bearing_id.io.record import Record  # noqa: E402
+from bearing_id.io.recordings import load_npz, save_npz  # noqa: E402
+from bearing_id.rotor.assembly import RotorModel  # noqa: E402
+from bearing_id.simulation import rig as R  # noqa: E402
 import pytest  # noqa: E402
 import rosutil  # noqa: E402
 
@@ -148,9 +153,6 @@ pytestmark = pytest.mark.ros
 @pytest.fixture(scope='module')
 def recordings(tmp_path_factory):
     """Write runs A and B of the rig, 1200 and 2400 rpm, 1 s each (npz, written once)."""
-    from bearing_id.io.recordings import save_npz
-    from bearing_id.simulation import rig as R
-    from bearing_id.config.params import load_rig
     rig = load_rig()
     d = tmp_path_factory.mktemp('recs')
     return [str(save_npz(R.simulate_run(rig, r, speeds_rpm=SPEEDS_RPM, dwell=DWELL), d / f'run_{r.id}.npz'))
@@ -189,7 +191,6 @@ def diag_text(got, name_part=''):
 
 
 def vectors(tmp_path):
-    from bearing_id.io.record import Record
     return [v for v in Record(tmp_path / 'record', fsync=False).entries('vector') if v['used']]
 
 
@@ -344,16 +345,11 @@ def test_identifier_restart_resumes_from_its_record(recordings, tmp_path):
     with identifier(tmp_path, env) as node:
         got = drive(recordings, tmp_path, 'runs', ['B'], env=env, until_speeds=2)
         finish(node)
-    from bearing_id.io.record import Record
     entries = Record(tmp_path / 'record', fsync=False).entries()
     sessions = [e for e in entries if e['type'] == 'session']
     assert sessions[-1]['resumed_vectors'] == 2
     assert len(set(got['coefficients'])) == 2         # A (from the record) + B (new) solved at both speeds
     # the resumed result equals an uninterrupted run on the same data (offline route on the same windows)
-    from bearing_id.identify import harmonics, identify
-    from bearing_id.config.params import load_rig
-    from bearing_id.io.recordings import load_npz
-    from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(
         [load_npz(p) for p in recordings]))

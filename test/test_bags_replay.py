@@ -14,6 +14,11 @@ from pathlib import Path
 import time
 
 import agreement
+from bearing_id.config.params import load_rig
+from bearing_id.identify import eq38_error
+from bearing_id.io import bags, messages
+from bearing_id.io.record import Record
+from bearing_id.simulation.rig import truth_bearing_fn
 import numpy as np
 import pytest
 import rosutil
@@ -35,7 +40,6 @@ def _node(name, params, env, timeout=120.0):
 
 def _coefficients_from_bag(path):
     """Latest BearingCoefficients per speed from a recorded bag (rosbags only, no rclpy in this process)."""
-    from bearing_id.io import bags, messages
     out = {}
     for _, _, _, msg in bags.read_bag(path, ['/bearing_id/coefficients']):
         d = messages.coefficients_from_msg(msg)
@@ -51,7 +55,6 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0, set
     close, so a speed's first result may come from some of the runs only (its later solves, with every run, follow
     within ``SOLVE_AFTER`` plus the solve); the settle period waits for those.
     """
-    from bearing_id.io.record import Record
     t_end = time.monotonic() + timeout
     last_n, last_change = -1, time.monotonic()
     while time.monotonic() < t_end:
@@ -112,15 +115,12 @@ def test_unbalance_bag_physical_equals_offline_cli_and_truth(tmp_path):
     live, rec_out = replay_through_nodes(bag, 'physical', speeds, ['A', 'B'], tmp_path)
     ref = offline(bag, 'physical', tmp_path)
     assert len(ref) == len(speeds)
-    from bearing_id.config.params import load_rig
-    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     for r, d in zip(ref, agreement.by_speed(live, [r['speed_rad_s'] for r in ref])):
         assert d['method'] == 'physical'
         _coefficients_agree(d, r)
     # the truth, as well as the offline method gets it: paper eq. 38 error per group, both routes; the physical
     # method's targets from one probe (issue 4): <= 2 % stiffness, <= 3 % damping
-    from bearing_id.identify import eq38_error
     speeds_rad = sorted(live)
     live_coeffs = [live[s]['coeffs'] for s in speeds_rad]
     truths = [truth(s) for s in speeds_rad]
@@ -163,8 +163,6 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
     live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
                                          identifier_params={'segment_timeout': 0.01})
     ref = offline(bag, 'direct', tmp_path)
-    from bearing_id.config.params import load_rig
-    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(load_rig())
     z = []
     for r, d in zip(ref, agreement.by_speed(live, [r['speed_rad_s'] for r in ref])):

@@ -10,7 +10,9 @@ from bearing_id import bearings
 from bearing_id.bearings import short
 from bearing_id.config.params import load_rig
 from bearing_id.conventions import GRAVITY, rpm_to_rad_s, whirl_direction
-from bearing_id.rotor import supports
+from bearing_id.rotor import stability, supports
+from bearing_id.rotor.assembly import RotorModel, state_space
+from bearing_id.rotor.modal import campbell
 from error_bounds import eigen_with_bounds, EPS_MACH, solve_tol
 from film_oracle import short_film_force
 import numpy as np
@@ -116,7 +118,6 @@ def test_speed_must_be_positive(rig):
 
 def test_default_loads_are_the_rotor_weight_share(rig):
     """Loads from rotor statics: two symmetric bearings share the total weight, about 9.7 N each (paper rig)."""
-    from bearing_id.rotor.assembly import RotorModel
     fn = supports.bearing_fn(rig)
     model = RotorModel.from_params(rig)
     shaft_mass = rig.shaft.mass + sum(d.mass for d in rig.discs)
@@ -149,8 +150,6 @@ def test_bearing_fn_factors_override_and_cache(rig):
 
 def test_stability_threshold_short_rig(rig):
     """Ocvirk rig at mu = 0.03 Pa s whips from about 3800 rpm; the crossing is a real sign change of max Re."""
-    from bearing_id.rotor import stability
-    from bearing_id.rotor.assembly import RotorModel, state_space
     model = RotorModel.from_params(rig)
     fn = supports.bearing_fn(rig, model='short')
     th = stability.threshold_speed(model, fn, rpm_to_rad_s(10000))
@@ -172,9 +171,6 @@ def test_stability_threshold_short_rig(rig):
 
 def test_threshold_from_a_campbell_scan_equals_the_dense_search(rig):
     """The threshold bracketed on a Campbell grid (its max real parts) is the geometric-grid search's, to brentq's."""
-    from bearing_id.rotor import stability
-    from bearing_id.rotor.assembly import RotorModel, state_space
-    from bearing_id.rotor.modal import campbell
     model = RotorModel.from_params(rig)
     fn = supports.bearing_fn(rig, model='short')
     hi = rpm_to_rad_s(10000)

@@ -10,7 +10,7 @@ import json
 import math
 from pathlib import Path
 
-from bearing_id.bearings import finite, short
+from bearing_id.bearings import finite, finite_table, short
 from bearing_id.conventions import lit_to_xy
 import numpy as np
 import pytest
@@ -220,7 +220,6 @@ def test_gumbel_coefficients_are_smooth_in_sommerfeld_number():
 @pytest.mark.parametrize('LD', [1.0, 0.5])
 def test_shipped_gumbel_table_matches_direct_solver(LD):
     """Shipped Gumbel table (192 x 24) vs the direct Gumbel solver on that grid: K, C within 1e-3 (measured 4e-4)."""
-    from bearing_id.bearings import finite_table
     tab = finite_table.table_for(LD, build=False, cavitation='gumbel')
     assert tab is not None and tab.cavitation == 'gumbel' and tuple(tab.grid) == finite_table.TABLE_GRID
     L = LD * D

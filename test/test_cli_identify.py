@@ -1,9 +1,15 @@
 """`bearing-id identify` end to end on simulated .npz recordings: refusal (exit 1) and flagged output (exit 0)."""
+import argparse
 import json
+from pathlib import Path
 
+from bearing_id import plots
 from bearing_id.cli import main
+from bearing_id.commands import identify as cmd
+from bearing_id.config import defaults
 from bearing_id.config.params import load_rig
-from bearing_id.io.recordings import save_npz
+from bearing_id.io.recordings import load_npz, save_npz
+from bearing_id.nodes import identifier_core, kf_estimator_core
 from bearing_id.simulation import rig as rigmod
 import numpy as np
 import pytest
@@ -66,7 +72,6 @@ def test_allow_undetermined_prints_flagged_values_and_exits_0(npz_runs, capsys):
 def test_bearing_vectors_plot_draws_estimate_and_truth(tmp_path):
     # plots.bearing_vectors_figure with runs x speeds x bearings x (x, y): one estimated and one true line per run in
     # every amplitude/phase panel; amplitudes in um, phases in degrees (checked on the drawn data).
-    from bearing_id import plots
     speeds = np.array([100.0, 200.0, 300.0])
     est = np.zeros((2, 3, 2, 2), complex)
     est[...] = 2e-6 * np.exp(1j * np.pi / 6)
@@ -107,7 +112,6 @@ def test_default_method_identifies_the_default_simulated_data(npz_runs, capsys):
     doc = json.loads(out_json.read_text())
     assert doc['method'] == 'physical' and doc['requested'] == 'auto'
     assert all(r['auto']['method'] == 'physical' and 'design check' in r['auto']['reason'] for r in doc['results'])
-    from bearing_id.io.recordings import load_npz
     truth = load_npz(paths[0]).truth['coefficients']
     for r in doc['results']:
         assert r['method'] == 'physical' and r['notes'][0].startswith('method auto chose physical: ')
@@ -121,7 +125,6 @@ def test_default_method_identifies_the_default_simulated_data(npz_runs, capsys):
 
 def test_default_method_is_direct_where_the_plan_determines_every_coefficient(capsys):
     """The packaged directional-force bag (4 shaker runs): the design check determines all 16, auto runs direct."""
-    from pathlib import Path
     bag = Path(__file__).resolve().parent.parent / 'bags' / 'force_plan'
     code = main(['identify', str(bag)])
     out = capsys.readouterr().out
@@ -142,10 +145,6 @@ def test_method_options_need_their_method(npz_runs, capsys):
 
 def test_the_cli_and_the_nodes_share_their_defaults():
     """One place for defaults (config/defaults.py): the identifier and kf_estimator specs and the CLI take them."""
-    import argparse
-    from bearing_id.commands import identify as cmd
-    from bearing_id.config import defaults
-    from bearing_id.nodes import identifier_core, kf_estimator_core
     sub = argparse.ArgumentParser().add_subparsers()
     args = cmd.add_parser(sub).parse_args(['x.npz'])
     spec = {s.name: s.default for s in identifier_core.SPECS}

@@ -9,11 +9,17 @@ they are nuisance); both effects found in a two-effect case.
 
 Schedule: 1.5 s slow roll at 200 rpm, then 1 s dwells at 800 ... 2800 rpm (1 % noise).
 """
+import json
 import math
 
-from bearing_id.config.params import load_rig
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.diagnose import diagnose
+from bearing_id.diagnose.augmented import AugmentedModel
+from bearing_id.diagnose.reidentify import reidentify
+from bearing_id.diagnose.report import augmented_rig, write_json, write_params
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.signals import harmonics as signals
 from bearing_id.simulation import effects as te, rig as rigmod
 import numpy as np
 import pytest
@@ -131,12 +137,8 @@ def test_two_effects_both_found(rigs):
 
 
 def test_json_shape(rigs, tmp_path):
-    import json
-
-    from bearing_id.diagnose.report import write_json, write_params
-    from bearing_id.config.params import load_rig as lr
     d = record(rigs[1], [te.ProbeRunout('p6x', 5e-6, 0.3)], 'runout')
-    write_params(d, lr(), tmp_path / 'aug.yaml')
+    write_params(d, load_rig(), tmp_path / 'aug.yaml')
     j = json.loads(write_json(d, tmp_path / 'd.json').read_text())
     assert set(j) >= {'mismatch', 'hypotheses', 'verdict', 'augmented_params'}
     assert j['augmented_params'] == str(tmp_path / 'aug.yaml')
@@ -145,7 +147,7 @@ def test_json_shape(rigs, tmp_path):
                       'validated'}
     m = j['mismatch'][0]
     assert set(m) >= {'where', 'order', 'speeds_rpm', 'size', 'significance'}
-    aug = lr(tmp_path / 'aug.yaml')
+    aug = load_rig(tmp_path / 'aug.yaml')
     assert aug.extra['effects'][0]['effect'] == 'probe_runout'
     assert np.isclose(aug.extra['effects'][0]['runout'], 5e-6, rtol=0.15)
 
@@ -158,8 +160,6 @@ def test_identification_on_augmented_model_removes_support_bias(rigs):
     bearings to mimic the pedestal); on the augmented model written by the diagnosis the bias drops.  Scored against
     the simulator's own bearing coefficients (recording truth).
     """
-    from bearing_id.diagnose.reidentify import reidentify
-    from bearing_id.diagnose.report import augmented_rig
     d = record(rigs[1], [te.SupportFlexibility(10, k=(None, 1.5e5), c=(0.0, 50.0), mass=(0.0, 0.2))], 'support')
     nominal = load_rig()
     r = reidentify(d.problem.obs.recordings, nominal, augmented_rig(d, nominal), 'physical')
@@ -176,10 +176,6 @@ def test_augmented_measurement_corrections_invert_the_truth_probe_effects():
     Runout and a turned probe applied in the time domain (simulation.effects) are removed by the augmented model's
     phasor correction (a different route: harmonic domain, inverse map).
     """
-    from bearing_id.signals import harmonics as signals
-    from bearing_id.diagnose.augmented import AugmentedModel
-    from bearing_id.config.params import Probe
-    from bearing_id.rotor.assembly import RotorModel
     nominal = load_rig()
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
     ang = np.linspace(0.0, 40 * math.pi, 4000, endpoint=False)

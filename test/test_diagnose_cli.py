@@ -12,16 +12,17 @@ from __future__ import annotations
 import json
 import os
 
+from bearing_id.cli import main
+from bearing_id.config.params import load_rig
+from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.io.recordings import save_npz
+from bearing_id.plots.html import browser_check, find_chromium
+from bearing_id.simulation import effects as te, rig as rigmod
 import pytest
 
 
 @pytest.fixture(scope='module')
 def runout_npz(tmp_path_factory):
-    from bearing_id.simulation import rig as rigmod
-    from bearing_id.simulation import effects as te
-    from bearing_id.config.params import load_rig
-    from bearing_id.conventions import rpm_to_rad_s
     rig = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     d = tmp_path_factory.mktemp('runout')
     sched = [rigmod.Segment(float(rpm_to_rad_s(200)), 1.5)] + rigmod.step_schedule((800, 1200, 1600, 2400, 2800), 1.0)
@@ -30,8 +31,6 @@ def runout_npz(tmp_path_factory):
 
 
 def test_diagnose_report_writes_the_page(runout_npz, tmp_path, capsys):
-    from bearing_id.cli import main
-    from bearing_id.config.params import load_rig
     rep = tmp_path / 'rep'
     assert main(['diagnose', *runout_npz, '--report', str(rep), '--json', str(tmp_path / 'd.json')]) == 0
     out = capsys.readouterr().out
@@ -48,7 +47,6 @@ def test_diagnose_report_writes_the_page(runout_npz, tmp_path, capsys):
     aug = load_rig(rep / 'augmented_params.yaml')
     assert aug.extra['effects'][0]['effect'] == 'probe_runout'
     assert json.loads((tmp_path / 'd.json').read_text())['noise_floor'] is not None
-    from bearing_id.plots.html import browser_check, find_chromium
     if find_chromium() is None:
         if os.environ.get('CI'):
             pytest.fail('CI: chromium is not installed (.ci/run installs it with apt-get install chromium)')
@@ -59,7 +57,6 @@ def test_diagnose_report_writes_the_page(runout_npz, tmp_path, capsys):
 
 
 def test_no_noise_floor_skips_the_check(runout_npz, tmp_path, capsys):
-    from bearing_id.cli import main
     assert main(['diagnose', *runout_npz, '--no-noise-floor', '--json', str(tmp_path / 'd.json')]) == 0
     out = capsys.readouterr().out
     assert 'verdict: probe_runout' in out and 'noise floor' not in out.split('located mismatch')[0]
@@ -69,7 +66,6 @@ def test_no_noise_floor_skips_the_check(runout_npz, tmp_path, capsys):
 
 
 def test_help_says_what_is_printed(capsys):
-    from bearing_id.cli import main
     with pytest.raises(SystemExit) as e:
         main(['diagnose', '--help'])
     assert e.value.code == 0

@@ -12,9 +12,11 @@ for each backward-stable solve, the sum for their difference).
 import math
 import types
 
-from bearing_id.config.params import load_rig, parse_rig
+from bearing_id.config.params import load_rig, PACKAGE_PARAMS, parse_rig
 from bearing_id.conventions import dof_index
 from bearing_id.diagnose import effects as fx
+from bearing_id.diagnose.locate import Observations, Window
+from bearing_id.diagnose.predict import Problem
 from bearing_id.diagnose.report import rig_to_dict
 from bearing_id.excitation import harmonic_forces
 from bearing_id.rotor import supports
@@ -24,6 +26,7 @@ from error_bounds import solve_tol
 import numpy as np
 import pytest
 from scipy.linalg import matrix_balance
+import yaml
 
 
 def truth_dynamic_stiffness(model, W, coeffs, truth):
@@ -118,7 +121,6 @@ def test_augmented_params_round_trip(setup, tmp_path):
     extra = {'effects': [{'effect': 'residual_unbalance', 'node': 8, 'me': 2e-5, 'phase_deg': 30.0},
                          {'effect': 'probe_runout', 'probe': 'p6x', 'runout': 4e-6, 'phase_deg': 10.0}]}
     aug = rig.replace(extra=extra)
-    import yaml
     back = parse_rig(yaml.safe_load(yaml.safe_dump(rig_to_dict(aug))))
     assert back == rig and back.extra == extra
     W = 2000 * math.pi / 30
@@ -134,8 +136,6 @@ def test_augmented_params_round_trip(setup, tmp_path):
 # ------------------------------------------------------------------------------------------------ the prediction
 def synthetic_problem(params=None, runs=2):
     """Return a diagnosis Problem on synthetic windows (1X-3X at five speeds, each run's excitation)."""
-    from bearing_id.diagnose.locate import Observations, Window
-    from bearing_id.diagnose.predict import Problem
     rig = load_rig(params)
     recs = [types.SimpleNamespace(run=rig.simulation.runs[r % len(rig.simulation.runs)], probes=tuple(rig.probes))
             for r in range(runs)]
@@ -179,7 +179,6 @@ def test_prediction_is_the_state_space_response(params):
     Tolerance: solve_tol of the balanced state matrix and of the dynamic stiffness, times ||q||.  The plant-like
     rig's bearings sit on pedestals: the film acts between shaft and pedestal DOFs.
     """
-    from bearing_id.config.params import PACKAGE_PARAMS
     prob = synthetic_problem(None if params is None else PACKAGE_PARAMS / 'examples' / f'{params}.yaml')
     if params:
         assert prob.model.pedestals and prob.model.known

@@ -14,10 +14,20 @@ Schedule: 1.5 s slow roll at 200 rpm, then 1 s dwells at 800 ... 2800 rpm (1 % n
 """
 import math
 
-from bearing_id.config.params import load_rig
+from bearing_id.bearings.finite import reynolds
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.conventions import rpm_to_rad_s
-from bearing_id.diagnose import diagnose
+from bearing_id.diagnose import diagnose, effects as fx
+from bearing_id.diagnose.augmented import AugmentedModel
+from bearing_id.diagnose.locate import observe
+from bearing_id.diagnose.predict import Problem
+from bearing_id.diagnose.report import augmented_rig
+from bearing_id.diagnose.selection import fit, heldout_chi2, speed_folds, validate
+from bearing_id.identify import identify
+from bearing_id.identify.harmonics import from_recordings
 from bearing_id.rotor import supports
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.signals import harmonics as signals
 from bearing_id.simulation import effects as te, rig as rigmod
 import numpy as np
 
@@ -31,7 +41,6 @@ def schedule():
 
 def direct_finite_bearings(rig, vf=TRUTH_VF, cf=TRUTH_CF):
     """Truth bearing function: finite-length (L/D = 1) bearings from the direct Reynolds solver."""
-    from bearing_id.bearings.finite import reynolds
     loads = supports.static_loads(rig)
     cache = {}
 
@@ -57,9 +66,6 @@ def test_finite_truth_identify_says_misfit_and_diagnose_names_the_model_form():
     A finite-length truth bearing, nominal params with the short bearing, default options everywhere: identify
     --method physical flags MODEL MISFIT and diagnose names bearing_model_form (finite) -- they do not contradict.
     """
-    from bearing_id.identify import identify
-    from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.rotor.assembly import RotorModel
     nominal = load_rig()
     recs = simulate(bearing_fn=direct_finite_bearings(nominal))
     res = identify('physical', RotorModel.from_params(nominal), nominal, from_recordings(recs))
@@ -102,16 +108,11 @@ def test_rotated_probe_pair_is_one_effect_on_both_axes_and_the_bearings_do_not_a
     for v in d.bearing_factors['viscosity_factor']:
         assert abs(v / TRUTH_VF - 1) <= 0.20, d.bearing_factors
     # the augmented model undoes the pair: corrected phasors equal the clean ones
-    from bearing_id.diagnose.augmented import AugmentedModel
-    from bearing_id.diagnose.report import augmented_rig
-    from bearing_id.config.params import Probe
-    from bearing_id.rotor.assembly import RotorModel
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
     U = np.array([3e-6 * np.exp(0.4j), 2e-6 * np.exp(-1.1j)])
     ang = np.linspace(0.0, 40 * math.pi, 4000, endpoint=False)
     clean = np.real(np.outer(np.exp(1j * ang), U))
     x = te.ProbePairOrientation(6, math.radians(angle), gx, gy).measure(clean, ang, None, probes)
-    from bearing_id.signals import harmonics as signals
     X = signals.harmonic_vectors(x, ang, (1,)).X[0]
     nominal = load_rig()
     Xc = AugmentedModel(RotorModel.from_params(nominal), augmented_rig(d, nominal)).correct_phasors(X, probes)
@@ -161,10 +162,6 @@ def test_whirl_only_in_held_out_windows_does_not_validate():
     Trained on the fold without it, the whirl hypothesis must predict nothing there (force, onset, ratio and phases
     come from the training fold), so it cannot validate; the verdict does not name it.
     """
-    from bearing_id.diagnose import effects as fx
-    from bearing_id.diagnose.locate import observe
-    from bearing_id.diagnose.predict import Problem
-    from bearing_id.diagnose.selection import fit, heldout_chi2, speed_folds, validate
     matched = rigmod.with_truth(load_rig(), viscosity_factor=(1.0, 1.0), clearance_factor=(1.0, 1.0))
     recs = simulate([te.OilWhirl(10, 2600.0, 0.45, 0.5)], truth=matched)
     nominal = load_rig()

@@ -15,6 +15,7 @@ from pathlib import Path
 from bearing_id import bearings
 from bearing_id.bearings import finite, finite_table, short
 from bearing_id.config.params import Probe
+from bearing_id.identify.physical import fit_physical
 from bearing_id.rotor import supports
 from bearing_id.simulation.rig import simulate_data
 import numpy as np
@@ -162,7 +163,6 @@ def test_physical_finite_fits_a_finite_truth_from_the_table(rig, model, finite_t
     No misfit, parameters within 3 sigma of the truth, and the short model on the same data is declared a misfit
     whose note suggests the finite model.
     """
-    from bearing_id.identify.physical import fit_physical
     data = _noisy(finite_truth, 5)
     bearings._solve.cache_clear()
     calls = _count_direct_solves(monkeypatch)
@@ -179,7 +179,6 @@ def test_physical_finite_fits_a_finite_truth_from_the_table(rig, model, finite_t
 
 def test_finite_misfit_note_does_not_suggest_the_finite_model(rig, model):
     """Data from the short bearing fitted with the finite model: a misfit whose note points elsewhere."""
-    from bearing_id.identify.physical import fit_physical
     bfn = supports.bearing_fn(rig, model='short', viscosity_factor=1.3, clearance_factor=0.8)
     data = _noisy(simulate_data(rig, rig.simulation.runs, (900, 1800, 2700), probes=P6, bearing_fn=bfn,
                                 model=model), 6)

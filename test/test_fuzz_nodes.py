@@ -14,6 +14,7 @@ import json
 import time
 
 import agreement
+from bearing_id.io.record import Record
 import pytest
 import rosutil
 from test_bags_replay import _node, BAGS, offline, wait_for_results
@@ -38,7 +39,6 @@ def test_nodes_survive_corrupted_messages_then_identify_a_valid_bag_exactly(tmp_
         time.sleep(1.0)
         for p in procs:
             assert p.alive(), p.output()
-        from bearing_id.io.record import Record
         rec = Record(record_dir, fsync=False)
         kinds = {e['type'] for e in rec.entries()}
         assert kinds <= {'session'}, kinds                  # nothing accumulated, no run, no result

@@ -23,13 +23,18 @@ import sys
 
 from agreement import assert_results_agree
 from bearing_id.config.params import Probe
+from bearing_id.estimation.kalman import nis_band
 from bearing_id.identify import determined as dt
+from bearing_id.identify.direct import coeffs_to_beta, identify_direct
 from bearing_id.identify.harmonics import from_recordings
+from bearing_id.identify.paper import identify_paper
+from bearing_id.identify.physical import fit_physical, identify_physical
 from bearing_id.rotor import supports
 from bearing_id.simulation import rig as rigmod
 from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parent.parent
 IDENT = ROOT / 'bearing_id' / 'identify'
@@ -41,9 +46,8 @@ VF, CF = (1.3, 1.3), (0.7, 0.85)          # truth ~30 % off nominal, unequal cle
 def test_threshold_at_68_dof_is_about_1_6_not_3():
     # the threshold applies to chi2 / dof, whose own 1-sigma is sqrt(2 / dof): it must sit within 0.01 of that of
     # the 99.9 % point of scipy.stats.chi2
-    from scipy.stats import chi2
     thr = dt.misfit_threshold(68)
-    assert abs(thr - chi2.ppf(0.999, 68) / 68) <= 0.01 * math.sqrt(2 / 68) and 1.5 < thr < 1.7
+    assert abs(thr - stats.chi2.ppf(0.999, 68) / 68) <= 0.01 * math.sqrt(2 / 68) and 1.5 < thr < 1.7
     assert dt.fit_quality(2.56 * 68, 68).misfit and not dt.fit_quality(1.3 * 68, 68).misfit
 
 
@@ -144,7 +148,6 @@ def test_direct_multiprobe_unbalance_determined_coefficients_are_within_3_sigma(
 
     Now every determined coefficient is within 3 sigma of the truth, none beyond 5 sigma (Monte-Carlo truth).
     """
-    from bearing_id.identify.direct import coeffs_to_beta, identify_direct
     zs, old_bad = [], 0
     for data in multiprobe:
         res = identify_direct(model, rig, data)
@@ -170,7 +173,6 @@ def test_direct_force_plan_with_dc_determined_coefficients_are_within_3_sigma(ri
     Directional shaker x, y at both discs, probes 3/6/9, DC offsets, 1 s dwells -- most coefficients determined, >= 95 %
     of them within 3 sigma of the truth, none beyond 5.
     """
-    from bearing_id.identify.direct import identify_direct
     speeds = (600.0, 1771.0, 2942.0)
     zs, det = [], 0
     for seed in (0, 1):
@@ -185,7 +187,6 @@ def test_direct_force_plan_with_dc_determined_coefficients_are_within_3_sigma(ri
 
 
 def test_physical_multiprobe_unbalance_all_determined_within_3_sigma(rig, model, multiprobe):
-    from bearing_id.identify.physical import identify_physical
     zs = []
     for data in multiprobe:
         res = identify_physical(model, rig, data)
@@ -229,7 +230,6 @@ def test_physical_underestimated_noise_is_a_misfit_and_birge_scaled(rig, model, 
     Now: misfit flagged, sigma Birge-scaled, parameters' normalised errors over seeds with an RMS of order one (before
     scaling: ~1.7).
     """
-    from bearing_id.identify.physical import fit_physical
     truth = {f'{b.name}.{k}': (getattr(b, k) * (VF if k == 'viscosity' else CF)[i])
              for i, b in enumerate(rig.bearings) for k in ('viscosity', 'clearance')}
     z_scaled, z_raw = [], []
@@ -248,7 +248,6 @@ def test_physical_underestimated_noise_is_a_misfit_and_birge_scaled(rig, model, 
 
 
 def test_physical_correct_noise_is_not_a_misfit_and_parameters_are_in_the_json(rig, model, node_route_clean):
-    from bearing_id.identify.physical import identify_physical
     res = identify_physical(model, rig, _noisy(node_route_clean, 41, 1.0))
     r = res[0]
     assert not r.misfit and r.plainly_determined
@@ -274,8 +273,6 @@ def test_paper_kf_removes_static_offset_nis_in_band_and_coefficients_unchanged(r
     is inside its 95 % chi-square band with or without a 30/-20 um DC in the samples, and the coefficients from the DC
     data equal the no-DC ones well within their stated sigma.  Without the removal NIS is ~1e3.
     """
-    from bearing_id.identify.paper import identify_paper
-    from bearing_id.estimation.kalman import nis_band
     nom = supports.bearing_fn(rig)
     recs = [rigmod.simulate_run(rig, run, speeds_rpm=[1500.0], dwell=1.0, probes=P6, bearing_fn=nom, noise=0.01,
                                 seed=7 + k, model=model) for k, run in enumerate(rig.simulation.runs)]

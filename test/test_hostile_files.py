@@ -20,9 +20,15 @@ test/rosutil.py (localhost-only DDS, own domain id, kill timeouts).
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+import copy
+import dataclasses
+import io
 import json
 import os
 from pathlib import Path
+import random
+import signal
 import struct
 import subprocess
 import sys
@@ -55,7 +61,6 @@ def peer(spec_path: str) -> int:
 
     spec = json.loads(Path(spec_path).read_text())
     stop = []
-    import signal
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
     signal.signal(signal.SIGINT, lambda *a: stop.append(1))
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -94,9 +99,16 @@ if __name__ == '__main__':
 
 
 # ------------------------------------------------------------------------------------------------ tests
+from bearing_id.config.params import default_rig_path, load_rig, load_yaml_bounded, ParamError, parse_rig  # noqa: E402
+from bearing_id.io import bags, daq  # noqa: E402
+from bearing_id.io.recordings import load_npz, save_npz  # noqa: E402
+from bearing_id.nodes.sensor_driver_core import stream_messages  # noqa: E402
+from bearing_id.simulation import rig as R  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from rosbags.rosbag2 import Reader  # noqa: E402
 import rosutil  # noqa: E402
+import yaml  # noqa: E402
 
 
 def bearing_id_cmd() -> list[str]:
@@ -213,7 +225,6 @@ def mk_npz_pickled(base, d):
     a = members(base['npz'])
     del a['nodes']
     p = save(d / 'pickled.npz', a)
-    import io
     buf = io.BytesIO()
     np.save(buf, np.array([6, 'six'], dtype=object), allow_pickle=True)
     with zipfile.ZipFile(p, 'a') as zf:
@@ -229,7 +240,6 @@ def mk_npz_nan(base, d):
 
 def _bag(base, d, name, transform=None, storage='mcap'):
     """Write the base run as a bag (sensor_driver's messages), each (topic, stamp, msg) passed through ``transform``."""
-    from bearing_id.io import bags
     msgs = base['bag_msgs']
     if transform is not None:
         msgs = [m for m in (transform(x) for x in msgs) if m is not None]
@@ -293,8 +303,6 @@ def mk_bag_no_excitation(base, d):
 
 def mk_bag_mismatched_arrays(base, d):
     """Every DisplacementBlock claims one node for its two channels."""
-    import dataclasses
-
     def bad(m):
         if m[0] != '/rotor/displacement':
             return m
@@ -309,7 +317,6 @@ def mk_bag_unfinished(base, d, name='bag_unfinished'):
     Every message flushed as its own chunk (as `bearing-id record` does each second), no summary, no footer, no
     metadata.yaml, and the last chunk cut off mid-write.
     """
-    from bearing_id.io import bags
     p = d / name
     w = bags.BagWriter(p, 'mcap', flush_period=0.0)
     for topic, stamp, msg in base['bag_msgs']:
@@ -394,7 +401,6 @@ shaft: *i
 
 
 def _rig_text() -> str:
-    from bearing_id.config.params import default_rig_path
     return default_rig_path().read_text()
 
 
@@ -513,11 +519,6 @@ CAMPAIGN_SLOW = pytest.mark.slow(reason='its campaign fixture runs every hostile
 @pytest.fixture(scope='module')
 def base(tmp_path_factory):
     """One small valid run (1200 rpm, 0.6 s) as .npz, .csv and the sensor_driver messages of a bag."""
-    from bearing_id.config.params import load_rig
-    from bearing_id.io import bags, daq
-    from bearing_id.io.recordings import save_npz
-    from bearing_id.nodes.sensor_driver_core import stream_messages
-    from bearing_id.simulation import rig as R
     rig = load_rig()
     d = tmp_path_factory.mktemp('base')
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1200.0], dwell=0.6, ramp=0.0)
@@ -554,7 +555,6 @@ RUNS = [(c, cmd) for c, (_, cmds, _, _) in CASES.items() for cmd in cmds]
 @pytest.fixture(scope='module')
 def campaign(base, built, tmp_path_factory):
     """Every (case, command) run once, two at a time: {(case, command): (path, rc, stdout, stderr, seconds)}."""
-    from concurrent.futures import ThreadPoolExecutor
     tmp = tmp_path_factory.mktemp('campaign')
     paths = {case: built(case) for case in CASES}
 
@@ -581,9 +581,6 @@ def test_malformed_input_exits_2_with_one_paragraph(case, command, campaign):
 
 def test_yaml_bombs_are_refused_by_their_bounds_before_anything_is_built(base, built, monkeypatch):
     """A billion-laughs file, deep nesting and a huge file stop at the bound they exceed; no object is constructed."""
-    import yaml
-    from bearing_id.config.params import load_yaml_bounded, ParamError
-
     def constructed(*a, **k):
         raise AssertionError('a hostile YAML file reached the constructor')
     monkeypatch.setattr(yaml.constructor.SafeConstructor, 'construct_document', constructed)
@@ -602,10 +599,6 @@ def test_every_field_with_every_wrong_type_is_a_param_error_naming_it():
     on one line naming the replaced field by its full path (``bearings[0].clearance``), or for a value that is valid
     but leaves another field without its node (fewer shaft elements), that other field.
     """
-    import copy
-
-    from bearing_id.config.params import ParamError, parse_rig
-    import yaml
     raw = yaml.safe_load(_rig_text())
 
     def paths(x, pre=()):
@@ -642,9 +635,6 @@ def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
 
     It returns a checked recording or raises ValueError (exit 2 in the CLI) -- nothing else.
     """
-    import random
-
-    from bearing_id.io.recordings import load_npz
     blob = base['npz'].read_bytes()
     rng = random.Random(2)
     other = []
@@ -669,7 +659,6 @@ def test_randomly_damaged_npz_is_a_value_error(base, tmp_path):
 
 def test_legitimate_aliases_still_load(tmp_path):
     """Anchors that expand to a few nodes (as yaml.safe_dump writes for shared objects) are fine."""
-    from bearing_id.config.params import load_rig
     text = _rig_text().replace('  - {node: 4, outer_diameter: 0.08,', '  - &disc {node: 4, outer_diameter: 0.08,', 1)
     text = text.replace('  - {node: 8, outer_diameter: 0.08, inner_diameter: 0.01265, thickness: 0.015, '
                         'density: 7800.0}', '  - {<<: *disc, node: 8}', 1)
@@ -697,7 +686,6 @@ def test_valid_base_inputs_identify(fmt, base, tmp_path):
 
 def test_read_bag_salvage_and_recover_without_ros(base, tmp_path):
     """An unfinished bag reads with salvage=True and --recover makes it complete (offline part of the kill test)."""
-    from bearing_id.io import bags
     p = mk_bag_unfinished(base, tmp_path)
     n_all = len(base['bag_msgs'])
     got = list(bags.read_bag(p, salvage=True))
@@ -738,7 +726,6 @@ def test_bag_writer_killed_with_sigkill_is_recoverable(storage, tmp_path):
     that read_bag(salvage=True) reads and --recover completes, holding every message the writer had flushed: no
     timing in the verdict (the periodic flush of `bearing-id record` is checked by the ROS test below).
     """
-    from bearing_id.io import bags
     bag, log = tmp_path / 'bag', tmp_path / 'log'
     child = subprocess.Popen([sys.executable, '-c', WRITER_CHILD, str(REPO), str(bag), storage, str(log)],
                              start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -827,8 +814,6 @@ def recording_session(tmp_path_factory):
 
 @pytest.mark.ros
 def test_record_killed_with_sigkill_loses_at_most_about_a_second(recording_session):
-    from bearing_id.io import bags
-    from rosbags.rosbag2 import Reader
     bag, t_kill, _, sent, outs = recording_session
     assert not (bag / 'metadata.yaml').exists(), outs[0]
     with pytest.raises(bags.BagError, match='--recover'):
@@ -855,8 +840,6 @@ def test_record_killed_with_sigkill_loses_at_most_about_a_second(recording_sessi
 
 @pytest.mark.ros
 def test_record_stores_the_publishers_offered_qos(recording_session):
-    from bearing_id.io import bags
-    import yaml
     _, _, bag, sent, outs = recording_session
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     tops = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}

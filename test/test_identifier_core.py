@@ -7,14 +7,18 @@ References: the offline route on the same samples (harmonics.recording_vectors) 
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
+from pathlib import Path
 
 import agreement
 from bearing_id.config.params import load_rig, Probe
-from bearing_id.identify import harmonics
+from bearing_id.identify import harmonics, identify, physical
 from bearing_id.io.messages import Block
-from bearing_id.nodes.identifier_core import IdentifierCore
+from bearing_id.io.recordings import from_bag, recordings_from_bag
+from bearing_id.nodes.identifier_core import identifiability_item, IdentifierCore
 from bearing_id.nodes.runs import RunResolver
+from bearing_id.rotor.assembly import RotorModel
 from bearing_id.simulation import rig as R
 from bearing_id.simulation.rig import simulate_data
 import numpy as np
@@ -222,7 +226,6 @@ def test_warm_started_solves_give_the_cold_answers(rig, tmp_path):
     each parameter within ~sqrt(2e-12 chi2) ~ 1e-5 of its 1-sigma of the minimum; both starts must agree within 1e-4
     sigma (parameters and coefficients) and 1e-9 relative in chi-square, with fewer solver evaluations warm.
     """
-    from bearing_id.identify import physical
     speeds = (900, 1500, 2100, 2700)
     data = simulate_data(rig, rig.simulation.runs, speeds)
     rng = np.random.default_rng(3)
@@ -272,7 +275,6 @@ def test_a_provisional_window_is_replaced_by_its_final_cut_or_withdrawn(rec, rig
     Replaced, not stored as a duplicate; and when the final cut gives no vector, the provisional one is withdrawn --
     also after a restart from the record.
     """
-    from dataclasses import replace
     core = IdentifierCore(rig, 'physical', tmp_path)
     core.add_excitation(rec.run)
     stream = harmonics.RunStream(rec.run, rec.probes, rec.sample_rate)
@@ -309,8 +311,6 @@ def test_every_method_through_the_core_equals_the_offline_route(rig, tmp_path, m
     method's live route once produced nothing (no test drove it); this holds every method to the offline numbers:
     values, 1-sigma (NaN where undetermined, on both routes), determined flags, rank and flags.
     """
-    from bearing_id.identify import identify
-    from bearing_id.rotor.assembly import RotorModel
     probes = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 6, 10) for d in 'xy')
     recs = [R.simulate_run(rig, run, speeds_rpm=[1200.0, 2400.0], dwell=1.5, ramp=0.2, probes=probes)
             for run in rig.simulation.runs]
@@ -340,11 +340,6 @@ def test_the_default_method_auto_chooses_by_the_data_and_says_so(tmp_path, bag, 
     directional-force plan; the choice and its reason in every result and on /diagnostics, and the same results as
     `bearing-id identify` on the bag (within 0.01 of their 1-sigma).
     """
-    from pathlib import Path
-    from bearing_id.identify import identify
-    from bearing_id.io.recordings import from_bag, recordings_from_bag
-    from bearing_id.nodes.identifier_core import identifiability_item
-    from bearing_id.rotor.assembly import RotorModel
     path = Path(__file__).resolve().parent.parent / 'bags' / bag
     rig = load_rig()
     recs = recordings_from_bag(path)

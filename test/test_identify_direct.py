@@ -17,14 +17,14 @@ K and for C (the accuracy benchmark, benchmarks/bench_accuracy.py, uses the same
 """
 import math
 
-from bearing_id.config.params import Probe
+from bearing_id.config.params import ExcitationEntry, Probe, Run
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.excitation import harmonic_forces
 from bearing_id.identify import eq38_error
-from bearing_id.identify.direct import beta_to_coeffs, Case, coeffs_to_beta, fit_speed, identify_direct
-from bearing_id.identify.direct import SpeedResponse
+from bearing_id.identify.direct import beta_to_coeffs, Case, coeffs_to_beta, fit_speed, identify_direct, SpeedResponse
+from bearing_id.identify.harmonics import from_recordings
 from bearing_id.rotor.assembly import dynamic_stiffness, harmonic_response, probe_matrix
-from bearing_id.simulation.rig import scenario, simulate_data
+from bearing_id.simulation.rig import scenario, simulate_data, simulate_run
 from error_bounds import solve_tol
 import numpy as np
 import pytest
@@ -130,7 +130,6 @@ def test_force_plan_node6_one_percent_noise_within_benchmark_tolerance(rig, mode
 def test_unbalance_node6_is_rank_8_and_undetermined(rig, model, n_runs):
     runs = list(rig.simulation.runs)
     if n_runs == 3:   # a third, different unbalance distribution adds no rank (the 2-D subspace argument)
-        from bearing_id.config.params import ExcitationEntry, Run
         runs.append(Run('C', (ExcitationEntry('unbalance', 4, 2.0e-5, 2.0, 'forward'),
                               ExcitationEntry('unbalance', 8, 1.0e-5, -1.0, 'forward'))))
     data = noisy(simulate_data(rig, runs, (1200, 2400), probes=P6, model=model), seed=5)
@@ -176,8 +175,6 @@ def test_unknown_option_is_refused(rig, model):
 
 @pytest.fixture(scope='module')
 def force_schedule_data(rig, model):
-    from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.simulation.rig import simulate_run
     recs = [simulate_run(rig, run, probes=P6, seed=40 + k)
             for k, run in enumerate(scenario('force'))]
     return from_recordings(recs)

@@ -11,7 +11,7 @@ from bearing_id.conventions import dof_index, rpm_to_rad_s
 from bearing_id.identify import eq38_error, harmonics
 from bearing_id.identify.conventional import identify_conventional, interpolate
 from bearing_id.identify.lsq import coefficient_scales
-from bearing_id.identify.paper import coeffs_to_theta, identify_paper
+from bearing_id.identify.paper import coeffs_to_theta, identify_paper, kf_bearing_vectors
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.simulation import rig as rigmod
 from bearing_id.simulation.rig import simulate_data
@@ -268,7 +268,6 @@ def test_conventional_flags_interpolation_bias_only_where_the_line_misses(setup)
 def test_theory_check_also_runs_on_kf_vectors_given_from_outside(setup, force_node6):
     # the ROS route hands over the kf_estimator's bearing vectors (z_B); with their KF settings the same theory check
     # must trip as on the offline KF route
-    from bearing_id.identify.paper import kf_bearing_vectors
     rig, model = setup
     d = force_node6
     zB, zBs, _, km = kf_bearing_vectors(model, theory_fn(float(d.speeds[0])), d.probes, d, 0)

@@ -17,11 +17,13 @@ viscosity and clearance within 3 % (the "few %" of the issue).
 import math
 
 from bearing_id.config.params import Probe
-from bearing_id.identify import eq38_error
+from bearing_id.identify import eq38_error, harmonics
 from bearing_id.identify.physical import fit_physical, identify_physical
+from bearing_id.simulation import rig as rigmod
 from bearing_id.simulation.rig import simulate_data
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 NOISE = 0.01
 N_USED = int(0.75 * 2.0 * 10240)
@@ -107,10 +109,6 @@ def test_model_form_misfit_is_declared_only_when_the_bearing_model_is_wrong(rig,
 
     The bias is then ~7 %, far beyond the noise-based 1-sigma; with a short-bearing truth it must not be declared.
     """
-    from bearing_id.simulation import rig as rigmod
-    from bearing_id.identify import harmonics
-    from scipy.stats import chi2
-    from bearing_id.identify.physical import fit_physical
     truth = rigmod.with_truth(rig, bearing_model=truth_model)
     recs = [rigmod.simulate_run(truth, r, speeds_rpm=(900.0, 1800.0, 2700.0), dwell=1.0, ramp=0.0, model=model)
             for r in rig.simulation.runs]

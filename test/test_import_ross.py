@@ -17,10 +17,15 @@ import math
 from pathlib import Path
 import sys
 
+from bearing_id.cli import main
+from bearing_id.config.params import load_rig
 from bearing_id.io import ross_import
+from bearing_id.rotor.assembly import RotorModel, system_matrices
 from bearing_id.rotor.elements import DiscElement, ShaftElement
+from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
+import yaml
 
 DATA = Path(__file__).parent / 'data' / 'ross'
 ROTORS = ('compressor', 'stepped', 'hollow_hutchinson')
@@ -194,9 +199,6 @@ def test_added_mass_layers_are_an_approximation():
 # ------------------------------------------------------------------------------------------- route 2: product
 @pytest.mark.parametrize('name', ROTORS)
 def test_yaml_loads_and_model_matches_ross(tmp_path, name):
-    from bearing_id.rotor.supports import bearing_fn
-    from bearing_id.config.params import load_rig
-    from bearing_id.rotor.assembly import RotorModel, system_matrices
     out = tmp_path / f'{name}.yaml'
     ross_import.import_ross(DATA / f'{name}.toml', out)
     rig = load_rig(out)
@@ -214,8 +216,6 @@ def test_yaml_loads_and_model_matches_ross(tmp_path, name):
 
 # ------------------------------------------------------------------------------------------- CLI and refusals
 def test_cli_writes_yaml(tmp_path):
-    from bearing_id.cli import main
-    import yaml
     out = tmp_path / 'machine.yaml'
     assert main(['import-ross', str(DATA / 'stepped.toml'), '--out', str(out)]) == 0
     text = out.read_text()
@@ -225,7 +225,6 @@ def test_cli_writes_yaml(tmp_path):
 
 
 def test_cli_refuses_what_it_cannot_express(tmp_path, capsys):
-    from bearing_id.cli import main
     src = (DATA / 'stepped.toml').read_text()
     bad = tmp_path / 'tapered.toml'
     bad.write_text(src.replace('odr = 0.06\n', 'odr = 0.07\n', 1))
@@ -252,9 +251,6 @@ def test_compressor_through_load_rig_equals_route_1(tmp_path, layers):
     the same terms summed in another order, so each entry within 2 gamma_n of the sum of its terms' magnitudes
     (Higham, eq. 4.4), n the most terms an entry sums.  (Their eigenvalues against ROSS's: route 2 above.)
     """
-    from bearing_id.rotor.supports import bearing_fn
-    from bearing_id.config.params import load_rig
-    from bearing_id.rotor.assembly import RotorModel, system_matrices
     out = tmp_path / 'compressor.yaml'
     p = ross_import.import_ross(DATA / 'compressor.toml', out, layers=layers)
     rig = load_rig(out)
@@ -329,8 +325,6 @@ def test_mixed_shear_methods_give_every_element_and_layer_ross_kappa(tmp_path, e
     computes for it (``ross_kappa``), summed per station -- independent of how the importer spreads the coefficients
     over shaft, element and layer keys.
     """
-    from bearing_id.config.params import load_rig
-    from bearing_id.rotor.assembly import RotorModel
     d = ross_import.read_toml(DATA / 'compressor.toml')
     keys = [k for k in d if k.startswith('ShaftElement')]
     shaft_shear, layer_kinds = edit(d, keys)

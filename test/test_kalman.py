@@ -12,7 +12,11 @@ rotor case.
 """
 import math
 
+from bearing_id.config.params import load_rig, Probe
 from bearing_id.estimation import kalman as kf
+from bearing_id.excitation import harmonic_forces
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import rig as rigmod
 from kf_oracle import (agreement_bound, balancing, closed_loop, EPS, filterpy_filter, growth_sum, output_bounds,
                        rounding_step)
 import numpy as np
@@ -277,11 +281,6 @@ def test_streaming_equals_batch_and_checks_band():
 # ------------------------------------------------------------------------------------------------ rotor
 @pytest.fixture(scope='module')
 def rotor_case():
-    from bearing_id.simulation import rig as rigmod
-    from bearing_id.excitation import harmonic_forces
-    from bearing_id.config.params import load_rig
-    from bearing_id.rotor.assembly import RotorModel
-
     rig = load_rig()
     model = RotorModel.from_params(rig)
     kb = np.array([[4.0e5, 0.5e5], [0.3e5, 5.0e5]])
@@ -290,7 +289,6 @@ def rotor_case():
     speed = 1500 * 2 * math.pi / 60
     run = rig.simulation.runs[0]
     probes = [(6, 'x'), (6, 'y')] + [(b, d) for b in model.bearing_nodes for d in ('x', 'y')]
-    from bearing_id.config.params import Probe
     probes = tuple(Probe(name=f'p{n}{d}', node=n, direction=d) for n, d in probes)
     rec = rigmod.simulate(rig, run, rigmod.step_schedule([1500.0], 0.3), probes=probes, noise=0.0,
                           bearing_fn=lambda w: coeffs, model=model)

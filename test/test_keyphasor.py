@@ -10,9 +10,13 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
+from bearing_id.config.params import Probe, Run
+from bearing_id.identify.harmonics import from_recordings
 from bearing_id.io import daq
 from bearing_id.signals.harmonics import harmonic_vectors
 from bearing_id.signals.keyphasor import angle_from_keyphasor, angle_from_marks, key_marks, KeyphasorError
+from bearing_id.signals.recording import Recording
+from bearing_id.simulation.rig import simulate_run
 import numpy as np
 import pytest
 
@@ -255,8 +259,6 @@ def test_read_csv_names_the_file_for_a_bad_keyphasor_column(tmp_path):
 
 # ------------------------------------------------------------------------------------------------ DAQ files
 def _recording(rpm: float, n: int, angle0: float = 0.0):
-    from bearing_id.config.params import Probe, Run
-    from bearing_id.signals.recording import Recording
     W = rpm * TWO_PI / 60
     t = np.arange(n) / FS
     ang = angle0 + W * t
@@ -300,8 +302,6 @@ def test_simulated_run_through_a_keyphasor_csv_keeps_its_1x_vectors(rig, tmp_pat
     They agree within 3 sigma and 1e-3 relative (a half-sample angle shift, the old estimator at 600 rpm, moves them by
     > 3e-3 relative).
     """
-    from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.simulation.rig import simulate_run
     rec = simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[rpm], dwell=1.0)
     back = daq.read_csv(daq.write_csv(rec, tmp_path / 'rec.csv', keyphasor=True))
     a, b = from_recordings([rec]), from_recordings([back])

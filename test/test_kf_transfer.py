@@ -25,7 +25,7 @@ from bearing_id.estimation import kalman
 from bearing_id.excitation import harmonic_forces
 from bearing_id.identify import harmonics, paper
 from bearing_id.identify.lsq import coefficient_scales
-from bearing_id.rotor.assembly import RotorModel, state_space
+from bearing_id.rotor.assembly import dynamic_stiffness, RotorModel, state_space
 from bearing_id.simulation import rig as rigmod
 from bearing_id.simulation.rig import simulate_data
 from error_bounds import lstsq_acc, RICCATI_RESIDUAL, richardson_check, solve_tol
@@ -344,7 +344,6 @@ def test_bearing_force_map_equals_eqs_30_to_32(setup):
     z = (rng.standard_normal((len(F), 2, 2)) + 1j * rng.standard_normal((len(F), 2, 2))) * 1e-6
     fmap, Lin = paper.bearing_force_map(model, w, F)
     ref = paper.bearing_forces(model, w, z, F)
-    from bearing_id.rotor.assembly import dynamic_stiffness
     HR = dynamic_stiffness(model, w, w, {})
     u = np.setdiff1d(np.arange(model.ndof), paper.bearing_dofs(model))
     scale = max(np.abs(F).max(), np.abs(HR).max() * np.abs(z).max())

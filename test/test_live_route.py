@@ -11,9 +11,19 @@ Issue 9: the live node route gives the offline answer, with an honest 1-sigma.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import agreement
+from bearing_id.config.params import load_rig
+from bearing_id.identify import identify
 from bearing_id.io import recordings
+from bearing_id.io.messages import Block
+from bearing_id.io.record import Record
 from bearing_id.io.recordings import save_npz
+from bearing_id.nodes.identifier_core import IdentifierCore
+from bearing_id.rotor import supports
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import rig as R
 import numpy as np
 import pytest
 import rosutil
@@ -24,7 +34,6 @@ TRUTH_CLEARANCE = [0.80, 1.10]
 
 
 def _truth(rig):
-    from bearing_id.rotor import supports
     return supports.bearing_fn(rig, viscosity_factor=TRUTH_VISCOSITY, clearance_factor=TRUTH_CLEARANCE)
 
 
@@ -43,11 +52,6 @@ def _z(results, truth_fn):
 @pytest.mark.ros
 @pytest.mark.slow(reason='three node processes stream a ramped 9-speed rig (~13 s)')
 def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coefficients(tmp_path):
-    from bearing_id.simulation import rig as R
-    from bearing_id.identify import identify
-    from bearing_id.config.params import load_rig
-    from bearing_id.io.record import Record
-    from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     truth = _truth(rig)
     speeds = [900.0, 1500.0, 2400.0, 2700.0]        # (2100 rpm: an orbit of 31 % of the clearance here)
@@ -96,7 +100,6 @@ def test_three_nodes_on_a_ramped_rig_with_unequal_bearings_give_the_offline_coef
 
 def _blocks(rec, block=1024):
     """Return the recording as the DisplacementBlocks the sensor_driver sends (plain data, per-sample angles)."""
-    from bearing_id.io.messages import Block
     fs = rec.sample_rate
     for k, i0 in enumerate(range(0, rec.samples.shape[0], block)):
         i1 = min(i0 + block, rec.samples.shape[0])
@@ -112,7 +115,6 @@ def _with_noise(rec, noise, rng):
 
     Per constant-speed step (the rig's noise model, drawn here with our own generator).
     """
-    import dataclasses
     x = rec.samples.copy()
     for a, b, _, _ in rec.segments:
         rms = np.sqrt(np.mean(rec.samples[a:b] ** 2, axis=0))
@@ -123,9 +125,6 @@ def _with_noise(rec, noise, rng):
 @pytest.mark.slow(reason='Monte Carlo over noise seeds through the node core (~4 s each)')
 @pytest.mark.parametrize('method, scenario', [('physical', 'default'), ('direct', 'force')])
 def test_node_windowing_one_sigma_covers_the_error_over_noise_seeds(method, scenario, tmp_path):
-    from bearing_id.simulation import rig as R
-    from bearing_id.nodes.identifier_core import IdentifierCore
-    from bearing_id.config.params import load_rig
     rig = load_rig()
     truth = _truth(rig)
     runs = rig.simulation.runs if scenario == 'default' else R.scenario(scenario)

@@ -7,6 +7,7 @@ x/y probe pair, and the simulated plant-like machine's truth bearings.  Where tw
 tolerance is derived from machine epsilon (EPS) and the operations or the condition number involved, written out
 at each check.
 """
+import argparse
 import copy
 import dataclasses
 import json
@@ -14,12 +15,24 @@ import math
 import sys
 
 from bearing_id import conventions as cv
+from bearing_id.bearings import finite, solution
 from bearing_id.bearings.table import interpolate
-from bearing_id.config.params import default_rig_path, load_rig, PACKAGE_PARAMS, ParamError, parse_rig
-from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel
+from bearing_id.commands import model as cmd
+from bearing_id.config import units
+from bearing_id.config.params import (default_rig_path, load_rig, PACKAGE_PARAMS, ParamError, parse_rig, Probe,
+                                      rig_to_dict)
+from bearing_id.identify import identify
+from bearing_id.identify.conventional import identify_conventional
+from bearing_id.identify.harmonics import from_recordings
+from bearing_id.io.bags import typestore
+from bearing_id.io.messages import block_from_msg, block_to_msg, validate_block
+from bearing_id.rotor.assembly import dynamic_stiffness, probe_matrix, RotorModel, static_bearing_loads
+from bearing_id.rotor.elements import ShaftElement, shear_coefficient
 from bearing_id.rotor.modal import free_free_frequencies
 from bearing_id.rotor.supports import bearing_fn
+from bearing_id.simulation.rig import simulate_data, simulate_plan, simulate_run, truth_bearing_fn
 from error_bounds import solve_tol
+from film_oracle import short_film_force
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -80,9 +93,8 @@ def test_units_in_strings(raw, monkeypatch):
     d['shaft']['diameter'] = '12.65 kg'
     with pytest.raises(ParamError, match=r'shaft\.diameter.*wrong unit'):
         parse_rig(d)
-    # pint evaluates expressions: anything but NUMBER UNIT is refused before it gets there (9**9**9 never returns)
-    from bearing_id.config import units
 
+    # pint evaluates expressions: anything but NUMBER UNIT is refused before it gets there (9**9**9 never returns)
     def no_pint():
         raise AssertionError('an expression reached pint')
     monkeypatch.setattr(units, '_registry', no_pint)
@@ -152,7 +164,6 @@ def test_stepped_shaft_free_free_frequencies_match_the_exact_beam():
     model = RotorModel.from_params(parse_rig(d))
     ref = _eb_stepped_free_free([(L, E * math.pi * D**4 / 64, rho * math.pi * D**2 / 4) for L, D, _ in secs])
     # the same elements without shear and rotary inertia are Euler-Bernoulli: only the FE discretisation differs
-    from bearing_id.rotor.elements import ShaftElement
     eb = RotorModel.from_elements([ShaftElement(e.length, e.outer_d, e.inner_d, e.E, e.G_mod, e.rho, shear=False,
                                                 rotary_inertia=False) for e in model.elements])
     assert free_free_frequencies(eb, 3) == pytest.approx(ref, rel=2e-5)     # measured 0.6e-6 ... 7e-6
@@ -189,7 +200,6 @@ def test_layers_are_full_elements_on_the_host_nodes_with_their_own_shear():
     its several elements on one station); the rotor damping alpha M + beta K covers the layers; the mass is the
     closed form sum of rho A L.
     """
-    from bearing_id.rotor.elements import shear_coefficient, ShaftElement
     rig = parse_rig(_layered())
     els = rig.shaft.elements
     assert len(els) == 7 and [len(e.layers) for e in els] == [0] * 4 + [3] * 3
@@ -283,7 +293,6 @@ def test_materials_may_be_soft_but_not_zero():
 
 
 def test_layers_and_element_shear_round_trip():
-    from bearing_id.config.params import rig_to_dict
     rig = parse_rig(_layered())
     text = yaml.safe_dump(rig_to_dict(rig), sort_keys=False)
     assert parse_rig(yaml.safe_load(text)) == rig and 'layers' in text        # exact: YAML keeps a float's repr
@@ -374,8 +383,6 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
     # the x/y rows are unit vectors: R @ xy is c * 1 + s * 0 per entry, one rounding at most
     assert np.max(np.abs(pm - R @ xy)) <= EPS
     # and through the simulated rig (time domain, no noise): the +-45 channels are the rotated x/y channels
-    from bearing_id.config.params import Probe
-    from bearing_id.simulation.rig import simulate_run
     run = rig.simulation.runs[0]
     kw = {'speeds_rpm': [1200, 2400], 'dwell': 0.2, 'ramp': 0.0, 'noise': 0.0}
     a = simulate_run(rig, run, probes=(Probe('x', 6, 'x'), Probe('y', 6, 'y')), **kw)
@@ -387,9 +394,6 @@ def test_pm45_pair_equals_the_xy_pair_rotated_exactly():
 
 
 def test_messages_carry_the_probe_angle():
-    from bearing_id.io.bags import typestore
-    from bearing_id.io.messages import block_from_msg, block_to_msg, validate_block
-    from bearing_id.config.params import Probe
     probes = (Probe('p5L', 5, cv.probe_direction(135.0)), Probe('p5R', 5, cv.probe_direction(45.0, 1.01)))
     x = np.zeros((8, 2)) + 1e-6
     msg = block_to_msg(x, 1, 1000.0, 100.0, 0.0, probes, types=typestore(), sample_angles=np.arange(8) * 0.1)
@@ -403,8 +407,6 @@ def test_messages_carry_the_probe_angle():
 # ------------------------------------------------------------------------------------------------ plant-like example
 @pytest.fixture(scope='module')
 def plant_data():
-    from bearing_id.identify.harmonics import from_recordings
-    from bearing_id.simulation.rig import simulate_plan
     rig = load_rig(PLANT)
     model = RotorModel.from_params(rig)
     recs = simulate_plan(rig, ramp=0.0, model=model)        # time domain, 1 % noise, instant speed steps
@@ -412,7 +414,6 @@ def plant_data():
 
 
 def _worst_errors(rig, results):
-    from bearing_id.simulation.rig import truth_bearing_fn
     truth = truth_bearing_fn(rig)
     ek = ec = 0.0
     for r in results:
@@ -426,7 +427,6 @@ def _worst_errors(rig, results):
 
 def test_plant_truth_is_10_to_30_percent_off(plant_data):
     rig, _, _ = plant_data
-    from bearing_id.simulation.rig import truth_bearing_fn
     w = 3000 * math.pi / 30
     nom, tru = bearing_fn(rig)(w), truth_bearing_fn(rig)(w)
     for n in nom:
@@ -436,7 +436,6 @@ def test_plant_truth_is_10_to_30_percent_off(plant_data):
 
 
 def test_plant_physical_from_one_pm45_pair(plant_data):
-    from bearing_id.identify import identify
     rig, model, data = plant_data
     idx = [i for i, p in enumerate(data.probes) if p.node == 17]          # the midspan +-45 deg pair only
     sub = dataclasses.replace(data, probes=tuple(data.probes[i] for i in idx), runs=data.runs[:1],
@@ -447,15 +446,12 @@ def test_plant_physical_from_one_pm45_pair(plant_data):
 
 
 def test_plant_direct_with_the_force_plan(plant_data):
-    from bearing_id.identify import identify
     rig, model, data = plant_data
     ek, ec = _worst_errors(rig, identify('direct', model, rig, data))
     assert ek <= 0.03 and ec <= 0.03, (ek, ec)
 
 
 def test_model_command_writes_modes_for_any_machine(tmp_path):
-    import argparse
-    from bearing_id.commands import model as cmd
     args = argparse.Namespace(params=str(PLANT), out=str(tmp_path), max_rpm=5000.0, speeds='1500,3000', modes=6,
                               no_update=True)
     assert cmd.run(args) == 0
@@ -472,8 +468,6 @@ def test_load_vector_rotates_the_bearing_against_the_film_force_itself(raw):
     Equilibrium and K, C against the short-bearing film force by direct quadrature (short_film_force), not the closed
     form.
     """
-    from bearing_id.bearings import solution
-    from film_oracle import short_film_force
     d = copy.deepcopy(raw)
     d['bearings'][0]['load'] = [-2.59, 13.2]
     b = parse_rig(d).bearings[0]
@@ -498,16 +492,12 @@ def test_load_vector_rotates_the_bearing_against_the_film_force_itself(raw):
     d['gravity'] = [-9.80665, 0.0]
     rig = parse_rig(d)
     assert rig.bearings[0].load_direction == (1.0, 0.0)
-    from bearing_id.rotor.assembly import static_bearing_loads
     assert static_bearing_loads(RotorModel.from_params(rig)) == static_bearing_loads(RotorModel.from_params(
         load_rig()))
 
 
 def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
     """Two identified table bearings (cross-coupled, speed-dependent), truth = table x (1.2 on K, 0.85 on C)."""
-    from bearing_id.identify import identify
-    from bearing_id.simulation.rig import simulate_data
-    from bearing_id.simulation.rig import truth_bearing_fn
     d = copy.deepcopy(raw)
     rpm = [500, 1500, 3500]
     tab = {'speed_rpm': rpm, 'kxx': [2e5, 3e5, 4e5], 'kxy': [2e4, 8e4, 2e5], 'kyx': [-2e4, -8e4, -2e5],
@@ -545,10 +535,6 @@ def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
 
 def test_conventional_from_pm45_pairs_equals_from_xy_pairs():
     """The conventional method on +-45 deg pairs (x, y rebuilt at each probe node) = on x/y pairs at those nodes."""
-    from bearing_id.identify.conventional import identify_conventional
-    from bearing_id.simulation.rig import simulate_data
-    from bearing_id.config.params import Probe
-    from bearing_id.rotor.supports import bearing_fn
     rig = load_rig()
     model = RotorModel.from_params(rig)
     nodes = (1, 3, 9, 11)
@@ -581,7 +567,6 @@ def test_known_table_bearing_is_a_support_in_statics():
     which cubic elements with consistent loads reproduce exactly; the Timoshenko shear flexibility of this shaft,
     l/D = 20, moves them by ~5e-4).
     """
-    from bearing_id.rotor.assembly import static_bearing_loads
     D, L, rho = 0.03, 1.2, 7800.0
     tab = {'speed_rpm': [1000], 'kxx': [1e7], 'kyy': [1e7], 'cxx': [100.0], 'cyy': [100.0]}
     d = {'name': 'three', 'shaft': {'length': L, 'diameter': D, 'n_elements': 24, 'density': rho,
@@ -591,7 +576,6 @@ def test_known_table_bearing_is_a_support_in_statics():
                       {'name': 'middle', 'node': 13, 'kind': 'table', 'identify': False, 'table': tab}]}
     rig = parse_rig(d)
     assert [b.node for b in rig.bearings] == [1, 25] and rig.known_bearings[0].node == 13
-    from bearing_id.rotor.elements import ShaftElement
     model = RotorModel.from_params(rig)
     ql = rho * math.pi * D**2 / 4 * 9.80665 * L / 2
     want = {1: 3 / 8 * ql, 13: 10 / 8 * ql, 25: 3 / 8 * ql}
@@ -610,7 +594,6 @@ def test_known_table_bearing_is_a_support_in_statics():
 
 
 def test_finite_bearing_with_gumbel_cavitation_uses_the_half_sommerfeld_solver(raw):
-    from bearing_id.bearings import finite, solution
     d = copy.deepcopy(raw)
     for b in d['bearings']:
         b['model'] = 'finite'

@@ -3,16 +3,30 @@ from __future__ import annotations
 
 import json
 import math
+import threading
+import time
+from types import SimpleNamespace
 
 import agreement
-from bearing_id.config.params import ParamError, Probe, Run
-from bearing_id.io import recordings
+from bearing_id.config.params import load_rig, PACKAGE_PARAMS, ParamError, Probe, Run
+from bearing_id.conventions import rpm_to_rad_s
+from bearing_id.estimation.kalman import fast_filter, rotor_kalman_model
+from bearing_id.excitation import harmonic_forces
+from bearing_id.identify import identify
+from bearing_id.io import bags, messages, recordings
 from bearing_id.io.daq import angle_from_keyphasor, DaqError, read_csv, read_daq, write_csv
 from bearing_id.io.record import Record
+from bearing_id.nodes import kf_estimator_core
+from bearing_id.nodes.identifier_core import IdentifierCore
+from bearing_id.nodes.kf_estimator_core import EstimatorCore
 from bearing_id.nodes.monitor import StreamMonitor
 from bearing_id.nodes.specs import ParamSpec, validate_values, yaml_block
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.signals.recording import Recording
+from bearing_id.simulation import rig as rigmod
 import numpy as np
 import pytest
+import yaml
 
 SPECS = [
     ParamSpec('block_size', 1024, 'samples per block', 'samples', lo=16, hi=65536),
@@ -35,7 +49,6 @@ def test_defaults_validate_and_bad_values_name_the_parameter():
 
 
 def test_yaml_block_round_trips_defaults():
-    import yaml
     text = yaml_block('sensor_driver', SPECS)
     d = yaml.safe_load(text)['/**']['ros__parameters']
     assert d == {s.name: s.default for s in SPECS}
@@ -154,7 +167,6 @@ def test_keyphasor_angle_matches_the_true_angle_within_one_sample():
 
 
 def test_csv_round_trip_with_units_and_bad_headers(tmp_path):
-    from bearing_id.signals.recording import Recording
     fs = 10240.0
     n = 2048
     t = np.arange(n) / fs
@@ -186,9 +198,6 @@ def test_identifier_windows_equal_the_offline_route_on_a_bag(tmp_path, pauses):
     hands out the open windows provisionally, and the final cut of each replaces them -- the wall clock never cuts
     the data (a loaded CI machine once split a dwell that way and the live result moved 0.3 %).
     """
-    from bearing_id.io import bags, messages
-    from bearing_id.nodes.identifier_core import IdentifierCore
-    from bearing_id.config.params import load_rig, PACKAGE_PARAMS
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
     ref = recordings.from_bag(bag)
     core = IdentifierCore(load_rig(), 'physical', tmp_path)
@@ -240,11 +249,6 @@ def test_identifier_paper_method_equals_the_offline_route(tmp_path, R_std):
     NIS (offline: from the samples) is missing there.  (Until 27 Nov the node used the kf_estimator's time-domain
     estimates and dropped every one of them -- no result at all.)
     """
-    from bearing_id.identify import identify
-    from bearing_id.io import bags, messages
-    from bearing_id.nodes.identifier_core import IdentifierCore
-    from bearing_id.config.params import load_rig, PACKAGE_PARAMS
-    from bearing_id.rotor.assembly import RotorModel
     bag = PACKAGE_PARAMS.parent / 'bags' / 'unbalance_ab_sweep'
     rig = load_rig()
     ref_data = recordings.from_bag(bag).select([0, 4, 8])          # three speeds: the test's time
@@ -277,16 +281,6 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     Once built, the queued blocks are filtered in order and agree with kalman.fast_filter over the same samples (the
     batch route) within 0.01 of each output's stated 1-sigma.
     """
-    import threading
-    import time as _time
-    from types import SimpleNamespace
-
-    from bearing_id.simulation import rig as R
-    from bearing_id.excitation import harmonic_forces
-    from bearing_id.estimation.kalman import fast_filter, rotor_kalman_model
-    from bearing_id.nodes import kf_estimator_core
-    from bearing_id.nodes.kf_estimator_core import EstimatorCore
-    from bearing_id.config.params import load_rig
     gate = threading.Event()
 
     def held(*a, **kw):                 # the model build waits for the gate (at most 60 s)
@@ -294,7 +288,7 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
         return rotor_kalman_model(*a, **kw)
     monkeypatch.setattr(kf_estimator_core, 'rotor_kalman_model', held)
     rig = load_rig()
-    rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0], dwell=0.5)
+    rec = rigmod.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0], dwell=0.5)
     core = EstimatorCore(rig, 1e-16, 1e-7, 0.01)
     fs, n = rec.sample_rate, 1024
     w = float(rec.speed[0])
@@ -307,10 +301,10 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
     assert core.drain() == [] and core.pending == 4     # queued, in order, until the model exists
     gate.set()
     out = []
-    t_end = _time.monotonic() + 30
-    while len(out) < 4 and _time.monotonic() < t_end:
+    t_end = time.monotonic() + 30
+    while len(out) < 4 and time.monotonic() < t_end:
         out += core.drain()
-        _time.sleep(0.01)
+        time.sleep(0.01)
     core.close()
     assert [o.seq for o in out] == [0, 1, 2, 3]
     km = rotor_kalman_model(core.rotor, w, core.bearing_fn(w), rec.probes, fs, Q=1e-16, R=1e-14,
@@ -335,29 +329,22 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
     The unbalance: rig.scenario('paper_table3').  rig.check_validity (steady-state response) is the independent
     reference.
     """
-    import time as _time
-    from types import SimpleNamespace
-
-    from bearing_id.simulation import rig as R
-    from bearing_id.conventions import rpm_to_rad_s
-    from bearing_id.nodes.kf_estimator_core import EstimatorCore
-    from bearing_id.config.params import load_rig
     rig = load_rig()
-    run = R.scenario('paper_table3')[0]
-    ref = R.check_validity(rig, [run], [rpm_to_rad_s(600.0), rpm_to_rad_s(2400.0)])
+    run = rigmod.scenario('paper_table3')[0]
+    ref = rigmod.check_validity(rig, [run], [rpm_to_rad_s(600.0), rpm_to_rad_s(2400.0)])
     assert {round(i.speed) for i in ref if i.kind == 'orbit'} == {round(rpm_to_rad_s(2400.0))}
     core = EstimatorCore(rig, 1e-16, 1e-7, 0.01)
     for rpm, expect_warn in ((600.0, False), (2400.0, True)):
-        rec = R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=0.3, noise=0.0)
+        rec = rigmod.simulate_run(rig, run, speeds_rpm=[rpm], dwell=0.3, noise=0.0)
         w = float(rec.speed[0])
         core.last_orbit.clear()
         b = SimpleNamespace(seq=0, stamp=0.0, samples=rec.samples[:2048], angles=lambda rec=rec: rec.angle[:2048],
                             sample_rate=rec.sample_rate, probes=rec.probes, frame_id='rig')
         core.submit(b, run, w, False)
-        t_end = _time.monotonic() + 30
-        while core.pending and _time.monotonic() < t_end:
+        t_end = time.monotonic() + 30
+        while core.pending and time.monotonic() < t_end:
             core.drain()
-            _time.sleep(0.01)
+            time.sleep(0.01)
         st = core.validity_status(w)
         assert (st.level == 1 and 'orbit' in st.message and 'clearance' in st.message) == expect_warn, st
     core.close()

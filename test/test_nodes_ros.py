@@ -6,9 +6,16 @@ identifier against the offline route on the same simulated data.
 """
 from __future__ import annotations
 
+import os
+import signal
 import time
 
 import agreement
+from bearing_id.config.params import load_rig
+from bearing_id.identify import harmonics, identify
+from bearing_id.io.record import Record
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import rig as R
 import pytest
 import rosutil
 
@@ -43,14 +50,11 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
     with rosutil.RosProcess(cmd, hard_timeout=90) as p:
         time.sleep(3.0)
         assert p.alive(), p.output()
-        import os
-        import signal
         os.kill(p.pid, signal.SIGTERM)
         rc = p.wait(rosutil.STOP_WITHIN)               # a generous upper bound, not a timing verdict
         assert rc == 0, p.output()
         assert 'SIGTERM: shutting down' in p.stderr + p.stdout and 'Traceback' not in p.stderr, p.output()
     if node == 'identifier':
-        from bearing_id.io.record import Record
         assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['session']
 
 
@@ -72,7 +76,6 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
                                   '-p', 'exit_when_done:=true'], env=env, hard_timeout=120)
         procs.append(drv)
         assert drv.wait(90) == 0, drv.output()
-        from bearing_id.io.record import Record
         t_end = time.monotonic() + 30
         res = []
         while time.monotonic() < t_end:
@@ -89,10 +92,6 @@ def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
     finally:
         for p in procs:
             p.close()
-    from bearing_id.simulation import rig as R
-    from bearing_id.identify import harmonics, identify
-    from bearing_id.config.params import load_rig
-    from bearing_id.rotor.assembly import RotorModel
     rig = load_rig()
     recs = [R.simulate_run(rig, r, speeds_rpm=speeds, dwell=1.5) for r in rig.simulation.runs]
     ref = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))

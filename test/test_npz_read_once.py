@@ -8,6 +8,7 @@ against the number of members of the archive.
 from __future__ import annotations
 
 import zipfile
+import zlib
 
 from bearing_id.config.params import ExcitationEntry, Probe, Run
 from bearing_id.io import recordings
@@ -106,7 +107,6 @@ def test_only_members_that_shrink_are_deflated(written):
     Reference: zlib on each array's bytes as ``np.load`` reads them (deflated size vs raw size), and the zip
     directory's compression method of that member; a plain ``np.savez_compressed`` file of the same arrays reads equal.
     """
-    import zlib
     _, path = written
     with zipfile.ZipFile(path) as zf, np.load(path, allow_pickle=False) as z:
         infos = {i.filename[:-4]: i for i in zf.infolist()}

@@ -14,6 +14,7 @@ import math
 from bearing_id.config.params import load_rig
 from bearing_id.conventions import rpm_to_rad_s
 from bearing_id.identify import plausibility as pl
+from bearing_id.rotor import stability
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.rotor.supports import bearing_fn
 import pytest
@@ -41,7 +42,6 @@ def test_gate_threshold_decides_as_the_eigenvalues(rig, top_rpm):
 
 
 def test_the_stable_case_stops_early_and_is_kept(rig, monkeypatch):
-    from bearing_id.rotor import stability
     calls = []
     orig = stability.max_real_part
     monkeypatch.setattr(stability, 'max_real_part', lambda *a: calls.append(a[2]) or orig(*a))

@@ -13,6 +13,7 @@ linearisation -- plus the rounding of the transfer's solve and of expm, eps x th
 import dataclasses
 
 from bearing_id.config.params import load_rig, Probe
+from bearing_id.conventions import dof_index
 from bearing_id.estimation import kalman
 from bearing_id.identify import harmonics, paper
 from bearing_id.identify.lsq import coefficient_scales
@@ -49,7 +50,6 @@ def setup():
 
 def test_kept_dofs_are_bearings_probes_and_forces(setup):
     rig, model, w, runs, F, kept = setup
-    from bearing_id.conventions import dof_index
     for node in (2, 10, 6):
         assert dof_index(node, 'x', model.n_nodes) in kept and dof_index(node, 'y', model.n_nodes) in kept
     for f in F:

@@ -17,11 +17,30 @@ import math
 import os
 from pathlib import Path
 import re
+from types import SimpleNamespace
 
 import agreement
-from bearing_id.conventions import RPM_PER_RAD_S, rpm_to_rad_s
+from bearing_id.cli import main
+from bearing_id.commands.inputs import attach_excitation, load_recordings
+from bearing_id.commands.model import analyse, campbell_from_report
+from bearing_id.commands.report import build_report
+from bearing_id.config.params import load_rig, Probe, Run
+from bearing_id.conventions import probe_row, RPM_PER_RAD_S, rpm_to_rad_s
+from bearing_id.excitation import harmonic_forces
+from bearing_id.identify import harmonics, identify
+from bearing_id.identify.result import IdentResult
 from bearing_id.io.recordings import save_npz
+from bearing_id.plots.campbell import campbell_figure
+from bearing_id.plots.coefficients import theory_coefficients_figure
+from bearing_id.plots.data import (amplitude_spectrum, critical_mode_index, diagnosis_curves, identified_bearing_fn,
+                                   InterpolatedBearings, journal_positions, mode_shapes, orbit_data, probe_stations,
+                                   response_curves, response_curves_adaptive)
+from bearing_id.plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
+from bearing_id.plots.html import browser_check, find_chromium, Page
 from bearing_id.rotor import supports
+from bearing_id.rotor.assembly import harmonic_response, probe_matrix, RotorModel
+from bearing_id.rotor.modal import damped_modes
+from bearing_id.simulation.rig import simulate_run
 import numpy as np
 import pytest
 
@@ -33,9 +52,6 @@ BAG = ROOT / 'bags' / 'unbalance_ab_sweep'
 @pytest.fixture(scope='module')
 def demo(tmp_path_factory):
     """Return the report of the demo-like recording (bags/unbalance_ab_sweep, method physical), figures kept."""
-    from bearing_id.commands.inputs import attach_excitation, load_recordings
-    from bearing_id.commands.report import build_report
-    from bearing_id.config.params import load_rig
     rig = load_rig()
     recs = attach_excitation(load_recordings([str(BAG)]), rig, required=False)
     out = tmp_path_factory.mktemp('report')
@@ -49,9 +65,6 @@ def _by_gid(fig, gid):
 
 # ------------------------------------------------------------------------------------------------ Campbell
 def test_campbell_1x_crossing_equals_the_reported_critical_speed(tmp_path):
-    from bearing_id.commands.model import analyse, campbell_from_report
-    from bearing_id.config.params import load_rig
-    from bearing_id.plots.campbell import campbell_figure
     r = analyse(load_rig(), [600.0, 3000.0], max_rpm=6000.0, update=False)
     crit = r['critical_speeds_rpm']
     assert len(crit) == 1 and 1800 < crit[0] < 2200
@@ -83,11 +96,9 @@ def test_campbell_1x_crossing_equals_the_reported_critical_speed(tmp_path):
 
 
 def test_model_command_plots_each_bearing_visibly(tmp_path, capsys):
-    from bearing_id.cli import main
     assert main(['model', '--out', str(tmp_path), '--speeds', '600,1800,3000', '--no-update']) == 0
     for name in ('campbell.png', 'coefficients.png', 'mode_shapes.png'):
         assert (tmp_path / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
-    from bearing_id.plots.coefficients import theory_coefficients_figure
     K = np.ones((3, 2, 2))
     fig = theory_coefficients_figure([600, 1800, 3000], {2: (K, K), 10: (K, 2 * K)})
     a, b = _by_gid(fig, 'theory:2:Cxy')[0], _by_gid(fig, 'theory:10:Cxy')[0]
@@ -96,8 +107,6 @@ def test_model_command_plots_each_bearing_visibly(tmp_path, capsys):
 
 
 def test_mode_shapes_are_the_damped_modes(rig, model):
-    from bearing_id.plots.data import critical_mode_index, mode_shapes
-    from bearing_id.rotor.modal import damped_modes
     bfn = supports.bearing_fn(rig)
     w = rpm_to_rad_s(1964.0)
     shapes = mode_shapes(model, bfn, w, 4)
@@ -113,9 +122,6 @@ def test_mode_shapes_are_the_damped_modes(rig, model):
 
 # ------------------------------------------------------------------------------------------------ response
 def test_model_curves_pass_through_the_model_response_at_the_test_speeds(demo):
-    from bearing_id.excitation import harmonic_forces
-    from bearing_id.identify import harmonics, identify
-    from bearing_id.rotor.assembly import harmonic_response, probe_matrix, RotorModel
     rig, recs, info = demo
     model = RotorModel.from_params(rig)
     data = harmonics.from_recordings(recs)
@@ -146,9 +152,6 @@ def test_model_curves_pass_through_the_model_response_at_the_test_speeds(demo):
 
 
 def test_identified_physical_model_reproduces_the_results(demo):
-    from bearing_id.identify import harmonics, identify
-    from bearing_id.plots.data import identified_bearing_fn
-    from bearing_id.rotor.assembly import RotorModel
     rig, recs, _ = demo
     data = harmonics.from_recordings(recs)
     results = identify('physical', RotorModel.from_params(rig), rig, data)
@@ -162,9 +165,6 @@ def test_identified_physical_model_reproduces_the_results(demo):
 
 
 def test_interpolated_bearings_are_exact_at_the_speeds_and_refuse_to_extrapolate():
-    from bearing_id.identify.result import IdentResult
-    from bearing_id.plots.data import identified_bearing_fn, InterpolatedBearings
-
     def res(w, scale, det=True):
         K = np.array([[[1e6, 2e5], [-3e5, 8e5]]]) * scale
         C = np.array([[[1e3, -1e2], [-1e2, 2e3]]]) * scale
@@ -185,7 +185,6 @@ def test_interpolated_bearings_are_exact_at_the_speeds_and_refuse_to_extrapolate
 
 
 def test_adaptive_curve_resolves_the_resonance(rig, model):
-    from bearing_id.plots.data import response_curves, response_curves_adaptive
     bfn = supports.bearing_fn(rig)
     runs = rig.simulation.runs
     test = rpm_to_rad_s(np.array([600.0, 1800.0, 3000.0]))
@@ -202,9 +201,6 @@ def test_adaptive_curve_resolves_the_resonance(rig, model):
 
 # ------------------------------------------------------------------------------------------------ signals
 def test_orbit_keyphasor_and_whirl_on_a_synthetic_orbit():
-    from types import SimpleNamespace
-
-    from bearing_id.plots.data import orbit_data
     fs, w = 2048.0, 2 * math.pi * 20.0
     t = np.arange(int(fs)) / fs
     ang = w * t + 0.3
@@ -221,11 +217,6 @@ def test_orbit_keyphasor_and_whirl_on_a_synthetic_orbit():
 
 def test_orbit_from_probes_at_plus_minus_45_degrees_is_the_xy_orbit():
     """API 670 pairs (45 and 135 deg from +x, one with a 2 % gain error): the station's x, y are the true x, y."""
-    from types import SimpleNamespace
-
-    from bearing_id.conventions import probe_row
-    from bearing_id.plots.data import orbit_data, probe_stations
-    from bearing_id.config.params import Probe
     probes = (Probe('a', 7, '45.0deg*1.02'), Probe('m', 4, 'x'), Probe('b', 7, '135.0deg'), Probe('c', 9, '45.0deg'),
               Probe('d', 9, '60.0deg'))
     st = probe_stations(probes)
@@ -248,7 +239,6 @@ def test_orbit_from_probes_at_plus_minus_45_degrees_is_the_xy_orbit():
 
 
 def test_spectrum_amplitude_of_a_sinusoid():
-    from bearing_id.plots.data import amplitude_spectrum
     fs = 1024.0
     t = np.arange(4096) / fs
     f, a = amplitude_spectrum(7e-6 * np.cos(2 * math.pi * 32.0 * t) + 1e-3, fs, fmax=100.0)
@@ -258,7 +248,6 @@ def test_spectrum_amplitude_of_a_sinusoid():
 
 
 def test_journal_positions_are_the_bearing_equilibrium(rig):
-    from bearing_id.plots.data import journal_positions
     bfn = supports.bearing_fn(rig)
     w = np.array([50.0, 200.0, 300.0])
     jp = journal_positions(bfn, w)
@@ -292,7 +281,6 @@ def test_report_page_is_self_contained(demo):
 
 
 def test_report_in_a_headless_browser(demo, tmp_path):
-    from bearing_id.plots.html import browser_check, find_chromium
     if find_chromium() is None:
         if os.environ.get('CI'):
             pytest.fail('CI: chromium is not installed (.ci/run installs it with apt-get install chromium)')
@@ -306,7 +294,6 @@ def test_report_in_a_headless_browser(demo, tmp_path):
 
 
 def test_browser_check_catches_broken_pages(tmp_path):
-    from bearing_id.plots.html import browser_check, find_chromium, Page
     if find_chromium() is None:
         if os.environ.get('CI'):
             pytest.fail('CI: chromium is not installed')
@@ -320,11 +307,6 @@ def test_browser_check_catches_broken_pages(tmp_path):
 
 def test_diagnosis_section_from_a_diagnosis_like_object(tmp_path):
     """The before/after section draws what the diagnosis predicts (here a stand-in with the same interface)."""
-    from types import SimpleNamespace
-
-    from bearing_id.config.params import Probe, Run
-    from bearing_id.plots.data import diagnosis_curves
-    from bearing_id.plots.diagnosis import diagnosis_bode_figure, residual_orders_figure
     probes = (Probe('p6x', 6, 'x'), Probe('p6y', 6, 'y'))
     rec = SimpleNamespace(probes=probes, run=Run('A', ()))
     wins = [SimpleNamespace(rec=0, speed=s, X=np.array([[1e-6 * (k + 1), 2e-6j]]), std=np.full((1, 2), 1e-8))
@@ -357,8 +339,6 @@ def test_diagnosis_section_from_a_diagnosis_like_object(tmp_path):
 @pytest.fixture(scope='module')
 def small_npz(tmp_path_factory):
     """Two simulated runs (truth != theory) at 3 speeds, as .npz files."""
-    from bearing_id.config.params import load_rig
-    from bearing_id.simulation.rig import simulate_run
     rig = load_rig()
     d = tmp_path_factory.mktemp('small')
     return [str(save_npz(simulate_run(rig, run, speeds_rpm=[900.0, 1500.0, 2400.0], dwell=0.8, ramp=0.2, seed=3),
@@ -367,7 +347,6 @@ def small_npz(tmp_path_factory):
 
 def test_cli_report(small_npz, tmp_path, capsys):
     """`bearing-id report`: exit 0 and the page with its figures; bad input exit 2."""
-    from bearing_id.cli import main
     assert main(['report', *small_npz, '--out', str(tmp_path / 'r'), '--png']) == 0
     out = capsys.readouterr().out
     html = (tmp_path / 'r' / 'report.html').read_text(encoding='utf-8')
@@ -378,7 +357,6 @@ def test_cli_report(small_npz, tmp_path, capsys):
 
 
 def test_identify_report(small_npz, tmp_path, capsys):
-    from bearing_id.cli import main
     rc = main(['identify', *small_npz, '--method', 'physical', '--plot', str(tmp_path / 'c.png'),
                '--report', str(tmp_path / 'rep')])
     assert rc == 0

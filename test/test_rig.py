@@ -8,6 +8,7 @@ step for the transient, and a plain least-squares sine fit written here.
 import math
 
 from bearing_id.conventions import dof_index, rpm_to_rad_s
+from bearing_id.excitation import harmonic_forces
 from bearing_id.io import recordings
 from bearing_id.io.recordings import save_npz
 from bearing_id.rotor.assembly import harmonic_response
@@ -30,7 +31,6 @@ def test_steady_state_matches_frequency_response(rig, model):
     rec = rigmod.simulate_run(rig, run, speeds_rpm=[1500.0], dwell=0.25, noise=0.0)
     W = rpm_to_rad_s(1500.0)
     coeffs = rigmod.truth_bearing_fn(rig)(W)
-    from bearing_id.excitation import harmonic_forces
     F = harmonic_forces(run.excitation, W, model.n_nodes)[1.0]
     q = harmonic_response(model, W, W, F, coeffs)
     for j, p in enumerate(rec.probes):
@@ -49,7 +49,6 @@ def test_transient_after_speed_step_matches_ode_integration(rig, model):
     # independent route: start from the steady state of segment 1 at t = dwell, integrate segment 2 by solve_ivp
     W1, W2 = (rpm_to_rad_s(s) for s in speeds)
     bf = rigmod.truth_bearing_fn(rig)
-    from bearing_id.excitation import harmonic_forces
     n1 = rec.segments[0][1]
     phi1 = rec.angle[n1 - 1] + W1 / rec.sample_rate  # angle at the step
     F1 = harmonic_forces(run.excitation, W1, model.n_nodes)[1.0]

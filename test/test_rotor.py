@@ -23,7 +23,7 @@ from bearing_id.rotor.modal import campbell, critical_speeds, damped_modes, free
 from error_bounds import EPS_MACH, solve_tol, state_backward_error, sum_tol
 import numpy as np
 import pytest
-from scipy.linalg import matrix_balance
+from scipy.linalg import eigh, matrix_balance
 
 E, NU, RHO = 2.1e11, 0.3, 7850.0
 GMOD = E / (2 * (1 + NU))
@@ -40,7 +40,6 @@ def xz_plane(model):
 
 
 def pinned_pinned_fe(model, n):
-    from scipy.linalg import eigh
     idx = xz_plane(model)
     # drop x at both ends (pinned), keep the end rotations free
     drop = {0, 4 * (model.n_nodes - 1)}

@@ -15,6 +15,8 @@ The ROS clients run as subprocesses (``python test_stock_tools.py client SPEC.js
 """
 from __future__ import annotations
 
+import ast
+import importlib
 import json
 import math
 import os
@@ -24,6 +26,7 @@ import socket
 import struct
 import sys
 import time
+import xml.etree.ElementTree as ET
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -200,7 +203,6 @@ def _client(spec_path: str) -> int:
                 print(f"published {act['run_id']}", file=sys.stderr, flush=True)
                 results.append({'matched': matched, 'subscriptions': pub.get_subscription_count()})
             elif act['do'] == 'match':
-                import importlib
                 pkg, _, name = act['type'].split('/')
                 cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
                 pubs = {q: node.create_publisher(cls, act['topic'], qos[q]) for q in act['qos']}
@@ -227,7 +229,7 @@ if __name__ == '__main__':  # python test_stock_tools.py client SPEC.json
 
 
 # ------------------------------------------------------------------------------------------------ tests
-from bearing_id.config.params import ParamError  # noqa: E402
+from bearing_id.config.params import load_rig, ParamError  # noqa: E402
 from bearing_id.nodes import dds, runs, specs as node_specs, topics  # noqa: E402
 import pytest  # noqa: E402
 import rosutil  # noqa: E402
@@ -287,9 +289,6 @@ def test_params_file_is_keyed_for_any_namespace_and_generated_from_the_specs(nod
     Every declared parameter (COMMON_SPECS too) at its default, unset ones commented out; and it is what ``python -m
     bearing_id.nodes.specs`` generates (header kept).
     """
-    import importlib
-
-    import yaml
     specs = node_specs.with_common(importlib.import_module(f'bearing_id.nodes.{node}_core').SPECS)
     path = REPO / 'params' / f'{node}.yaml'
     text = path.read_text()
@@ -331,7 +330,6 @@ def test_unset_parameters_are_declared_with_a_typed_value_and_read_back_as_unset
 
 def test_a_repeated_excitation_is_ignored():
     """The latched excitation arrives twice from a transient-local publisher (both subscriptions match it)."""
-    from bearing_id.config.params import load_rig
     run = load_rig().simulation.runs[0]
     tl = runs.ExcitationTimeline()
     assert tl.add(1000.0, run) is True
@@ -346,7 +344,6 @@ def test_fastdds_profile_allows_only_loopback_and_shared_memory():
     Builtin transports off, UDPv4 whitelisted to 127.0.0.1, SHM, discovery by unicast to 127.0.0.1 (no multicast
     locator), default participant profile.
     """
-    import xml.etree.ElementTree as ET
     path = REPO / 'params' / 'fastdds_localhost.xml'
     assert dds.fastdds_profile().read_bytes() == path.read_bytes()     # the source tree's or the installed copy
     ns = {'f': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
@@ -406,8 +403,6 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
     Rosdep keys as in rosdistro's rosdep/{base,python}.yaml; rosbags and filterpy only as *-pip keys; a key rosdistro
     lacks (pint, mcap, pydantic 2) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
     """
-    import ast
-    import xml.etree.ElementTree as ET
     keys = {'rclpy': 'rclpy', 'rcl_interfaces': 'rcl_interfaces', 'builtin_interfaces': 'builtin_interfaces',
             'std_msgs': 'std_msgs', 'diagnostic_msgs': 'diagnostic_msgs', 'ament_index_python': 'ament_index_python',
             'bearing_id_msgs': 'bearing_id_msgs', 'numpy': 'python3-numpy', 'scipy': 'python3-scipy',
@@ -523,7 +518,6 @@ def test_namespace_params_file_and_param_dump_round_trip(tmp_path):
     stays; ``ros2 param dump`` (list + get services) returns every declared parameter with the file's value, unset ones
     as [] / NaN; the dumped file starts the node again identically.
     """
-    import importlib
     specs = node_specs.with_common(importlib.import_module('bearing_id.nodes.kf_estimator_core').SPECS)
     text = (REPO / 'params' / 'kf_estimator.yaml').read_text()
     changed = {'measurement_noise': 2.5e-07, 'speed_band': 0.02, 'input_reliability': 'best_effort'}
@@ -563,7 +557,6 @@ def test_namespace_params_file_and_param_dump_round_trip(tmp_path):
 
 @pytest.mark.ros
 def test_param_dump_answers_for_every_parameter_of_driver_and_identifier(tmp_path):
-    import importlib
     env = rosutil.ros_env()
     cmds = {'sensor_driver': ['-p', 'speeds_rpm:=[600.0]', '-p', 'dwell:=0.5'],
             'identifier': ['-p', f"record_dir:={tmp_path / 'rec'}"]}

@@ -17,8 +17,10 @@ Oracles, none of them the package's own code:
 """
 import math
 
+from bearing_id.config.params import load_rig
 from bearing_id.signals.harmonics import harmonic_vectors
 from bearing_id.signals.transient import exp_outer, uniform_step, VariableProjection
+from bearing_id.simulation.rig import simulate_run
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -340,8 +342,6 @@ def test_a_simulated_rig_window_after_a_ramp_is_at_the_full_problem_minimum():
     of their 1-sigma (alternating signs; the 1-sigma from a first oracle run there) and must come back to the
     package's minimum: X within 0.01 of its stated 1-sigma, (s, w) within 0.01 of their 1-sigma.
     """
-    from bearing_id.config.params import load_rig
-    from bearing_id.simulation.rig import simulate_run
     rig = load_rig()
     rec = simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500, 2100], dwell=1.5, ramp=0.3)
     i0 = int(np.searchsorted(rec.t, 1.5 + 0.3 + 0.05))
