@@ -514,7 +514,7 @@ def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
     # noise-free phasors (sigma 1e-6 relative, for the weights): the scales come back to the solver tolerance
     data = simulate_data(rig, rig.simulation.runs, rig.simulation.speeds_rpm, noise=0.0, model=model)
     data.X_std[...] = 1e-6 * np.abs(data.X)
-    res = identify('physical', model, rig, data)
+    res = identify('physical', model, rig, data, options={'table_form': 2})      # the truth's form
     par = res[0].extra['parameters']
     for k, v in want.items():
         assert par[k]['value'] == pytest.approx(v, rel=1e-8), k
@@ -528,7 +528,7 @@ def test_physical_fits_one_scale_on_k_and_one_on_c_of_table_bearings(raw):
     data = simulate_data(rig, rig.simulation.runs, rig.simulation.speeds_rpm, noise=0.01, model=model)
     rng = np.random.default_rng(5)
     data.X[...] += data.X_std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))
-    par = identify('physical', model, rig, data)[0].extra['parameters']
+    par = identify('physical', model, rig, data, options={'table_form': 2})[0].extra['parameters']
     for k, v in want.items():
         assert abs(par[k]['value'] - v) <= 3 * par[k]['std'], (k, par[k])
 

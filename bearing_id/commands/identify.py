@@ -1,8 +1,9 @@
 """
 ``bearing-id identify``: bearing coefficients per speed from recordings (.npz per run, or a bag), offline.
 
-Exit codes: 0 every printed coefficient is determined by the data (or --allow-undetermined was given);
-1 some coefficient is not determined by the data (they are named, never printed as numbers); 2 bad input.
+Exit codes: 0 every printed coefficient is determined by the data (or --allow-undetermined / --allow-misfit was
+given); 1 some coefficient is not determined by the data, or the model misfits the data (they are named, never printed
+as numbers); 2 bad input.
 """
 from __future__ import annotations
 
@@ -30,7 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = sub.add_parser('identify', help='identify the bearing stiffness and damping coefficients per speed',
                        description='Identify K [N/m] and C [N s/m] of each bearing per steady speed from .npz '
                                    'recordings (one file per excitation run) or a bag. Coefficients the data do '
-                                   'not determine are named and the command exits 1 unless --allow-undetermined.')
+                                   'not determine are named and the command exits 1 unless --allow-undetermined; '
+                                   'a model that misfits the data determines nothing (exit 1 unless --allow-misfit).')
     p.add_argument('inputs', nargs='+', help='.npz or .csv recordings (one per run) or one bag directory')
     p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
     p.add_argument('--method', default=defaults.METHOD, choices=METHODS,
@@ -45,6 +47,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                                    'plots, the coefficients vs speed and these tables')
     p.add_argument('--allow-undetermined', action='store_true',
                    help="print prior-dominated (undetermined) values, flagged '(prior)', and exit 0")
+    p.add_argument('--allow-misfit', action='store_true',
+                   help='where the model misfits the data, print the values the fit would determine, flagged '
+                        "'(misfit)' with their Birge-scaled 1-sigma (a lower bound), and exit 0")
     p.add_argument('--Q', type=float, default=None,
                    help=f'paper method: KF process noise (default {defaults.KF_PROCESS_NOISE:g})')
     p.add_argument('--R', type=float, default=None, metavar='STD_M',
@@ -55,8 +60,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help='paper method: Kalman filter on a Craig-Bampton reduced model (bearing, probe and force DOFs '
                         'kept; its 1X receptance error per speed in the notes) -- for large rotors')
     p.add_argument('--bearing-model', choices=('short', 'finite'), default=None,
-                   help="physical method: the estimator's bearing model, short (Ocvirk, default) or finite "
-                        '(finite-length Reynolds; slower)')
+                   help="physical method: the estimator's bearing model, short (Ocvirk) or finite (finite-length "
+                        "Reynolds); default: each bearing's model in the params file")
     return p
 
 
@@ -149,13 +154,14 @@ def run(args) -> int:
     if args.method == 'auto' and results:
         print(f"method: {ran} (auto: {results[0].extra['auto']['reason']})")
     print('units: speed rpm, K N/m, C N s/m')
-    print(format_results(results, args.allow_undetermined))
-    undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined]
+    print(format_results(results, args.allow_undetermined, args.allow_misfit))
+    undet = [(r.speed_rpm, r.undetermined_names()) for r in results if not r.fully_determined and not r.misfit]
+    misfit = [r.speed_rpm for r in results if r.misfit]
     if args.json:
         out = []
         for r in results:
             d = r.to_dict()
-            if not args.allow_undetermined:  # never publish undetermined values as plain numbers
+            if not (args.allow_misfit if r.misfit else args.allow_undetermined):  # undetermined: never a number
                 for b in d['bearings']:
                     for sym in ('K', 'C'):
                         b[sym] = [[v if ok else None for v, ok in zip(row, okr)]
@@ -175,6 +181,15 @@ def run(args) -> int:
                             allow_undetermined=args.allow_undetermined,
                             command='bearing-id identify ' + ' '.join(args.inputs) + f' --method {args.method}')
         print(f'report: {info.path}')
+    rc = 0
+    if misfit:
+        print('\nMODEL MISFIT (the model does not reproduce the data within their noise: nothing determined'
+              + (", values printed flagged '(misfit)'" if args.allow_misfit else ', not printed') + '): '
+              f"{', '.join(f'{rpm:.0f}' for rpm in misfit)} rpm", file=sys.stderr)
+        if not args.allow_misfit:
+            print('exit 1: see the MODEL MISFIT note for the likely cause; `bearing-id diagnose` looks for the missing '
+                  'physics; --allow-misfit prints the values flagged', file=sys.stderr)
+            rc = 1
     if undet:
         print('\nUNDETERMINED by the data (prior/theory-dominated'
               + (", printed flagged '(prior)'" if args.allow_undetermined else ', not printed') + '):',
@@ -187,5 +202,5 @@ def run(args) -> int:
                     'station determine), ')
             print(f'exit 1: try {hint}add probes or directional-force runs (`bearing-id design` says which), or pass '
                   '--allow-undetermined to print prior-dominated values flagged', file=sys.stderr)
-            return 1
-    return 0
+            rc = 1
+    return rc

@@ -128,6 +128,17 @@ def _has_forcing(run, n_nodes) -> bool:
         return False
 
 
+def _bearing_text(b, load) -> str:
+    """One bearing for the machine summary: a film's geometry, oil and static load [N], or a table's speed range."""
+    if b.model == 'table':
+        w = np.asarray(b.table.speeds, float) * RPM_PER_RAD_S
+        return (f'{b.name} at node {b.node}: table, {w.size} rows {w.min():.0f}-{w.max():.0f} rpm'
+                + (f', c {b.clearance * 1e6:.1f} µm' if np.isfinite(b.clearance) else ''))
+    text = (f'{b.name} at node {b.node}: D {b.diameter * 1e3:.2f} mm, L {b.length * 1e3:.2f} mm, '
+            f'c {b.clearance * 1e6:.1f} µm, µ {b.viscosity:.4g} Pa s, {b.model} model')
+    return text + (f', load {load:.2f} N' if load is not None and np.isfinite(load) else '')
+
+
 def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, list]:
     """
     Return (header, rows) of the identified coefficients: one row per speed and bearing, 'value ± 1σ' per coefficient.
@@ -147,7 +158,7 @@ def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, l
                     if d[i, j]:
                         row.append(f'{v[i, j]:.4g} ± {_fmt(s[i, j], 2)}')
                     elif allow_undetermined and np.isfinite(v[i, j]):
-                        row.append((f'{v[i, j]:.4g} (prior)', 'undet'))
+                        row.append((f"{v[i, j]:.4g} ({'misfit' if r.misfit else 'prior'})", 'undet'))
                     else:
                         row.append(('undetermined', 'undet'))
             flags = ', '.join(r.flags) or ('' if r.fully_determined else 'not all determined')
@@ -432,9 +443,7 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
     page.section('Machine summary', 'summary')
     kv = [('rig', rig.name), ('rotor', f'{model.mass:.3f} kg, {model.n_nodes} nodes, shaft '
                                        f'{rig.shaft.diameter * 1e3:.2f} mm x {rig.shaft.length:.3f} m')]
-    kv.append(('bearings', '; '.join(f'{b.name} at node {b.node}: D {b.diameter * 1e3:.2f} mm, L {b.length * 1e3:.2f} '
-                                     f'mm, c {b.clearance * 1e6:.1f} µm, µ {b.viscosity:.4g} Pa s, {b.model} model, '
-                                     f'load {theory.loads[b.node]:.2f} N' for b in rig.bearings)))
+    kv.append(('bearings', '; '.join(_bearing_text(b, theory.loads.get(b.node)) for b in rig.bearings)))
     kv.append(('discs', '; '.join(f'node {d.node}: {d.outer_diameter * 1e3:.0f} x {d.thickness * 1e3:.0f} mm'
                                   for d in rig.discs) or 'none'))
     if recordings:

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import importlib
 
+import numpy as np
+
 from .plausibility import gate
 from .result import eq38_error, IdentResult
 
@@ -51,12 +53,33 @@ def identify(method: str, model, rig, data, probes=None, runs=None, options=None
     Run ``method`` on harmonic ``data``, then the physical plausibility gates.
 
     Probes and runs default to the data's own.  The gates (:mod:`bearing_id.identify.plausibility`: stability threshold,
-    orbit vs clearance, live channels): a speed that fails one is returned not determined, with the reason in its notes.
+    orbit vs clearance, live channels): a speed that fails one is returned not determined, with the reason in its notes;
+    a speed whose model misfits (:func:`misfit_gate`) too.
     """
     fn = get_method(method)
     probes = tuple(probes if probes is not None else data.probes)
     runs = tuple(runs if runs is not None else data.runs)
-    return gate(fn(model, rig, data, probes, runs, options), model, rig, data, runs, probes)
+    return misfit_gate(gate(fn(model, rig, data, probes, runs, options), model, rig, data, runs, probes))
 
 
-__all__ = ['IdentResult', 'eq38_error', 'METHODS', 'get_method', 'identify']
+def misfit_gate(results: list[IdentResult]) -> list[IdentResult]:
+    """
+    Clear every determined flag of each result flagged ``misfit`` (in place): a misfit is never a determined number.
+
+    The model did not reproduce the data within their noise (the chi-square test of
+    :func:`bearing_id.identify.determined.fit_quality`), so its coefficients carry a bias no 1-sigma covers.  The
+    values and their (Birge-scaled) 1-sigma stay for a printer that is asked to show them flagged ``(misfit)``;
+    ``extra['determined_if_fit']`` keeps what the rule would have determined had the model fitted.
+    """
+    for r in results:
+        if r.misfit and (np.any(r.K_determined) or np.any(r.C_determined)):
+            r.extra['determined_if_fit'] = (np.array(r.K_determined, bool), np.array(r.C_determined, bool))
+            r.K_determined = np.zeros_like(r.K_determined, dtype=bool)
+            r.C_determined = np.zeros_like(r.C_determined, dtype=bool)
+            r.notes = list(r.notes) + ['MODEL MISFIT, so no coefficient is determined: the values are those of a '
+                                       'model that does not reproduce the data (shown only flagged (misfit), '
+                                       'e.g. `bearing-id identify --allow-misfit`)']
+    return results
+
+
+__all__ = ['IdentResult', 'eq38_error', 'METHODS', 'get_method', 'identify', 'misfit_gate']

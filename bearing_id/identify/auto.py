@@ -5,8 +5,9 @@ The default method, ``auto``: the method these data can carry, chosen by the des
 determine every coefficient at every speed -- the design check (:func:`bearing_id.identify.design.check_design`) at
 each speed with that speed's measured noise, linearised at the theory, judged by the one rule of
 :mod:`bearing_id.identify.determined`; otherwise ``physical`` (the bearings' viscosity and clearance, or a table
-bearing's scales, fitted across all speeds), which unbalance runs at one probe station do determine. Every result
-carries the choice and its reason (``extra['auto']`` and the first note).
+bearing's scales, fitted across all speeds), which unbalance runs at one probe station do determine -- unless its
+model cannot describe the data (the misfit test fails): then ``direct``, if it determines any coefficient (a misfit
+determines none).  Every result carries the choice and its reason (``extra['auto']`` and the first note).
 """
 from __future__ import annotations
 
@@ -69,6 +70,17 @@ def identify_auto(model, rig, data, probes, runs, options=None) -> list[IdentRes
         raise ValueError(f'auto: options are given per method ({sorted(CHOICES)}), got {sorted(unknown)}')
     method, reason = choose_method(model, rig, data, probes, runs)
     results = CHOICES[method](model, rig, data, probes, runs, opts.get(method))
+    if method == 'physical' and any(r.misfit for r in results):
+        # the bearing model cannot describe these data: per speed without a model, where the plan determines it
+        alt = identify_direct(model, rig, data, probes, runs, opts.get('direct'))
+        n_alt = sum(int(np.count_nonzero(r.K_determined) + np.count_nonzero(r.C_determined))
+                    for r in alt if not r.misfit)
+        if n_alt:
+            fq = next((r.extra.get('fit_quality') for r in results if r.extra.get('fit_quality') is not None), None)
+            method, results = 'direct', alt
+            reason += ('; but the physical fit misfits these data'
+                       + (f' (chi2/dof {fq.chi2_dof:.3g} > {fq.threshold:.3g})' if fq is not None else '')
+                       + f', so direct ran: it determines {n_alt} coefficient(s) without a bearing model')
     for r in results:
         r.extra['auto'] = {'method': method, 'reason': reason}
         r.notes.insert(0, f'method auto chose {method}: {reason}')

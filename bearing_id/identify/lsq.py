@@ -502,7 +502,7 @@ def build_result(method, model, rig, speed, sol: LSSolution, *, probes, forces, 
     notes = list(notes)
     notes.append(f'eqs 33-37 system: rank {sol.rank} of {sol.unknowns} (SVD, relative tolerance '
                  f'{DEFAULT_RTOL:g}), condition {sol.condition:.3g}; measured data (probes '
-                 f"{', '.join(f'{p.node}{p.direction}' for p in probes)}, {len(forces)} run(s)): rank {data.rank} "
+                 f"{', '.join(p.name for p in probes)}, {len(forces)} run(s)): rank {data.rank} "
                  f'of {data.unknowns} (structural {data.structural_rank}; 1-sigma <= '
                  f'{100 * (max_rel_std or DEFAULT_MAX_REL_STD):g} % of the group size)')
     if fq.testable:

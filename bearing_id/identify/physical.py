@@ -57,7 +57,7 @@ from .direct import augmented_response, cases_from_data, information_analysis, S
 from .result import empty_result, IdentResult
 from .. import bearings as bearing_models
 from ..bearings.finite_table import stated_tolerance
-from ..conventions import COEFF_ORDER
+from ..conventions import COEFF_ORDER, RPM_PER_RAD_S
 from ..rotor.assembly import static_bearing_loads
 
 FD_STEP = 1e-4               # central-difference step in log-parameter
@@ -74,7 +74,9 @@ class PhysicalFit:
     names : ('bearing1.viscosity', ...).   values : (np,) SI [Pa s, m, N].   nominal : (np,) starting values.
     rel_std : (np,) 1-sigma of log(value) = relative std (NaN where undetermined).   cov_log : (np, np).
     determined : (np,) bool.   rank, unknowns, condition, residual (relative, all data), chi2, dof.
-    bearing_model : 'short' | 'finite'.   loads : {node: W [N]} used for bearings whose load is not fitted.
+    bearing_model : the film model override, 'short' | 'finite' | None (each bearing's own, from the params file).
+    form : what was fitted, for people ('short', 'finite/table', ...).   table_form : scales per table bearing.
+    loads : {node: W [N]} used for bearings whose load is not fitted.
     quality : the misfit test (:class:`bearing_id.identify.determined.FitQuality`); on a misfit ``rel_std`` and
     ``cov_log`` are already Birge-scaled.
     """
@@ -95,6 +97,8 @@ class PhysicalFit:
     loads: dict
     notes: list = field(default_factory=list)
     quality: FitQuality | None = None
+    form: str = ''
+    table_form: int = 2
 
     @property
     def std(self) -> np.ndarray:
@@ -128,20 +132,37 @@ class PhysicalFit:
                 val = f'{v:.4g} Pa s'
             elif kind == 'clearance':
                 val = f'{v * 1e6:.4g} um'
-            elif kind in ('k_scale', 'c_scale'):   # a table bearing: one scale on its K table, one on its C table
+            elif kind.endswith('_scale'):   # a table bearing: scale factors on its table (TABLE_FORMS)
                 val = f'{v:.4g}'
             else:
                 val = f'{v:.4g} N'
             sd = f' +- {100 * s:.2g} %' if d and np.isfinite(s) else ' (not determined)'
             parts.append(f'{b} {kind} {val}{sd} (x{v / nom:.3f} nominal)')
-        return (f'fitted parameters ({self.bearing_model} bearing model'
+        return (f'fitted parameters ({self.form or self.bearing_model} bearing model'
                 + (', 1-sigma Birge-scaled, a lower bound' if self.misfit else '') + '): ' + '; '.join(parts))
 
 
-class _Parametrisation:
-    """log-parameters p <-> per-bearing (viscosity, clearance, load), and the coefficients they give."""
+# a table bearing's scale forms: which scale multiplies each of (Kxx, Kxy, Kyx, Kyy, Cxx, Cxy, Cyx, Cyy), simplest first
+TABLE_FORMS = {
+    2: (('k_scale', 'c_scale'), (0, 0, 0, 0, 1, 1, 1, 1)),
+    4: (('k_direct_scale', 'k_cross_scale', 'c_direct_scale', 'c_cross_scale'), (0, 1, 1, 0, 2, 3, 3, 2)),
+    8: (tuple(f'{s}{c}_scale' for s in 'kc' for c in COEFF_ORDER), tuple(range(8))),
+    # one scale per coefficient at the lowest and one at the highest fitted speed, log-linear in log(speed) between
+    16: (tuple(f'{s}{c}_scale_{e}' for e in ('lo', 'hi') for s in 'kc' for c in COEFF_ORDER), tuple(range(16))),
+}
 
-    def __init__(self, model, rig, params, load, bearing_model):
+
+class _Parametrisation:
+    """
+    log-parameters p <-> per-bearing parameters, and the coefficients they give.
+
+    A film bearing (short/finite): the fitted ones of (viscosity, clearance, load).  A table bearing: the scale factors
+    of its ``table_form`` (:data:`TABLE_FORMS`: 2 = one on K and one on C, 4 = direct and cross of each, 8 = one per
+    coefficient, 16 = one per coefficient at the lowest and at the highest fitted speed with the log-scale linear in
+    log(speed) between), K(speed) = scale x K_table(speed) entry by entry.
+    """
+
+    def __init__(self, model, rig, params, load, bearing_model, table_form=2, speeds=()):
         self._bm = bearing_models
         for p in params:
             if p not in ('viscosity', 'clearance'):
@@ -149,10 +170,15 @@ class _Parametrisation:
         self.fitted = tuple(params) + (('load',) if load else ())
         if not self.fitted:
             raise ValueError('physical: nothing to fit')
+        if table_form not in TABLE_FORMS:
+            raise ValueError(f'physical: table_form must be one of {sorted(TABLE_FORMS)}, got {table_form!r}')
         self.rig = rig
         self.bearings = tuple(rig.bearings)
         self.nodes = tuple(b.node for b in self.bearings)
         self.model_name = bearing_model
+        self.table_form = table_form
+        w = [float(x) for x in speeds if x > 0]
+        self.span = (min(w), max(w)) if w else (1.0, 1.0)
         statics = None
         self.loads = {}
         for b in self.bearings:
@@ -163,37 +189,61 @@ class _Parametrisation:
             else:
                 statics = statics or static_bearing_loads(model, self.nodes)
                 self.loads[b.node] = float(statics[b.node])
-        # a table bearing is parametrised by one scale on K and one on C in place of viscosity, clearance
         self.table = tuple(b.model == 'table' for b in self.bearings)
-        if any(self.table) and self.fitted != ('viscosity', 'clearance'):
-            raise ValueError("physical: with table bearings fit params=('viscosity', 'clearance') (a table bearing's "
-                             'k_scale and c_scale take their places) and no load')
-        self.names = tuple(f'{b.name}.{self._name(i, p)}' for i, b in enumerate(self.bearings) for p in self.fitted)
+        if table_form == 16 and any(self.table) and not self.span[1] > self.span[0]:
+            raise ValueError('physical: table_form 16 (scales at the lowest and highest speed) needs two speeds')
+        # the film model of each film bearing: bearing_model overrides the params file's (None: the file's own)
+        self.film_model = tuple(None if t else (bearing_model or b.model) for b, t in zip(self.bearings, self.table))
+        if any(self.table) and load:
+            raise ValueError('physical: a table bearing has no load to fit (fit without load)')
+        self.kinds = tuple(TABLE_FORMS[table_form][0] if t else self.fitted for t in self.table)
+        offsets = np.cumsum([0] + [len(k) for k in self.kinds])
+        self.slices = tuple(slice(int(a), int(b)) for a, b in zip(offsets[:-1], offsets[1:]))
+        self.names = tuple(f'{b.name}.{k}' for b, kinds in zip(self.bearings, self.kinds) for k in kinds)
         nom = []
-        for b in self.bearings:
+        for b, kinds in zip(self.bearings, self.kinds):
             base = {'viscosity': b.viscosity, 'clearance': b.clearance, 'load': self.loads[b.node]}
-            nom += [1.0] * 2 if b.model == 'table' else [base[p] for p in self.fitted]
+            nom += [base.get(k, 1.0) for k in kinds]
         self.nominal = np.asarray(nom, float)
-        self.npb = len(self.fitted)
 
-    def _name(self, i: int, p: str) -> str:
-        return {'viscosity': 'k_scale', 'clearance': 'c_scale'}[p] if self.table[i] else p
+    def models(self) -> list[str]:
+        """Return each film bearing model used ('short', 'finite') once, and 'table' when a table is fitted."""
+        return list(dict.fromkeys([m or 'table' for m in self.film_model]))
+
+    def describe(self) -> str:
+        """Return what is fitted, for the notes: the film bearings' parameters and the table bearings' scales."""
+        parts = []
+        for m in dict.fromkeys(m for m in self.film_model if m):
+            who = ', '.join(b.name for b, mm in zip(self.bearings, self.film_model) if mm == m)
+            parts.append(f"{', '.join(self.fitted)} of the {m} bearing model ({who})")
+        tab = [b.name for b, t in zip(self.bearings, self.table) if t]
+        if tab:
+            what = {2: 'one scale on K and one on C', 4: 'a scale on the direct and on the cross terms of K and of C',
+                    8: 'a scale per coefficient',
+                    16: f'a scale per coefficient at {self.span[0] * RPM_PER_RAD_S:.0f} and at '
+                        f'{self.span[1] * RPM_PER_RAD_S:.0f} rpm, log-linear in log(speed) between'}[self.table_form]
+            parts.append(f"{self.table_form} scales per table ({what}) of {', '.join(tab)}")
+        return '; '.join(parts)
 
     def bearing_values(self, p: np.ndarray, i: int) -> dict:
         b = self.bearings[i]
         v = {'viscosity': b.viscosity, 'clearance': b.clearance, 'load': self.loads[b.node]}
-        for k, name in enumerate(self.fitted):
-            v[name] = float(np.exp(p[i * self.npb + k]))
+        v.update(zip(self.kinds[i], np.exp(p[self.slices[i]]).tolist()))
         return v
 
     def bearing_beta(self, p, i, speed) -> np.ndarray:
+        if self.table[i]:
+            K, C = self._bm.coefficients(self.bearings[i], speed, 0.0)
+            q = p[self.slices[i]]
+            if self.table_form == 16:          # log-scale linear in log(speed) between the lowest and highest speed
+                t = math.log(speed / self.span[0]) / math.log(self.span[1] / self.span[0])
+                scale = np.exp((1.0 - t) * q[:8] + t * q[8:])
+            else:
+                scale = np.exp(q)[list(TABLE_FORMS[self.table_form][1])]
+            return scale * np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
         v = self.bearing_values(p, i)
-        if self.table[i]:       # viscosity/clearance slots hold the K and C scale factors
-            K, C = self._bm.coefficients(self.bearings[i], speed, 0.0, k_scale=v['viscosity'],
-                                         c_scale=v['clearance'])
-            return np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
         K, C = self._bm.coefficients(self.bearings[i], speed, v['load'], viscosity=v['viscosity'],
-                                     clearance=v['clearance'], model=self.model_name)
+                                     clearance=v['clearance'], model=self.film_model[i])
         return np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
 
     def beta(self, p, speed) -> np.ndarray:
@@ -206,8 +256,7 @@ class _Parametrisation:
         G = np.zeros((8 * nb, p.size))
         for i in range(nb):
             beta[8 * i:8 * i + 8] = self.bearing_beta(p, i, speed)
-            for k in range(self.npb):
-                j = i * self.npb + k
+            for j in range(self.slices[i].start, self.slices[i].stop):
                 dp = np.zeros_like(p)
                 dp[j] = FD_STEP
                 G[8 * i:8 * i + 8, j] = (self.bearing_beta(p + dp, i, speed)
@@ -223,12 +272,12 @@ class _Parametrisation:
         """
         out = []
         for i, b in enumerate(self.bearings):
-            if self.table[i]:
+            if self.film_model[i] != 'finite':
                 out += [0.0] * 8
                 continue
             v = self.bearing_values(p, i)
             sol = self._bm.solution(b, speed, v['load'], viscosity=v['viscosity'], clearance=v['clearance'],
-                                    model=self.model_name)
+                                    model='finite')
             tol = stated_tolerance(sol.sommerfeld, table_grid=False)
             out += [tol * float(np.max(np.abs(sol.K)))] * 4 + [tol * float(np.max(np.abs(sol.C)))] * 4
         return np.asarray(out)
@@ -240,7 +289,7 @@ class _Parametrisation:
 
 
 def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=False, bearing_model='short',
-                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None):
+                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None, table_form: int = 2):
     """
     Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
 
@@ -269,6 +318,8 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         :class:`PhysicalFit` on fewer speeds: a warm start), clipped into the bounds; default None = the nominal
         values.  The fit converges to the same solution to the solver's tolerance (xtol = ftol = gtol = 1e-12;
         test/test_identify_physical.py checks warm against cold).
+    table_form
+        a table bearing's scale form (:data:`TABLE_FORMS`: 2, 4, 8 or 16 scales per bearing).
 
     Returns
     -------
@@ -277,7 +328,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     """
     probes = tuple(probes if probes is not None else data.probes)
     runs = tuple(runs if runs is not None else data.runs)
-    par = _Parametrisation(model, rig, params, load, bearing_model)
+    par = _Parametrisation(model, rig, params, load, bearing_model, table_form, np.asarray(data.speeds, float))
     speeds = [float(w) for w in np.asarray(data.speeds, float)]
     cases = [cases_from_data(model, data, probes, runs, i, augment=augment) for i in range(len(speeds))]
     keep = [i for i, c in enumerate(cases) if c]
@@ -378,18 +429,22 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     rel_std = np.where(pdet, rel_std, np.nan)
     notes = ([f"augmented model: {', '.join(getattr(augment, 'names', []) or ['hook'])}"] if augment is not None
              else [])
-    notes += [f"physical fit ({bearing_model} bearing model) of {', '.join(par.fitted)} per bearing over "
-              f"{len(keep)} speed(s): rank {info['rank']} of {p.size}, " + fq.summary()]
+    notes += [f"physical fit of {par.describe()} over {len(keep)} speed(s): rank {info['rank']} of {p.size}, "
+              + fq.summary()]
     if misfit:
-        if bearing_model == 'finite':
+        if all(par.table):
+            hint = ("the table's speed dependence does not match the data's: `--method direct` identifies each speed "
+                    'without a bearing model where the plan determines it (`bearing-id design` says so), or look for '
+                    'the missing physics with `bearing-id diagnose`')
+        elif 'short' not in par.film_model:
             hint = ('look for the physics the aligned, isoviscous finite-length plain-bearing model leaves out '
                     '(groove geometry, thermal viscosity change, misalignment, flexible supports, rotor model '
                     'errors) with `bearing-id diagnose`')
         else:
             hint = ('a finite-length bearing is a common cause -- refit with --bearing-model finite -- or look for '
                     'the missing physics with `bearing-id diagnose`')
-        notes.append(fq.misfit_note(f'the {bearing_model} bearing model (or the rotor model around it)') + '; '
-                     + hint)
+        what = 'the bearing tables' if all(par.table) else f"the {'/'.join(par.models())} bearing model"
+        notes.append(fq.misfit_note(f'{what} (or the rotor model around it)') + '; ' + hint)
     if np.any(p <= lb + 1e-9) or np.any(p >= ub - 1e-9):
         notes.append(f'a parameter reached its bound (x{BOUND_FACTOR:g} / {BOUND_FACTOR:g} of nominal): '
                      'the bearing model may not fit these data')
@@ -397,7 +452,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         notes.append(f'least_squares did not converge: {sol.message}')
     if not np.all(pdet):
         notes.append('parameters not separately determined: ' + ', '.join(n for n, d in zip(par.names, pdet) if not d))
-    if bearing_model == 'finite':
+    if 'finite' in par.film_model:
         notes.append("finite bearing model (tabulated Reynolds solution): each coefficient's 1-sigma includes the "
                      "table's stated accuracy against the direct Reynolds solver (0.9-1.5 % of the block in the usual "
                      "range, up to 10 % above eccentricity 0.9; bearings/finite_table.py); the parameters' 1-sigma "
@@ -405,7 +460,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     fit = PhysicalFit(names=par.names, values=np.exp(p), nominal=par.nominal, rel_std=rel_std, cov_log=cov,
                       determined=pdet, rank=info['rank'], unknowns=p.size, condition=info['condition'],
                       residual=math.nan, chi2=chi2, dof=dof, bearing_model=bearing_model, loads=dict(par.loads),
-                      notes=notes, quality=fq)
+                      notes=notes, quality=fq, form='/'.join(par.models()), table_form=table_form)
     notes.append(fit.note())
     params_dict = fit.as_dict()
 
@@ -423,7 +478,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         num_all += num
         den_all += den
         cov_b = G @ cov @ G.T
-        if bearing_model == 'finite':       # the table's stated accuracy against the direct Reynolds solution
+        if 'finite' in par.film_model:      # the table's stated accuracy against the direct Reynolds solution
             floor = par.model_floor(p, W)
             cov_b = cov_b + np.diag(floor ** 2)
         gnorm = np.linalg.norm(G, axis=1)
@@ -457,27 +512,38 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     return fit, results
 
 
-OPTIONS = {'params': ('viscosity', 'clearance'), 'load': False, 'bearing_model': 'short', 'max_nfev': 100,
-           'augment': None, 'p0': None}
+OPTIONS = {'params': ('viscosity', 'clearance'), 'load': False, 'bearing_model': None, 'max_nfev': 100,
+           'augment': None, 'p0': None, 'table_form': 'auto'}
 
 
 def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
     """
     ``physical`` identification with the common method signature (see :mod:`bearing_id.identify`).
 
-    Options / keywords: ``params`` (default ('viscosity', 'clearance')), ``load`` (False), ``bearing_model``
-    ('short'), ``max_nfev``, ``p0`` (None: start at the nominal parameters; SI values: a warm start, see
-    :func:`fit_physical`).  Returns the per-speed IdentResult list; the fitted parameters are in each result's
-    ``extra['fit']`` (a :class:`PhysicalFit`) -- or call :func:`fit_physical` for ``(fit, results)``.
+    Options / keywords: ``params`` (default ('viscosity', 'clearance')), ``load`` (False), ``bearing_model`` (None:
+    each bearing's model from the params file; 'short' or 'finite' overrides it), ``max_nfev``, ``p0`` (None: start
+    at the nominal parameters; SI values: a warm start, see :func:`fit_physical`), ``table_form`` (the scales per
+    table bearing, :data:`TABLE_FORMS`; 'auto' = 16, a scale per coefficient at the lowest and at the highest speed,
+    log-linear in between -- with one speed 8).  'auto' takes the most flexible form on purpose: a simpler one (2 or
+    4 scales, even 8) can pass the misfit test on weak data and still be biased by its assumed shape, so its
+    coefficients would look determined and be wrong; the flexible form leaves undetermined what the data do not fix.
+    Returns the per-speed IdentResult list; the fitted parameters are in each result's ``extra['fit']`` (a
+    :class:`PhysicalFit`) -- or call :func:`fit_physical` for ``(fit, results)``.
     """
     opts = dict(OPTIONS)
     for k, v in {**(options or {}), **kw}.items():
         if k not in OPTIONS:
             raise ValueError(f'physical: unknown option {k!r} (known: {sorted(OPTIONS)})')
         opts[k] = v
+    form = opts['table_form']
+    if not any(b.model == 'table' for b in rig.bearings):
+        form = 2                    # no table: the form is not used
+    elif form == 'auto':            # the most flexible form the speeds allow: values from the data, not a shape
+        form = 16 if len({round(float(w), 9) for w in np.asarray(data.speeds, float)}) > 1 else 8
     _, results = fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
-                              bearing_model=str(opts['bearing_model']), probes=probes, runs=runs,
-                              max_nfev=int(opts['max_nfev']), augment=opts['augment'], p0=opts['p0'])
+                              bearing_model=opts['bearing_model'], probes=probes, runs=runs,
+                              max_nfev=int(opts['max_nfev']), augment=opts['augment'], p0=opts['p0'],
+                              table_form=int(form))
     return results
 
 

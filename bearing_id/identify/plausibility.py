@@ -104,6 +104,12 @@ def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
     return out
 
 
+def known_clearance(bearing) -> bool:
+    """Return True when the bearing's radial clearance [m] is a known positive number (a table may have none)."""
+    c = bearing.clearance
+    return c is not None and math.isfinite(float(c)) and float(c) > 0
+
+
 def gate(results, model, rig, data, runs, probes) -> list:
     """
     Apply the gates (module docstring) to ``results`` in place; returns them.
@@ -114,7 +120,9 @@ def gate(results, model, rig, data, runs, probes) -> list:
         return results
     speeds = np.asarray(data.speeds, dtype=float)
     thr = stability_threshold(model, rig, float(np.max(speeds)))
-    clearance = {b.node: b.clearance for b in rig.bearings}
+    known = {b.node: float(b.clearance) for b in rig.bearings if known_clearance(b)}
+    names = {b.node: f'{b.name} (node {b.node})' for b in rig.bearings}
+    unknown = [names[b.node] for b in rig.bearings if b.identify and not known_clearance(b)]
     amp = np.abs(data.X)                                   # (nr, ns, nch)
     std = np.asarray(data.X_std, dtype=float)
     for res in results:
@@ -130,13 +138,17 @@ def gate(results, model, rig, data, runs, probes) -> list:
         for c in np.nonzero(~live)[0]:
             reasons.append(f'channel {probes[c].name}: no 1X signal above its noise in any run at {rpm:.0f} rpm '
                            f'(dead, constant or all-zero channel)')
-        if not reasons:
+        if not reasons and known:
             for node, r_orb in bearing_orbits(res, model, data, s, runs, probes).items():
-                c = clearance.get(node)
-                if c and not r_orb <= ORBIT_LIMIT * c:
-                    reasons.append(f'the journal orbit at the bearing at node {node} would be {r_orb / c:.3g} x its '
+                c = known.get(node)
+                if c is not None and not r_orb <= ORBIT_LIMIT * c:
+                    reasons.append(f'the journal orbit at bearing {names[node]} would be {r_orb / c:.3g} x its '
                                    f'radial clearance at {rpm:.0f} rpm (limit {ORBIT_LIMIT:g}): outside the linear '
                                    f"coefficients' range -- or the samples are not in metres")
+        if unknown and not reasons:
+            res.notes = list(res.notes) + [
+                f"orbit-vs-clearance check skipped for {', '.join(unknown)}: no radial clearance known (a table "
+                f"bearing may declare one: `clearance:` in its params entry); the samples' unit is not checked there"]
         if reasons:
             res.K_determined = np.zeros_like(res.K_determined, dtype=bool)
             res.C_determined = np.zeros_like(res.C_determined, dtype=bool)
@@ -146,4 +158,4 @@ def gate(results, model, rig, data, runs, probes) -> list:
     return results
 
 
-__all__ = ['ORBIT_LIMIT', 'SIGNAL_SIGMA', 'stability_threshold', 'bearing_orbits', 'gate']
+__all__ = ['ORBIT_LIMIT', 'SIGNAL_SIGMA', 'stability_threshold', 'bearing_orbits', 'known_clearance', 'gate']

@@ -235,10 +235,17 @@ def _fmt(v):
     return 'nan' if not math.isfinite(v) else f'{v:.4g}'
 
 
-def format_results(results, allow_undetermined: bool) -> str:
-    """Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged."""
+def format_results(results, allow_undetermined: bool, allow_misfit: bool = False) -> str:
+    """
+    Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged.
+
+    An undetermined value is printed only when asked: flagged ``(prior)`` with ``allow_undetermined``; on a speed whose
+    model misfits (every value undetermined, :func:`bearing_id.identify.misfit_gate`) flagged ``(misfit)`` with its
+    Birge-scaled 1-sigma (a lower bound) with ``allow_misfit``.
+    """
     lines = []
     for r in results:
+        fit_det = r.extra.get('determined_if_fit') if r.misfit else None
         lines.append(f'speed {r.speed_rpm:.0f} rpm  method {r.method}  rank {r.rank} of {r.unknowns}  '
                      f'condition {_fmt(r.condition)}  residual {_fmt(r.residual)}')
         lines.append(f"  {'bearing':10s} {'coeff':5s} {'value':>12s} {'1-sigma':>12s}  unit")
@@ -250,9 +257,12 @@ def format_results(results, allow_undetermined: bool) -> str:
                     if det[b, i, j]:
                         lines.append(f'  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} '
                                      f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]}')
+                    elif allow_misfit and fit_det is not None and fit_det['KC'.index(sym)][b, i, j]:
+                        lines.append(f'  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} '
+                                     f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]} (misfit)')
                     elif allow_undetermined:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
-                                     f'{UNITS[sym]} (prior)')
+                                     f"{UNITS[sym]} ({'misfit' if r.misfit else 'prior'})")
                     else:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
         for n in r.notes:

@@ -304,6 +304,31 @@ def from_npz(paths, **kw) -> HarmonicData:
     return from_recordings([load_npz(p) for p in paths], **kw)
 
 
+def joined_angles(blocks, fs: float) -> np.ndarray:
+    """
+    Return the keyphasor angle [rad] of every sample of consecutive ``blocks``, continuous across their boundaries.
+
+    A sender may restart its angle in each block (only the first sample's angle, wrapped to [0, 2 pi), as other
+    recorders write it): each block is moved by the whole number of turns that puts its first sample where the
+    previous block's last one leads by the block timing (speed x the time between them, from the stamps, at least
+    one sample period).  A whole number of turns changes no phase; an angle already continuous moves by none.
+    """
+    out, prev = [], None
+    for b in blocks:
+        a = np.asarray(b.angles(), dtype=float)
+        if prev is not None and a.size:
+            pb, pa = prev
+            dt = b.stamp - (pb.stamp + (pb.n_samples - 1) / fs)
+            dt = dt if np.isfinite(dt) and 1.0 / fs <= dt <= 1e3 else 1.0 / fs
+            speeds = [w for w in (pb.speed, b.speed) if np.isfinite(w) and w > 0]
+            w = float(np.mean(speeds)) if speeds else ((pa[-1] - pa[0]) * fs / (pa.size - 1) if pa.size > 1 else 0.0)
+            a = a + 2 * np.pi * np.round((pa[-1] + w * dt - a[0]) / (2 * np.pi))
+        if a.size:
+            prev = (b, a)
+        out.append(a)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
 def recordings_from_bag(path) -> list:
     """
     One Recording per excitation run from a bag (topics /rotor/displacement and /rotor/excitation).
@@ -311,8 +336,8 @@ def recordings_from_bag(path) -> list:
     A block belongs to the run its ``run_id`` names, or (no run_id) to the run of the last /rotor/excitation before
     it; re-sent copies of an excitation are ignored.  The angle of every sample is the block's ``sample_angles``
     (a block without them: first-sample angle + speed * k / sample_rate, which assumes constant speed over the
-    block).  A break in the blocks' sequence numbers is recorded in ``Recording.gaps``.  A block whose channels
-    differ from the run's first block is refused (ValueError).
+    block), made continuous across blocks (:func:`joined_angles`).  A break in the blocks' sequence numbers is
+    recorded in ``Recording.gaps``.  A block whose channels differ from the run's first block is refused (ValueError).
     """
     runs: dict = {}
     order: list = []
@@ -345,7 +370,7 @@ def recordings_from_bag(path) -> list:
                 gaps.append(n)
             n += b.n_samples
         x = np.vstack([b.samples for b in bl])
-        angle = np.concatenate([b.angles() for b in bl])
+        angle = joined_angles(bl, fs)
         recs.append(Recording(sample_rate=fs, t=np.arange(x.shape[0]) / fs, speed=speed_from_angle(angle, fs),
                               angle=angle, probes=chans, samples=x, run=runs[rid]['run'], gaps=tuple(gaps)))
     if not recs:

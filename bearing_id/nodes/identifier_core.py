@@ -479,16 +479,13 @@ def identifiability_item(results, publish_undetermined: bool = False) -> DiagIte
     for r in results:
         rpm = rad_s_to_rpm(r.speed)
         vals[f'{rpm:.0f}rpm'] = f'rank {r.rank}/{r.unknowns}, condition {r.condition:.3g}, residual {r.residual:.3g}'
-        if not r.fully_determined:
+        if r.misfit:
+            bad.append(f'{rpm:.0f} rpm: MODEL MISFIT, nothing determined')
+        elif not r.fully_determined:
             und = r.undetermined_names()
             bad.append(f'{rpm:.0f} rpm: rank {r.rank} of {r.unknowns}, {len(und)} coefficient(s) not determined '
                        f"({', '.join(und[:4])}{'...' if len(und) > 4 else ''})")
     if bad:
         tail = 'published flagged' if publish_undetermined else 'not published'
         return DiagItem(name, WARN, f"{'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''} -- {tail}", vals)
-    misfit = [r for r in results if r.misfit]
-    if misfit:       # a model that does not fit the data is a warning, never an OK
-        note = next((n for n in misfit[0].notes if 'MISFIT' in n), 'model misfit')
-        return DiagItem(name, WARN, f'all {len(results)} speed(s) determined, but {len(misfit)} with a MODEL MISFIT '
-                                    f'(1-sigma a lower bound): {note}', vals)
     return DiagItem(name, OK, f'all {len(results)} speed(s) determined', vals)

@@ -248,18 +248,22 @@ def identified_bearing_fn(results, rig) -> tuple[IdentifiedModel | None, str]:
     if fit is not None and hasattr(fit, 'names') and hasattr(fit, 'values'):
         if not np.all(fit.determined):
             return None, 'the physical fit leaves some bearing parameters undetermined'
+        if fit.misfit:
+            return None, 'the physical fit misfits the data: no identified model is drawn'
         vals = dict(zip(fit.names, np.asarray(fit.values, float)))
-        vf, cf, loads = [], [], {}
-        for b in rig.bearings:
-            vf.append(vals.get(f'{b.name}.viscosity', b.viscosity) / b.viscosity)
-            cf.append(vals.get(f'{b.name}.clearance', b.clearance) / b.clearance)
-            if f'{b.name}.load' in vals:
-                loads[b.node] = vals[f'{b.name}.load']
-            else:
-                loads[b.node] = fit.loads[b.node]
-        fn = supports.bearing_fn(rig, model=fit.bearing_model, viscosity_factor=vf, clearance_factor=cf, loads=loads)
-        return IdentifiedModel(fn, None, f'identified ({fit.bearing_model} bearing, fitted parameters)',
-                               'physical'), ''
+        if getattr(fit, 'table_form', 2) == 2:   # the bearing function's parameters: viscosity, clearance, K/C scales
+            vf, cf, kf, ccf, loads = [], [], [], [], {}
+            for b in rig.bearings:
+                table = b.model == 'table'
+                vf.append(1.0 if table else vals.get(f'{b.name}.viscosity', b.viscosity) / b.viscosity)
+                cf.append(1.0 if table else vals.get(f'{b.name}.clearance', b.clearance) / b.clearance)
+                kf.append(vals.get(f'{b.name}.k_scale', 1.0))
+                ccf.append(vals.get(f'{b.name}.c_scale', 1.0))
+                loads[b.node] = vals.get(f'{b.name}.load', fit.loads[b.node])
+            fn = supports.bearing_fn(rig, model=fit.bearing_model, viscosity_factor=vf, clearance_factor=cf,
+                                     loads=loads, k_factor=kf, c_factor=ccf)
+            return IdentifiedModel(fn, None, f'identified ({fit.form or fit.bearing_model} bearing, fitted '
+                                             'parameters)', 'physical'), ''
     if not all(r.fully_determined for r in results):
         return None, 'some coefficients are not determined by the data: no identified model is drawn'
     if len(results) < 3:
@@ -333,14 +337,18 @@ def journal_positions(bearing_fn, speeds) -> dict | None:
     Return {node: {'xy' (ns, 2) m, 'clearance' m, 'eps' (ns,), 'attitude' (ns,) rad}} from a bearing model.
 
     The model needs ``solutions(speed)`` (:class:`bearing_id.rotor.supports.BearingFunction`); None for a model
-    without one.
+    without one.  Only film bearings with a known clearance have a journal position (a table bearing has none).
     """
     sol = getattr(bearing_fn, 'solutions', None)
     if sol is None:
         return None
+    clearance = getattr(bearing_fn, 'clearance', {})
     out: dict = {}
     for s in speeds:
         for n, b in sol(float(s)).items():
+            c = clearance.get(n)
+            if c is None or not np.isfinite(c) or not np.all(np.isfinite(b.journal_position)):
+                continue
             d = out.setdefault(n, {'xy': [], 'eps': [], 'attitude': []})
             d['xy'].append(np.asarray(b.journal_position, float))
             d['eps'].append(float(b.eccentricity))
@@ -349,8 +357,8 @@ def journal_positions(bearing_fn, speeds) -> dict | None:
         d['xy'] = np.array(d['xy'])
         d['eps'] = np.array(d['eps'])
         d['attitude'] = np.array(d['attitude'])
-        d['clearance'] = float(bearing_fn.clearance[n])
-    return out
+        d['clearance'] = float(clearance[n])
+    return out or None
 
 
 # ------------------------------------------------------------------------------------------------ spectra
