@@ -53,7 +53,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bearing_id.config.params import load_rig, Probe  # noqa: E402
-from bearing_id.identify import eq38_error, get_method  # noqa: E402
+from bearing_id.identify import eq38_error, get_method, misfit_gate  # noqa: E402
 from bearing_id.identify.harmonics import from_recordings, HarmonicData  # noqa: E402
 from bearing_id.identify.physical import fit_physical  # noqa: E402
 from bearing_id.rotor import supports  # noqa: E402
@@ -183,7 +183,7 @@ def coverage(results, data):
 def cov_cell(n, n3, zmax, misfit=False):
     """Return the column's text; a misfit-flagged result says so (its sigma is declared a lower bound)."""
     if n == 0:
-        return '-'
+        return 'none (MODEL MISFIT)' if misfit else '-'
     return f'{100.0 * n3 / n:.0f} % of {n} ({zmax:.1f})' + (' [misfit: sigma a lower bound]' if misfit else '')
 
 
@@ -248,7 +248,7 @@ def main(argv=None):
                 data = subset(full, PROBE_SETS[ps])
                 t0 = time.perf_counter()
                 try:
-                    res = get_method(method)(model, rig, data, data.probes, data.runs, None)
+                    res = misfit_gate(get_method(method)(model, rig, data, data.probes, data.runs, None))
                 except Exception as exc:  # report, keep going
                     lines.append(f'| {method} | {plan} | {ps} | failed: {type(exc).__name__}: {exc} |')
                     continue
@@ -274,7 +274,7 @@ def main(argv=None):
             data = simulate(rig, runs, p6, speeds, seed0=1000 * args.seed + 300 + 100 * pi, steady_start=True)
             for method in ('direct', 'physical'):
                 t0 = time.perf_counter()
-                res = get_method(method)(model, rig, data, data.probes, data.runs, None)
+                res = misfit_gate(get_method(method)(model, rig, data, data.probes, data.runs, None))
                 print(row(method, plan + ' (steady start)', 'node 6', res, data, time.perf_counter() - t0)[0])
     if not args.no_issue11:
         issue11(rig, model, args.mc, args.seed)
@@ -294,7 +294,7 @@ def q_sweep(rig, model, full):
           '|---|---|---|---|---|---|')
     data = subset(full, PROBE_SETS['node 6'])
     for Q in Q_SWEEP:
-        res = get_method('paper')(model, rig, data, data.probes, data.runs, {'Q': Q})
+        res = misfit_gate(get_method('paper')(model, rig, data, data.probes, data.runs, {'Q': Q}))
         fr = [r.extra['theory_fraction'] for r in res]
         sens = max(float(np.max(r.extra['theory_sensitivity'])) for r in res)
         det = np.mean([int(np.sum(r.K_determined) + np.sum(r.C_determined)) for r in res])
@@ -319,6 +319,7 @@ def _threshold_line(rig, model, speeds):
 def _physical_row(model, rig, data, bearing_model, label, plan, truth_label):
     t0 = time.perf_counter()
     fit, res = fit_physical(model, rig, data, bearing_model=bearing_model)
+    res = misfit_gate(res)             # as identify() shows them: a misfit determines nothing
     el = time.perf_counter() - t0
     e = errors(res, data)
     pars = ', '.join(f"{n.split('.')[1][:4]}{n.split('.')[0][-1]} {v / nv:.3f}"
@@ -362,7 +363,7 @@ def model_form(rig, model, speeds, seed):
             _physical_row(model, rig, data, 'finite', 'physical (finite)', plan, truth)
             if plan.startswith('force'):
                 t0 = time.perf_counter()
-                res = get_method('direct')(model, rig, data, data.probes, data.runs, None)
+                res = misfit_gate(get_method('direct')(model, rig, data, data.probes, data.runs, None))
                 el = time.perf_counter() - t0
                 e = errors(res, data)
                 g = _group_masks(res)
@@ -414,7 +415,7 @@ def issue11(rig, model, n_mc, seed):
             print(f'issue-11 {plan} seed {k}: simulated in {time.perf_counter() - t0:.1f} s', file=sys.stderr)
             for m in methods:
                 t0 = time.perf_counter()
-                res = get_method(m)(model, rig, data, data.probes, data.runs, None)
+                res = misfit_gate(get_method(m)(model, rig, data, data.probes, data.runs, None))
                 a = acc[m]
                 a['t'] += time.perf_counter() - t0
                 n, n3, zmax = coverage(res, data)

@@ -33,10 +33,10 @@ test/data/ross/NAME.toml, with ROSS's lateral damped eigenvalues at a few speeds
     damping alpha/beta, two cross-coupled bearings and a seal with tables vs speed;
   * ``hollow_hutchinson``: a hollow shaft with ROSS's 'hutchinson' shear option, constant cross-coupled bearings
     (no frequency given), a disc, one bearing on a pedestal (ROSS's n_link + point mass + support bearing).
-The eigenvalues are taken at speeds that are rows of every table: ROSS interpolates a table with a smoothing
-UnivariateSpline (s = number of rows), bearing_id linearly, so between rows the two models differ by design; at a
-row the spline is off the row by ``table_deviation`` (per speed in the JSON, relative to the largest entry), which
-``import-ross`` removes by writing ROSS's spline values at the rows (its default ``--table-values ross``).
+The eigenvalues are taken at speeds that are rows of every table and (compressor) between them: ROSS interpolates
+a table with a smoothing UnivariateSpline (s = number of rows), off the rows by ``table_deviation`` (per speed in the
+JSON, relative to the largest entry); ``import-ross`` (its default ``--table-values ross``) writes ROSS's spline
+sampled at and between the rows as a cubic table, so the model follows ROSS between rows too.
 
 Part 3 (``--fluid-flow``, test/test_bearings_finite.py) -- test/data/ross/fluid_flow_gumbel.json: ROSS's
 ``FluidFlow`` finite-difference journal bearing (full-film Reynolds solved, negative pressures clipped: Gumbel's
@@ -225,13 +225,18 @@ def hollow_hutchinson_rotor():
 
 
 def compressor_rotor():
-    """Return ROSS's compressor example and the speeds at the rows common to its bearing and seal tables."""
+    """
+    Return ROSS's compressor example and speeds at and between the rows common to its bearing and seal tables.
+
+    Between each two rows a speed at 1/3 of the interval: no row of any table, ROSS's spline there.
+    """
     rotor = rs.compressor_example()
     common = None
     for b in rotor.bearing_elements:
         f = np.round(np.asarray(b.frequency, dtype=float), 6)
         common = set(f) if common is None else common & set(f)
-    return rotor, sorted(float(x) for x in common)
+    rows = sorted(float(x) for x in common)
+    return rotor, sorted(rows + [round(a + (b - a) / 3, 6) for a, b in zip(rows, rows[1:])])
 
 
 def lateral_modes_by_wn(rotor, speed, n):

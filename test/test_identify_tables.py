@@ -12,6 +12,7 @@ and more than 5 % off; where the model fits, the determined ones scatter like th
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 import re
@@ -20,8 +21,11 @@ import sys
 
 from bearing_id.config.params import default_rig_path, ExcitationEntry, parse_rig, Probe, Run
 from bearing_id.identify import identify
+from bearing_id.identify.result import format_results, undetermined_label
 from bearing_id.io import ross_import
 from bearing_id.io.recordings import save_npz
+from bearing_id.nodes.identifier_core import identifiability_item
+from bearing_id.nodes.status import WARN
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.rotor.supports import bearing_fn
 from bearing_id.simulation.rig import scenario, simulate_data, simulate_run
@@ -163,6 +167,11 @@ def test_orbit_check_needs_a_clearance_and_says_when_it_is_skipped(nominal):
     res = identify('physical', model, rig_c, data)
     assert all(not np.any(r.K_determined) for r in res)
     assert any('NOT PLAUSIBLE' in n and 'bearing1 (node 2)' in n for n in res[0].notes), res[0].notes
+    assert all('not_plausible' in r.flags for r in res)
+    text = format_results(res, allow_undetermined=True)      # flagged for what they are, never '(prior)'
+    assert '(prior)' not in text and ('(not plausible)' in text or '(misfit)' in text)
+    r = dataclasses.replace(res[0], flags=['not_plausible'])
+    assert undetermined_label(r) == 'not plausible' and '(not plausible)' in format_results([r], True)
 
 
 @pytest.fixture(scope='module')
@@ -278,3 +287,59 @@ def test_report_on_a_table_bearing_machine(recordings, tmp_path):
     assert rc == 0, out + err
     html = (tmp_path / 'rep' / 'report.html').read_text()
     assert 'table, 4 rows 300-3500 rpm' in html
+
+
+def test_cubic_table_reproduces_a_cubic_between_rows_and_linear_does_not():
+    """A table whose rows sample a cubic in speed: 'cubic' (not-a-knot) gives the cubic between rows exactly."""
+    def cubic(w):
+        return 1e5 * (1 + 0.3 * w / 100 - 0.05 * (w / 100) ** 2 + 0.004 * (w / 100) ** 3)
+    rows = [50.0, 120.0, 200.0, 260.0, 380.0]
+    d = table_machine()
+    for b in d['bearings']:
+        b['table'] = {'speed': rows, 'kxx': [cubic(w) for w in rows], 'kyy': [cubic(w) for w in rows],
+                      'cxx': [300.0] * 5, 'cyy': [300.0] * 5, 'interpolation': 'cubic'}
+    rig = parse_rig(d)
+    lin = parse_rig({**d, 'bearings': [{**b, 'table': {**b['table'], 'interpolation': 'linear'}}
+                                       for b in d['bearings']]})
+    for w in (77.7, 150.0, 333.3):
+        k = bearing_fn(rig)(w)[rig.bearings[0].node][0][0, 0]
+        assert abs(k / cubic(w) - 1) <= 1e-12, w                  # a few roundings of the spline's evaluation
+        k_lin = bearing_fn(lin)(w)[lin.bearings[0].node][0][0, 0]
+        assert abs(k_lin / cubic(w) - 1) > 1e-4, w
+
+
+def test_speeds_outside_a_table_are_flagged_and_not_determined_by_physical(nominal):
+    """The table starts at 1000 rpm, the data at 900 rpm: noted at 900 rpm, physical determines nothing there."""
+    rig, model = nominal
+    d = table_machine()
+    for b in d['bearings']:
+        b['table'] = {k: (v[1:] if isinstance(v, list) else v) for k, v in b['table'].items()}
+    rig = parse_rig(d)
+    data = noisy(rig, rig, model, rig.simulation.runs, probes=STATIONS)
+    res = identify('physical', model, rig, data)
+    low = [r for r in res if r.speed_rpm < 1000]
+    assert len(low) == 1 and any('outside the rows of the table(s) of bearing1 (1000-3500 rpm)' in n
+                                 for n in low[0].notes), low[0].notes
+    assert not np.any(low[0].K_determined) and not np.any(low[0].C_determined)
+    assert not any('outside the rows' in n for r in res if r.speed_rpm > 1000 for n in r.notes)
+
+
+def test_identifier_diagnostics_warn_that_a_misfit_determines_nothing(nominal):
+    """The identifier node's /diagnostics item on misfitting results: WARN, 'MODEL MISFIT, nothing determined'."""
+    rig, model = nominal
+    truth = parse_rig(table_machine(FACTORS))
+    data = noisy(rig, truth, model, rig.simulation.runs, probes=STATIONS)
+    res = identify('physical', model, rig, data, options={'table_form': 2})
+    item = identifiability_item(res)
+    assert item.level == WARN and 'MODEL MISFIT, nothing determined' in item.message, item.message
+
+
+def test_params_probe_disagreeing_with_the_recording_is_an_error_naming_both(recordings, tmp_path):
+    """The params file puts p6x at 30 deg, the recording at x (0 deg): exit 2 naming both, never a silent choice."""
+    params, files = recordings
+    d = yaml.safe_load(params.read_text())
+    d['probes'] = [{'name': 'p6x', 'node': 6, 'angle_deg': 30.0}, {'name': 'p6y', 'node': 6, 'direction': 'y'}]
+    wrong = tmp_path / 'wrong.yaml'
+    wrong.write_text(yaml.safe_dump(d))
+    rc, out, err = run_cli('identify', *files, '--params', wrong)
+    assert rc == 2 and 'probe p6x is at node 6, 0 deg' in err and 'node 6, 30 deg' in err, out + err

@@ -3,10 +3,12 @@
 
 Reference data: scripts/ross_reference.py (``--bridge``, run in a separate venv with ross-rotordynamics) built the
 rotors in ROSS, saved them as test/data/ross/NAME.toml and wrote ROSS's lateral damped eigenvalues (the lowest 12 by
-|lambda|, at speeds that are rows of every table) to NAME.json.  ROSS itself is not needed here.
+|lambda|, at speeds that are rows of every table and, for the compressor, between rows) to NAME.json.  ROSS itself is
+not needed here.
 
 Route 1 (independent of params/rotor assembly): the imported schema dict is assembled here with
-:mod:`bearing_id.rotor.elements` alone (layers as full elements, supports as two extra DOFs, tables at the row).
+:mod:`bearing_id.rotor.elements` alone (layers as full elements, supports as two extra DOFs, tables interpolated here
+with numpy / scipy's CubicSpline as the table says).
 Route 2: the imported YAML through ``load_rig`` and ``RotorModel.from_params`` (the product's route; the compressor's
 36 hub/sleeve layers as schema ``layers``, full concentric elements).
 Requirement (issue 12): every ROSS eigenvalue matched by one of ours within 1e-6 relative.  Where the two routes
@@ -25,6 +27,7 @@ from bearing_id.rotor.elements import DiscElement, ShaftElement
 from bearing_id.rotor.supports import bearing_fn
 import numpy as np
 import pytest
+from scipy.interpolate import CubicSpline
 import yaml
 
 DATA = Path(__file__).parent / 'data' / 'ross'
@@ -43,9 +46,12 @@ def cases():
 
 # ------------------------------------------------------------------------------------------- route 1: helper
 def _table_at(table, speed):
-    """(K, C) of a schema table at ``speed`` [rad/s]: linear in speed, held flat outside (the schema's rule)."""
+    """(K, C) of a schema table at ``speed`` [rad/s]: linear or cubic, held flat outside (the schema's rule)."""
     s = np.asarray(table['speed'], float)
-    v = {k: float(np.interp(speed, s, np.asarray(table[k], float))) for k in ross_import.COEFFS}
+    if table.get('interpolation') == 'cubic' and s[0] < speed < s[-1]:
+        v = {k: float(CubicSpline(s, np.asarray(table[k], float))(speed)) for k in ross_import.COEFFS}
+    else:
+        v = {k: float(np.interp(speed, s, np.asarray(table[k], float))) for k in ross_import.COEFFS}
     return (np.array([[v['kxx'], v['kxy']], [v['kyx'], v['kyy']]]),
             np.array([[v['cxx'], v['cxy']], [v['cyx'], v['cyy']]]))
 

@@ -186,6 +186,22 @@ def test_csv_round_trip_with_units_and_bad_headers(tmp_path):
     bad.write_text('# sample_rate: 100\n# channels: p6x@6q\nt,angle,p6x\n0,0,1\n')
     with pytest.raises(DaqError, match='p6x@6q'):
         read_csv(bad)
+    bad.write_text('# sample_rate: 100\n# channels: p9a@9:45dg\nt,angle,p9a\n0,0,1\n')
+    with pytest.raises(DaqError, match='p9a@9:45dg'):
+        read_csv(bad)
+
+
+def test_csv_probes_at_any_angle_round_trip(tmp_path):
+    """+-45 deg probe pairs (API 670) in a CSV export: name@node:<angle>deg[*gain] written and read back."""
+    n, fs = 256, 1024.0
+    t = np.arange(n) / fs
+    probes = (Probe('p9a', 9, '45.0deg'), Probe('p9b', 9, '135.0deg*1.02'), Probe('p6x', 6, 'x'))
+    rec = Recording(fs, t, np.full(n, 50.0), 50.0 * t, probes, np.zeros((n, 3)) + 1e-6, Run('A', ()))
+    p = write_csv(rec, tmp_path / 'daq.csv')
+    assert '# channels: p9a@9:45.0deg, p9b@9:135.0deg*1.02, p6x@6x' in p.read_text()
+    back = read_daq(p)
+    assert [(q.name, q.node, q.angle_deg, q.gain) for q in back.probes] == \
+        [('p9a', 9, 45.0, 1.0), ('p9b', 9, 135.0, 1.02), ('p6x', 6, 0.0, 1.0)]
 
 
 @pytest.mark.parametrize('pauses', ['none', 'after every block', 'after every 7th block'])

@@ -9,7 +9,7 @@ import argparse
 import json
 from pathlib import Path
 
-from .inputs import attach_excitation, check_probe_nodes, load_recordings
+from .inputs import attach_excitation, check_probe_nodes, check_probes_against_params, load_recordings
 from .report import report_for_diagnosis
 from ..config import defaults
 from ..config.params import load_rig, ParamError
@@ -81,7 +81,9 @@ def run(args) -> int:
     if not 0 <= args.rel_tol < 1:
         raise ParamError('--rel-tol must be in [0, 1)')
     rig = load_rig(args.params)
-    recs = attach_excitation(load_recordings(args.recordings), rig, required=False)   # checked before the heavy work
+    recs = load_recordings(args.recordings)
+    check_probes_against_params(recs, rig)
+    recs = attach_excitation(recs, rig, required=False)   # checked before the heavy work
     check_probe_nodes(recs, rig.shaft.n_nodes)
     try:
         d = diagnose(recs, rig, held_out=args.held_out, rel_tol=args.rel_tol, nuisance=not args.fixed_bearings,

@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-from .inputs import attach_excitation, check_probe_nodes, InputError, load_recordings
+from .inputs import attach_excitation, check_probe_nodes, check_probes_against_params, InputError, load_recordings
 from .report import build_report
 from ..config import defaults
 from ..config.params import load_rig, ParamError
@@ -56,9 +56,12 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="paper method: the KF's probe noise std in metres, R = value^2 for every probe (default: "
                         "each window's residual around its plain 1X fit; the identifier node's "
                         'kf_measurement_noise)')
-    p.add_argument('--reduce', action='store_true',
-                   help='paper method: Kalman filter on a Craig-Bampton reduced model (bearing, probe and force DOFs '
-                        'kept; its 1X receptance error per speed in the notes) -- for large rotors')
+    red = p.add_mutually_exclusive_group()
+    red.add_argument('--reduce', action='store_true',
+                     help='paper method: Kalman filter on a Craig-Bampton reduced model (bearing, probe and force '
+                          'DOFs kept; its 1X receptance error per speed in the notes); the default for models of '
+                          'more than 88 states')
+    red.add_argument('--no-reduce', action='store_true', help='paper method: the Kalman filter on the full model')
     p.add_argument('--bearing-model', choices=('short', 'finite'), default=None,
                    help="physical method: the estimator's bearing model, short (Ocvirk) or finite (finite-length "
                         "Reynolds); default: each bearing's model in the params file")
@@ -74,6 +77,7 @@ def load_data(inputs, rig=None):
     """
     recs = load_recordings(inputs, one_bag_only=True)
     if rig is not None:
+        check_probes_against_params(recs, rig)
         recs = attach_excitation(recs, rig, required=True)
     try:
         return harmonics.from_recordings(recs)
@@ -136,10 +140,10 @@ def run(args) -> int:
         if not (math.isfinite(args.R) and args.R ** 2 > 0):
             raise ParamError(f'--R must be a probe noise std > 0 in metres, got {args.R!r}')
         opts['R'] = args.R ** 2
-    if args.reduce:
+    if args.reduce or args.no_reduce:
         if args.method != 'paper':
-            raise _only('--reduce', 'paper')
-        opts['reduce'] = True
+            raise _only('--reduce' if args.reduce else '--no-reduce', 'paper')
+        opts['reduce'] = bool(args.reduce)
     if args.bearing_model is not None:
         if args.method not in ('physical', 'auto'):
             raise _only('--bearing-model', 'physical')

@@ -115,6 +115,26 @@ def check_probe_nodes(recordings, n_nodes: int) -> None:
                 raise ParamError(f'run {r.run.id}: excitation at node {e.node} but the model has nodes 1..{n_nodes}')
 
 
+def check_probes_against_params(recordings, rig) -> None:
+    """
+    Refuse a recording whose probe disagrees with the params file's probe of the same name (node, angle or gain).
+
+    The recording's probes are the ones used (they describe its channels); a params file that places a probe of that
+    name elsewhere means one of the two is wrong -- an InputError names both instead of silently using either.
+    """
+    params = {p.name: p for p in getattr(rig, 'probes', ()) or ()}
+    for r in recordings:
+        for p in r.probes:
+            q = params.get(p.name)
+            if q is None:
+                continue
+            if q.node != p.node or abs(q.angle_deg - p.angle_deg) > 1e-6 or abs(q.gain - p.gain) > 1e-9:
+                raise InputError(f'run {r.run.id}: probe {p.name} is at node {p.node}, {p.angle_deg:g} deg (gain '
+                                 f'{p.gain:g}) in the recording but at node {q.node}, {q.angle_deg:g} deg (gain '
+                                 f'{q.gain:g}) in the params file: correct the one that is wrong (the probes of the '
+                                 'recording are the ones used), or rename the probe in the params file')
+
+
 def attach_excitation(recordings, rig, *, required: bool) -> list:
     """
     Attach the params' excitation to each recording that carries none.

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.params import load_rig, ParamError
-from ..conventions import COEFF_ORDER, rpm_to_rad_s
+from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
 from ..plots.campbell import campbell_figure, mode_shapes_figure
 from ..plots.coefficients import theory_coefficients_figure
 from ..plots.common import save_png
@@ -30,6 +30,7 @@ from ..rotor.modal import damped_modes, free_free_frequencies
 from ..rotor.updating import update_model
 
 TWO_PI = 2.0 * math.pi
+CRITICALLY_DAMPED = 0.2    # damping ratio above which a 1X crossing is critically damped (API 684: amplification < 2.5)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -42,9 +43,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument('--params', help='rig YAML (default: the packaged params/rig.yaml)')
     p.add_argument('--out', default='out/model', help='directory for campbell.png, coefficients.png, '
                                                       'mode_shapes.png, model.json (default out/model)')
-    p.add_argument('--max-rpm', type=float, default=6000.0,
+    p.add_argument('--max-rpm', type=float, default=None,
                    help='upper end of the speed range for Campbell, critical speeds and stability [rpm] '
-                        "(default 6000, the rig's maximum)")
+                        "(default: the machine's -- twice its top simulation speed or the last row of its bearing "
+                        'and seal tables, whichever is higher; 6000 when it has neither)')
     p.add_argument('--speeds', help='comma-separated speeds [rpm] for the coefficient and mode tables '
                                     '(default: simulation.speeds_rpm)')
     p.add_argument('--modes', type=int, default=6, help='number of modes to report (default 6)')
@@ -62,9 +64,26 @@ def _speeds(args, rig):
         v = list(rig.simulation.speeds_rpm)
     else:
         v = list(np.linspace(args.max_rpm / 10, args.max_rpm, 10))
+        tables = [b.table.speeds for b in tuple(rig.bearings) + tuple(rig.known_elements())
+                  if b.model == 'table' and b.table is not None and len(b.table.speeds) > 1]
+        if tables:       # where the tables say something: from the first row of any to the last of any
+            lo, hi = min(t[0] for t in tables) * RPM_PER_RAD_S, max(t[-1] for t in tables) * RPM_PER_RAD_S
+            v = list(np.linspace(lo, min(hi, args.max_rpm), 10))
     if not v or any(s <= 0 for s in v):
         raise ParamError('--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)')
     return v
+
+
+def machine_max_rpm(rig) -> float:
+    """
+    Return the machine's speed range top [rpm]: twice its top simulation speed or its tables' last row, the higher.
+
+    6000 rpm (the paper rig's range) when the params give neither.
+    """
+    cand = [2.0 * max(rig.simulation.speeds_rpm)] if rig.simulation is not None and rig.simulation.speeds_rpm else []
+    cand += [b.table.speeds[-1] * RPM_PER_RAD_S for b in tuple(rig.bearings) + tuple(rig.known_elements())
+             if b.model == 'table' and b.table is not None and len(b.table.speeds) > 1]
+    return float(max(cand)) if cand else 6000.0
 
 
 def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
@@ -92,11 +111,19 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     cd = campbell_data(model, bfn, hi, min_speed=lo, n_modes=n_modes, n_grid=40)
     out['campbell'] = {'speeds_rpm': cd.speeds_rpm.tolist(), 'frequency_hz': cd.frequency_hz.tolist(),
                        'log_dec': cd.log_dec.tolist(), 'whirl': cd.whirl.tolist()}
-    out['critical_speeds_rpm'] = cd.critical_rpm.tolist()
-    out['critical_damping_ratio'] = cd.critical_zeta.tolist()   # of the forward mode crossing 1X (AF ~ 1 / 2 zeta)
+    crit = np.asarray(cd.critical_zeta, float) <= CRITICALLY_DAMPED    # API 684: above it no resonance peak to speak of
+    out['critical_speeds_rpm'] = cd.critical_rpm[crit].tolist()
+    out['critical_damping_ratio'] = cd.critical_zeta[crit].tolist()   # of the forward mode crossing 1X (AF ~ 1/2 zeta)
+    out['critically_damped_crossings_rpm'] = cd.critical_rpm[~crit].tolist()
+    out['critically_damped_zeta'] = cd.critical_zeta[~crit].tolist()
     out['stability_threshold_rpm'] = cd.threshold_rpm
     out['stability_whirl_ratio'] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
     out['notes'] = list(cd.notes)
+    for b in tuple(rig.bearings) + tuple(rig.known_elements()):
+        t = b.table if b.model == 'table' else None
+        if t is not None and len(t.speeds) > 1 and (lo < t.speeds[0] or hi > t.speeds[-1]):
+            out['notes'].append(f'{b.name}: its table covers {t.speeds[0] * RPM_PER_RAD_S:.0f}-'
+                                f'{t.speeds[-1] * RPM_PER_RAD_S:.0f} rpm; outside, its first / last row is held')
     if update and rig.modal_test is not None and rig.modal_test.measured_hz:
         res = update_model(rig, rig.modal_test.measured_hz, maxiter=1500)
         out['updating'] = {'table': res.table(), 'factors': res.factors, 'initial_hz': res.initial_hz.tolist(),
@@ -117,8 +144,12 @@ def _print_report(r: dict) -> None:
                           zip(row['modes_hz'], row['whirl'], row['log_dec']))
         print(f"  {row['speed_rpm']:7.0f} rpm  {modes}")
     crit = r['critical_speeds_rpm']
-    print('\ncritical speeds (forward whirl = 1X) [rpm] (damping ratio; > 0.2 is critically damped, API 684): '
+    print(f'\ncritical speeds (forward whirl = 1X, damping ratio <= {CRITICALLY_DAMPED:g}) [rpm] (damping ratio): '
           + (', '.join(f'{c:.0f} ({z:.2f})' for c, z in zip(crit, r['critical_damping_ratio'])) or 'none in range'))
+    if r.get('critically_damped_crossings_rpm'):
+        pairs = zip(r['critically_damped_crossings_rpm'], r['critically_damped_zeta'])
+        print(f'critically damped 1X crossings (damping ratio > {CRITICALLY_DAMPED:g}, API 684: not critical speeds) '
+              '[rpm]: ' + ', '.join(f'{c:.0f} ({z:.2f})' for c, z in pairs))
     thr = r['stability_threshold_rpm']
     wr = r.get('stability_whirl_ratio')
     print('stability threshold (onset of oil whip) [rpm]: ' + (f'{thr:.0f}' + (f' (the unstable mode whirls at '
@@ -191,6 +222,9 @@ def _plots(r: dict, out: Path, rig=None) -> list[Path]:
 
 def run(args) -> int:
     rig = load_rig(args.params)
+    if args.max_rpm is None:
+        args.max_rpm = machine_max_rpm(rig)
+        print(f"speed range: up to {args.max_rpm:.0f} rpm (the machine's; --max-rpm sets another)")
     if args.max_rpm <= 0:
         raise ParamError('--max-rpm must be > 0')
     if args.modes < 1:

@@ -21,14 +21,14 @@ import time
 
 import numpy as np
 
-from .inputs import attach_excitation, check_probe_nodes, load_recordings
+from .inputs import attach_excitation, check_probe_nodes, check_probes_against_params, load_recordings
 from ..config import defaults
 from ..config.params import load_rig, ParamError
 from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
 from ..diagnose.reidentify import format_table
 from ..excitation import harmonic_forces
 from ..identify import harmonics, identify, METHODS
-from ..identify.result import format_results
+from ..identify.result import format_results, undetermined_label
 from ..plots import data as fd
 from ..plots.campbell import campbell_figure, mode_shapes_figure
 from ..plots.centreline import centreline_figure
@@ -69,7 +69,9 @@ def run(args) -> int:
     rig = load_rig(args.params)
     if args.max_rpm is not None and not args.max_rpm > 0:
         raise ParamError('--max-rpm must be > 0')
-    recs = attach_excitation(load_recordings(args.inputs), rig, required=False)
+    recs = load_recordings(args.inputs)
+    check_probes_against_params(recs, rig)
+    recs = attach_excitation(recs, rig, required=False)
     check_probe_nodes(recs, rig.shaft.n_nodes)
     info = build_report(rig, recs, args.out, method=args.method, max_rpm=args.max_rpm, write_png=args.png,
                         command='bearing-id report ' + ' '.join(args.inputs)
@@ -158,7 +160,7 @@ def coefficient_rows(results, allow_undetermined: bool = False) -> tuple[list, l
                     if d[i, j]:
                         row.append(f'{v[i, j]:.4g} ± {_fmt(s[i, j], 2)}')
                     elif allow_undetermined and np.isfinite(v[i, j]):
-                        row.append((f"{v[i, j]:.4g} ({'misfit' if r.misfit else 'prior'})", 'undet'))
+                        row.append((f'{v[i, j]:.4g} ({undetermined_label(r)})', 'undet'))
                     else:
                         row.append(('undetermined', 'undet'))
             flags = ', '.join(r.flags) or ('' if r.fully_determined else 'not all determined')

@@ -96,7 +96,8 @@ def bearing(f, where: str, n_nodes: int, name: str, gravity: tuple) -> Bearing:
         c = {k: getattr(t, k) or (0.0,) * len(t.speeds()) for k in TABLE_COEFFS}
         t = BearingTable(speeds=tuple(t.speeds()),
                          K=tuple(((a, b), (c_, d)) for a, b, c_, d in zip(c['kxx'], c['kxy'], c['kyx'], c['kyy'])),
-                         C=tuple(((a, b), (c_, d)) for a, b, c_, d in zip(c['cxx'], c['cxy'], c['cyx'], c['cyy'])))
+                         C=tuple(((a, b), (c_, d)) for a, b, c_, d in zip(c['cxx'], c['cxy'], c['cyx'], c['cyy'])),
+                         interpolation=t.interpolation)
     geo = {k: NOT_GIVEN if getattr(f, k) is None else getattr(f, k)
            for k in ('diameter', 'length', 'clearance', 'viscosity')}
     return Bearing(name=name if f.name is None else f.name, node=node(f.node, where, n_nodes), **geo, load=load,

@@ -183,11 +183,12 @@ class Support:
 
 @dataclass(frozen=True)
 class BearingTable:
-    """K and C (2x2, our frame) vs speed; interpolated linearly in speed, held flat outside (bearings.table)."""
+    """K and C (2x2, our frame) vs speed; interpolated between the rows, held flat outside (bearings.table)."""
 
     speeds: tuple                 # rad/s, increasing
     K: tuple                      # per speed ((kxx, kxy), (kyx, kyy)) N/m
     C: tuple                      # per speed ((cxx, cxy), (cyx, cyy)) N s/m
+    interpolation: str = 'linear'     # between the speeds: 'linear' or 'cubic' (not-a-knot spline through the rows)
 
 
 @dataclass(frozen=True)

@@ -232,7 +232,11 @@ class SupportFile(Section):
 
 
 class TableFile(Section):
-    """K [N/m] and C [N s/m] per speed (``speed_rpm`` [rpm] or ``speed`` [rad/s], increasing); cross terms 0."""
+    """
+    K [N/m] and C [N s/m] per speed (``speed_rpm`` [rpm] or ``speed`` [rad/s], increasing); cross terms 0.
+
+    ``interpolation`` between the speeds: 'linear' (default) or 'cubic' (a not-a-knot cubic spline through the rows).
+    """
 
     speed_rpm: Annotated[tuple, Numbers('rpm', 0, 1e7)] = None
     speed: Annotated[tuple, Numbers('rad/s', 0, 1e6)] = None
@@ -244,17 +248,19 @@ class TableFile(Section):
     cxy: CColumn = None
     cyx: CColumn = None
     cyy: CColumn = None
+    interpolation: Literal['linear', 'cubic'] = 'linear'
 
     @classmethod
     def prepare(cls, d, info):
         if 'csv' not in d:
             return d
-        if len(d) > 1:
-            raise problem(': a table from csv has no other key', '.' + str(next(k for k in d if k != 'csv')))
+        other = [k for k in d if k not in ('csv', 'interpolation')]
+        if other:
+            raise problem(': a table from csv has no other key but interpolation', '.' + str(other[0]))
         try:
             cols = read_csv(d['csv'], (info.context or {}).get('base_dir'))
             cls.model_validate(cols)         # its problems named below .csv
-            return cols
+            return {**cols, **({'interpolation': d['interpolation']} if 'interpolation' in d else {})}
         except ValidationError as exc:
             tail = ': ' + message(exc.errors(include_url=False)[0], root='')
         except ValueError as exc:

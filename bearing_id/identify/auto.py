@@ -15,6 +15,7 @@ import numpy as np
 
 from .design import check_design
 from .direct import identify_direct
+from .lsq import DEFAULT_MAX_REL_STD
 from .physical import identify_physical
 from .result import IdentResult
 from ..rotor.supports import bearing_fn
@@ -54,8 +55,10 @@ def choose_method(model, rig, data, probes, runs) -> tuple[str, str]:
         return 'physical', 'no speed to judge the design by'
     r, c = min(short, key=lambda rc: rc[1])
     return 'physical', (f'the design check on these data determines {c} of {n} coefficients at {r.speed_rpm:.0f} rpm '
-                        f'(design-check rank {r.data.rank} of {r.data.unknowns}; {len(short)} of {len(reports)} '
-                        f"speeds short); physical fits the bearings' parameters across all speeds")
+                        f'(rank {r.data.structural_rank} of {r.data.unknowns}, {r.data.rank} direction(s) known to '
+                        f'{100 * DEFAULT_MAX_REL_STD:g} % at this noise; {len(short)} of {len(reports)} speeds short); '
+                        'physical fits the '
+                        "bearings' parameters across all speeds")
 
 
 def identify_auto(model, rig, data, probes, runs, options=None) -> list[IdentResult]:

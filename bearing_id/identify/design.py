@@ -69,8 +69,9 @@ class DesignReport:
         return float(rad_s_to_rpm(self.speed))
 
     def summary(self) -> str:
-        lines = [f'{self.speed_rpm:7.0f} rpm: data rank {self.data.rank} of {self.data.unknowns} '
-                 f'(structural {self.data.structural_rank}), condition {self.data.condition:.3g}']
+        lines = [f'{self.speed_rpm:7.0f} rpm: rank {self.data.structural_rank} of {self.data.unknowns} (numerical, '
+                 f'as identify reports it; {self.data.rank} direction(s) known to {100 * DEFAULT_MAX_REL_STD:g} % '
+                 f'at this noise), condition {self.data.condition:.3g}']
         for m, v in self.methods.items():
             lines.append(f'    {m:12s}: ' + (v if isinstance(v, str) else
                                              f'rank {v.rank} of {v.unknowns}, condition {v.condition:.3g}'))

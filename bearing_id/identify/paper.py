@@ -517,12 +517,13 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     settings and the theory of 'bearing_fn' -- e.g. a time-domain filter run elsewhere -- so the theory-dominance
     check is run on them; without it given z_B are taken as measured and no theory check is made), 'remove_dc'
     (default True: each window's static offset is removed before the KF, see :func:`kf_bearing_vectors`), 'reduce'
-    (None (default): the filter on the full FE model; True, an int (fixed-interface modes) or {'n_modes': k} /
-    {'cutoff_hz': f}: the filter on a Craig-Bampton reduction keeping the bearing, probe and force DOFs
-    (:mod:`bearing_id.rotor.reduction`, default cutoff :data:`REDUCE_CUTOFF_FRACTION` x the sample rate), its 1X
-    receptance error per speed in the notes and ``extra['reduction']``; with 'check': True in the dict the filter is
-    re-run on the reduction with twice the cutoff and the change of the bearing vectors reported as its KF-level
-    truncation error ('kf_truncation'); the eqs 30-37 solve stays on the full model).
+    ('auto' (default): the reduction below when the full model has more than :data:`AUTO_REDUCE_STATES` states and the
+    data carry a sample rate, else the full model; None / False: the filter on the full FE model; True, an int
+    (fixed-interface modes) or {'n_modes': k} / {'cutoff_hz': f}: the filter on a Craig-Bampton reduction keeping the
+    bearing, probe and force DOFs (:mod:`bearing_id.rotor.reduction`, default cutoff :data:`REDUCE_CUTOFF_FRACTION` x
+    the sample rate), its 1X receptance error per speed in the notes and ``extra['reduction']``; with 'check': True in
+    the dict the filter is re-run on the reduction with twice the cutoff and the change of the bearing vectors reported
+    as its KF-level truncation error ('kf_truncation'); the eqs 30-37 solve stays on the full model).
 
     Determined: the one rule of :mod:`bearing_id.identify.determined` (:func:`bearing_id.identify.lsq.build_result`),
     with the KF's d(identified)/d(theory) as the prior pull.
@@ -538,7 +539,16 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
     bfn = opts.get('bearing_fn')
     if bfn is None:
         bfn = bearing_fn(rig)
-    red, red2 = _reduction(model, data, probes, runs, opts.get('reduce'))
+    spec = opts.get('reduce', 'auto')
+    auto_note = None
+    if isinstance(spec, str) and spec == 'auto':
+        big = 2 * model.ndof > AUTO_REDUCE_STATES and _sample_rate(data, required=False) is not None
+        spec = True if big else None
+        if big:
+            auto_note = (f'the full model has {2 * model.ndof} states (> {AUTO_REDUCE_STATES}): the filter runs on a '
+                         'Craig-Bampton reduction, which keeps it fast (reduce=None / `--no-reduce` forces the full '
+                         'filter)')
+    red, red2 = _reduction(model, data, probes, runs, spec)
     out = []
     for s, w in enumerate(data.speeds):
         w = float(w)
@@ -548,6 +558,8 @@ def identify_paper(model, rig, data, probes, runs, options=None) -> list[IdentRe
         notes = []
         not_det, extra = None, {}
         red_info = None
+        if auto_note:
+            notes.append(auto_note)
         if red is not None:
             err = receptance_error(red, w, theory)
             red_info = {'states': 2 * red.nr, 'full_states': 2 * model.ndof, 'kept_dofs': int(red.kept.size),
@@ -669,6 +681,7 @@ def _theory_check(model, speed, theory, probes, X, F, sample_rate, Q, R, smoothe
 
 
 REDUCE_CUTOFF_FRACTION = 0.5     # default Craig-Bampton cutoff of the paper route: the Nyquist frequency
+AUTO_REDUCE_STATES = 88          # a full filter above this many states is slow (63 s CPU at 448 states): reduce
 
 
 def _reduction(model, data, probes, runs, spec):

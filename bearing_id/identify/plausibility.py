@@ -15,6 +15,8 @@ Per speed:
   the wrong unit (micrometres sent as metres) fail this by orders of magnitude.
 * **Live channels**: every probe must carry a 1X signal above its noise in at least one run; a dead, constant or
   all-zero channel cannot constrain anything.
+* **Table range**: a speed outside the rows of a bearing or seal table is noted (the table's value is held there);
+  ``physical`` then leaves that table bearing's coefficients not determined (a scaled held row is not the data's).
 
 A failed gate sets every coefficient of that speed to not determined (std NaN) and says why in ``notes``.
 """
@@ -27,7 +29,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .direct import SPARSE_NDOF
-from ..conventions import dof_index
+from ..bearings.table import outside as table_outside
+from ..conventions import dof_index, RPM_PER_RAD_S
 from ..excitation import harmonic_forces
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
 from ..rotor.stability import threshold_speed
@@ -104,6 +107,10 @@ def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
     return out
 
 
+def _rpm(w: float) -> float:
+    return float(w) * RPM_PER_RAD_S
+
+
 def known_clearance(bearing) -> bool:
     """Return True when the bearing's radial clearance [m] is a known positive number (a table may have none)."""
     c = bearing.clearance
@@ -145,6 +152,18 @@ def gate(results, model, rig, data, runs, probes) -> list:
                     reasons.append(f'the journal orbit at bearing {names[node]} would be {r_orb / c:.3g} x its '
                                    f'radial clearance at {rpm:.0f} rpm (limit {ORBIT_LIMIT:g}): outside the linear '
                                    f"coefficients' range -- or the samples are not in metres")
+        held = [f'{b.name} ({_rpm(b.table.speeds[0]):.0f}-{_rpm(b.table.speeds[-1]):.0f} rpm)'
+                for b in tuple(rig.bearings) + tuple(rig.known_elements())
+                if b.model == 'table' and b.table is not None and table_outside(b.table, res.speed)]
+        if held:
+            res.notes = list(res.notes) + [
+                f"{rpm:.0f} rpm is outside the rows of the table(s) of {', '.join(held)}: their coefficients are held "
+                f'at the nearest row there (a table says nothing beyond its ends)']
+            if res.method == 'physical':      # a fitted table bearing there is a scaled held row: not the data's
+                for i, b in enumerate(rig.bearings):
+                    if b.model == 'table' and b.table is not None and table_outside(b.table, res.speed):
+                        res.K_determined[i] = False
+                        res.C_determined[i] = False
         if unknown and not reasons:
             res.notes = list(res.notes) + [
                 f"orbit-vs-clearance check skipped for {', '.join(unknown)}: no radial clearance known (a table "
@@ -155,6 +174,7 @@ def gate(results, model, rig, data, runs, probes) -> list:
             res.K_std = np.full_like(res.K, np.nan)
             res.C_std = np.full_like(res.C, np.nan)
             res.notes = list(res.notes) + [f'NOT PLAUSIBLE: {t}; not determined' for t in reasons]
+            res.set_flag('not_plausible')
     return results
 
 

@@ -11,7 +11,8 @@ uncertainty can be given, and its value (when not NaN) is the prior's or the min
 
 ``flags`` carry what every printer must show next to the numbers: ``'misfit'`` (the model does not reproduce the data
 within their noise: the chi-square test of :func:`bearing_id.identify.determined.fit_quality` failed; the 1-sigma are
-Birge-scaled and still a lower bound) -- a misfit result is never shown as plainly determined.
+Birge-scaled and still a lower bound; nothing is determined, :func:`bearing_id.identify.misfit_gate`) and
+``'not_plausible'`` (a plausibility gate failed, :mod:`bearing_id.identify.plausibility`).
 ``extra['fit_quality']`` (a :class:`~bearing_id.identify.determined.FitQuality`) and ``extra['parameters']`` (fitted
 physical parameters with their 1-sigma, method ``physical``) are serialised by :meth:`IdentResult.to_dict`.
 """
@@ -235,6 +236,11 @@ def _fmt(v):
     return 'nan' if not math.isfinite(v) else f'{v:.4g}'
 
 
+def undetermined_label(r) -> str:
+    """Return why a result's undetermined values are not the data's: 'misfit', 'not plausible' or 'prior'."""
+    return 'misfit' if r.misfit else 'not plausible' if 'not_plausible' in r.flags else 'prior'
+
+
 def format_results(results, allow_undetermined: bool, allow_misfit: bool = False) -> str:
     """
     Table per speed: rpm, bearing, coefficient, value, 1-sigma, unit; undetermined values hidden or flagged.
@@ -262,7 +268,7 @@ def format_results(results, allow_undetermined: bool, allow_misfit: bool = False
                                      f'{_fmt(std[b, i, j]):>12s}  {UNITS[sym]} (misfit)')
                     elif allow_undetermined:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {_fmt(val[b, i, j]):>12s} {'-':>12s}  "
-                                     f"{UNITS[sym]} ({'misfit' if r.misfit else 'prior'})")
+                                     f'{UNITS[sym]} ({undetermined_label(r)})')
                     else:
                         lines.append(f"  {name:10s} {sym}{lab:4s} {'undetermined':>12s} {'-':>12s}  {UNITS[sym]}")
         for n in r.notes:
@@ -270,4 +276,4 @@ def format_results(results, allow_undetermined: bool, allow_misfit: bool = False
     return '\n'.join(lines)
 
 
-__all__ = ['format_results', 'IdentResult', 'empty_result', 'eq38_error']
+__all__ = ['format_results', 'IdentResult', 'empty_result', 'eq38_error', 'undetermined_label']

@@ -8,7 +8,8 @@ CSV (one row per sample, comma separated, ``#`` lines are metadata)::
 
     # sample_rate: 10240          Hz, required
     # units: um                   unit of the displacement columns: m (default), mm or um
-    # channels: p6x@6x, p6y@6y    name@<node><direction> per displacement column (node 1-based, x or y)
+    # channels: p6x@6x, p6y@6y    name@<node><x|y> per displacement column (node 1-based), or at any angle
+                                  name@<node>:<angle>deg[*<gain>], e.g. p9a@9:45deg, p9b@9:135deg (from +x to +y)
     # run: A                      optional run id
     t,angle,speed,p6x,p6y         or t,keyphasor,p6x,p6y   or t,speed_rpm,angle,...
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from .recordings import load_npz
 from ..config.params import Probe, Run
+from ..conventions import parse_probe_direction, probe_direction
 from ..signals import keyphasor as _kp
 from ..signals.recording import Recording
 
@@ -58,11 +60,23 @@ def _parse_channels(text: str) -> tuple[Probe, ...]:
     out = []
     for tok in filter(None, (s.strip() for s in text.split(','))):
         if '@' not in tok:
-            raise DaqError(f"channels: '{tok}' must be name@<node><x|y>, e.g. p6x@6x")
+            raise DaqError(f"channels: '{tok}' must be name@<node><x|y> or name@<node>:<angle>deg, e.g. p6x@6x, "
+                           'p9a@9:45deg')
         name, loc = tok.split('@', 1)
-        node, direction = loc[:-1], loc[-1:]
-        if direction not in ('x', 'y') or not node.isdigit() or int(node) < 1:
-            raise DaqError(f"channels: '{tok}': location must be a 1-based node followed by x or y")
+        if ':' in loc:
+            node, direction = (s.strip() for s in loc.split(':', 1))
+            try:
+                direction = probe_direction(*parse_probe_direction(direction))
+            except ValueError:
+                raise DaqError(f"channels: '{tok}': the direction after ':' must be x, y or <angle>deg[*<gain>]") \
+                    from None
+        else:
+            node, direction = loc[:-1], loc[-1:]
+            if direction not in ('x', 'y'):
+                raise DaqError(f"channels: '{tok}': location must be a 1-based node followed by x or y, or "
+                               '<node>:<angle>deg')
+        if not node.isdigit() or int(node) < 1:
+            raise DaqError(f"channels: '{tok}': the node must be a 1-based whole number")
         out.append(Probe(name.strip(), int(node), direction))
     return tuple(out)
 
@@ -146,7 +160,8 @@ def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, 
     """
     path = Path(path)
     s = UNIT_SCALE[units]
-    ch = ', '.join(f'{p.name}@{p.node}{p.direction}' for p in rec.probes)
+    ch = ', '.join(f'{p.name}@{p.node}' + (p.direction if p.direction in ('x', 'y') else f':{p.direction}')
+                   for p in rec.probes)
     lines = [f'# sample_rate: {rec.sample_rate!r}', f'# units: {units}', f'# channels: {ch}',
              f'# run: {rec.run.id}', f'# rig: {rec.rig_name}']
     if keyphasor:

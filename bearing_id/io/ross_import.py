@@ -52,6 +52,7 @@ from ..config.params import ParamError
 
 MAX_TOML_BYTES = 50_000_000
 TABLE_VALUES = ('ross', 'rows')
+TABLE_REL_TOL = 1e-8    # linear interpolation of the imported samples vs ROSS's spline, of the K / C block's size
 LAYERS = ('layers', 'added_mass')
 COEFFS = ('kxx', 'kxy', 'kyx', 'kyy', 'cxx', 'cxy', 'cyx', 'cyy')
 MASS_COEFFS = ('mxx', 'mxy', 'myx', 'myy')
@@ -280,10 +281,41 @@ def _table(d: dict, w: str, table_values: str) -> dict:
     if any(b <= a for a, b in zip(fs, fs[1:])):
         raise RossImportError(f'{w}.frequency has repeated values')
     if table_values == 'ross' and n > 1:
-        out = {k: [ross_interpolant(freq, cols[k])(f) for f in fs] for k in COEFFS}
+        fns = {k: ross_interpolant(freq, cols[k]) for k in COEFFS}
+        fs = spline_samples(fns, fs)
+        out = {k: [fns[k](f) for f in fs] for k in COEFFS}
+        if len(fs) >= 3:
+            return {'speed': fs, **out, 'interpolation': 'cubic'}
     else:
         out = {k: [cols[k][i] for i in order] for k in COEFFS}
     return {'speed': fs, **out}
+
+
+def spline_samples(fns: dict, rows: list, rel: float = TABLE_REL_TOL, max_rounds: int = 12) -> list:
+    """
+    Return speeds [rad/s] (the rows and points between) where a cubic spline through samples of ``fns`` fits them.
+
+    ``fns``: {coefficient: f(speed)} (ROSS's interpolants).  Starting from the rows, every interval where the
+    not-a-knot cubic spline through the samples (:mod:`bearing_id.bearings.table`, 'cubic') misses a coefficient by
+    more than ``rel`` of the largest |value| of its block (K or C) over the rows, at 1/4, 1/2 or 3/4 of the interval,
+    is halved; until none is (or ``max_rounds``).  ROSS's spline is a smooth piecewise cubic, so a few points suffice
+    (a single cubic -- few rows, no interior knot -- needs none).
+    """
+    scale = {g: max(abs(fns[k](w)) for k in COEFFS if k[0] == g for w in rows) or 1.0 for g in 'kc'}
+    grid = [float(w) for w in rows]
+    for _ in range(max_rounds):
+        if len(grid) < 3:
+            return grid
+        spl = {k: interpolate.CubicSpline(grid, [f(w) for w in grid]) for k, f in fns.items()}
+        split = []
+        for a, b in zip(grid, grid[1:]):
+            ts = [a + t * (b - a) for t in (0.25, 0.5, 0.75)]
+            if any(abs(spl[k](w) - f(w)) > rel * scale[k[0]] for k, f in fns.items() for w in ts):
+                split.append(0.5 * (a + b))
+        if not split:
+            return grid
+        grid = sorted(grid + split)
+    return grid
 
 
 def _constant_diagonal(d: dict, w: str) -> tuple:
@@ -315,7 +347,8 @@ def convert(data: dict, *, name: str | None = None, table_values: str = 'ross', 
     """
     Return the params schema v2 dict of a ROSS rotor (``read_toml`` output); ``result['_notes']`` lists the mappings.
 
-    ``table_values``: 'ross' (ROSS's interpolant at the rows, default) or 'rows' (the file's rows as they are).
+    ``table_values``: 'ross' (ROSS's interpolant sampled at and between the rows for a cubic table,
+    :func:`spline_samples`; default) or 'rows' (the file's rows as they are, linear).
     ``layers``: 'layers' (full concentric elements, exact, default) or 'added_mass' (mass only, approximate).
     """
     if table_values not in TABLE_VALUES:
@@ -401,9 +434,11 @@ def convert(data: dict, *, name: str | None = None, table_values: str = 'ross', 
     out['bearings'] = bearings
     if seals:
         out['seals'] = seals
-    if table_values == 'ross' and any(len(b['table']['speed']) > 3 for b in bearings + seals):
-        notes.append("bearing and seal tables: ROSS's smoothing spline evaluated at the table's speeds (linear in "
-                     'between, held flat outside; ROSS extrapolates)')
+    if table_values == 'ross' and any(len(b['table']['speed']) > 1 for b in bearings + seals):
+        notes.append(f"bearing and seal tables: ROSS's interpolant (its smoothing spline) sampled at the rows and "
+                     f'between them so that a cubic spline through the samples (interpolation: cubic) is within '
+                     f'{TABLE_REL_TOL:g} of it (of the K or C block); outside the rows the first or last value is '
+                     f'held and flagged where used (ROSS extrapolates its spline)')
     out['_notes'] = notes
     return out
 
@@ -438,5 +473,5 @@ def import_ross(path, out=None, *, name: str | None = None, table_values: str = 
     return params
 
 
-__all__ = ['import_ross', 'convert', 'read_toml', 'to_yaml', 'ross_kappa', 'ross_interpolant', 'RossImportError',
-           'TABLE_VALUES', 'LAYERS']
+__all__ = ['import_ross', 'convert', 'read_toml', 'to_yaml', 'ross_kappa', 'ross_interpolant', 'spline_samples',
+           'RossImportError', 'TABLE_VALUES', 'LAYERS']
