@@ -316,8 +316,76 @@ def write_fluid_flow(out=BRIDGE_DIR / 'fluid_flow_gumbel.json'):
     Path(out).write_text(json.dumps(data, indent=1) + '\n')
 
 
+# ----------------------------------------------------------------- part 4: the plant-like example machine
+EXAMPLE_TOML = ROOT / 'params' / 'examples' / 'plant_compressor.toml'
+
+
+def plant_rotor():
+    """
+    Build a plant-like centrifugal compressor in ROSS (not one of ROSS's examples): the params/examples machine.
+
+    A stepped shaft (journal 90 mm, body 140 mm, 1.3 m) with shrunk-on sleeves under the impellers as a second
+    element on the same station (a layered shaft), four impellers and a thrust collar as discs from their geometry,
+    two tilting-pad-like journal bearings (small cross-coupling) and a balance-piston and an eye seal with strong
+    cross-coupling, all as tables over 3000-12000 rpm (7 rows, smooth in speed).
+    """
+    steel = rs.Material(name='shaft_steel', rho=7850.0, E=207e9, G_s=79.5e9)
+    sleeve = rs.Material(name='sleeve_steel', rho=7850.0, E=200e9, G_s=77.0e9)
+    # (n_elements, element length [m], outer d [m], sleeve outer d or None) left to right
+    sections = [(2, 0.05, 0.09, None), (3, 0.05, 0.09, None), (2, 0.06, 0.12, None), (8, 0.07, 0.14, 0.17),
+                (2, 0.06, 0.12, None), (3, 0.05, 0.09, None), (2, 0.05, 0.09, None)]
+    shaft, n = [], 0
+    for n_el, le, od, sl in sections:
+        for _ in range(n_el):
+            shaft.append(rs.ShaftElement(L=le, idl=0.0, odl=od, material=steel, n=n, shear_effects=True,
+                                         rotary_inertia=True, gyroscopic=True, shear_method_calc='cowper'))
+            if sl is not None:
+                shaft.append(rs.ShaftElement(L=le, idl=od, odl=sl, material=sleeve, n=n, shear_effects=True,
+                                             rotary_inertia=True, gyroscopic=True, shear_method_calc='cowper'))
+            n += 1
+    disks = [rs.DiskElement.from_geometry(n=k, material=steel, width=0.05, i_d=0.17, o_d=0.42, tag=f'impeller_{i + 1}')
+             for i, k in enumerate((9, 11, 13, 15))]
+    disks.append(rs.DiskElement.from_geometry(n=3, material=steel, width=0.03, i_d=0.09, o_d=0.2, tag='thrust_collar'))
+    f = [314.16, 418.88, 523.60, 628.32, 837.76, 1047.20, 1256.64]      # rad/s: 3000 ... 12000 rpm
+    u = [x / 1000.0 for x in f]
+
+    def journal(n, tag, k0, c0):
+        return rs.BearingElement(
+            n=n, frequency=f, tag=tag,
+            kxx=_poly(u, k0, 0.6 * k0, -0.15 * k0), kyy=_poly(u, 1.2 * k0, 0.5 * k0, -0.1 * k0),
+            kxy=_poly(u, 0.0, 0.04 * k0, 0.02 * k0), kyx=_poly(u, 0.0, -0.05 * k0, -0.01 * k0),
+            cxx=_poly(u, c0, -0.35 * c0, 0.08 * c0), cyy=_poly(u, 1.15 * c0, -0.4 * c0, 0.1 * c0),
+            cxy=_poly(u, 0.0, 0.02 * c0), cyx=_poly(u, 0.0, -0.015 * c0))
+
+    def seal(n, tag, k0, q0, c0):
+        return rs.SealElement(
+            n=n, frequency=f, tag=tag,
+            kxx=_poly(u, k0, 0.3 * k0), kyy=_poly(u, k0, 0.3 * k0), kxy=_poly(u, 0.0, q0, 0.2 * q0),
+            kyx=_poly(u, 0.0, -q0, -0.2 * q0), cxx=_poly(u, c0, 0.1 * c0), cyy=_poly(u, c0, 0.1 * c0),
+            cxy=_poly(u, 0.0, 0.05 * c0), cyx=_poly(u, 0.0, -0.05 * c0))
+
+    brgs = [journal(1, 'journal_drive_end', 1.2e8, 9.0e4), journal(22, 'journal_non_drive_end', 1.0e8, 8.0e4),
+            seal(7, 'eye_seal', 4.0e6, 3.0e6, 3.0e3), seal(17, 'balance_piston', 1.5e7, 1.2e7, 1.2e4)]
+    return rs.Rotor(shaft_elements=shaft, disk_elements=disks, bearing_elements=brgs), f
+
+
+def write_example(out=EXAMPLE_TOML):
+    """Save the plant-like machine with ``Rotor.save`` (then ``bearing-id import-ross`` makes its params file)."""
+    rotor, _ = plant_rotor()
+    out = Path(out)
+    if out.exists():
+        out.unlink()                    # Rotor.save merges into an existing file
+    rotor.save(out)
+    again = rs.Rotor.load(out)
+    lam = lateral_modes_by_wn(again, 628.32, 6)
+    print(f'wrote {out} ({out.stat().st_size} bytes): ROSS {rs.__version__}, {len(again.shaft_elements)} shaft '
+          f'elements, lowest damped natural frequencies at 6000 rpm {np.round(lam.imag / 2 / np.pi, 1).tolist()} Hz')
+
+
 if __name__ == '__main__':
     args = sys.argv[1:]
+    if '--example' in args:
+        write_example()
     if '--fluid-flow' in args:
         write_fluid_flow()
     if not args or '--paper' in args:
