@@ -24,6 +24,7 @@ import sys
 from bearing_id.config.params import ExcitationEntry, parse_rig, Run
 from bearing_id.io import ross_import
 from bearing_id.io.recordings import save_npz
+from bearing_id.rotor.assembly import RotorModel, state_space
 from bearing_id.rotor.supports import bearing_fn
 from bearing_id.simulation.rig import simulate_run
 import numpy as np
@@ -101,3 +102,27 @@ def test_plant_example_identified_through_the_user_route(user_route, tmp_path):
     assert float(np.sqrt(np.mean(np.square(z_all)))) <= 1.5, z_all
     if Path(files[0]).name.startswith('run_F'):             # directional forces: the cross terms too, nearly all
         assert len(z_all) >= 0.9 * 16 * len(res), len(z_all)
+
+
+def test_model_takes_its_range_from_the_machine_and_lists_true_critical_speeds(tmp_path):
+    """
+    `bearing-id model` on the example without options: the range from its plan and tables, critical speeds checked.
+
+    Range: twice the plan's top speed (7800 rpm) = 15600 rpm, above the tables' last row (12000 rpm).  Every listed
+    critical speed is a forward mode at the 1X line with damping ratio <= 0.2, checked here with numpy's dense
+    eigenvalues of the state matrix (rotor.assembly.state_space); crossings with a larger ratio are listed apart.
+    """
+    rc, out, err = run_cli('model', '--params', YAML, '--out', tmp_path, '--no-update')
+    assert rc == 0, out + err
+    assert 'speed range: up to 15600 rpm' in out
+    r = json.loads((tmp_path / 'model.json').read_text())
+    rig = parse_rig(yaml.safe_load(YAML.read_text()))
+    model, fn = RotorModel.from_params(rig), bearing_fn(rig)
+    assert r['critical_speeds_rpm']
+    for rpm, zeta in zip(r['critical_speeds_rpm'], r['critical_damping_ratio']):
+        w = rpm * 2 * np.pi / 60
+        lam = np.linalg.eigvals(state_space(model, w, fn(w))[0])
+        k = int(np.argmin(np.abs(lam.imag - w)))
+        assert abs(lam[k].imag - w) <= 2e-3 * w and zeta <= 0.2, (rpm, lam[k], zeta)
+        assert abs(-lam[k].real / abs(lam[k]) - zeta) <= 1e-2, (rpm, lam[k], zeta)
+    assert all(z > 0.2 for z in r.get('critically_damped_zeta', []))

@@ -80,6 +80,8 @@ def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n
 
 FAST_NDOF = 100           # models with more DOFs take :class:`FastModes` (:func:`modes_solver`)
 N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as rotor.stability.FastStability)
+CROSSING_RTOL = 1e-3      # a critical speed: some forward mode's frequency within this of the speed (relative)
+CUTOFF_WIDENINGS = 2      # times FastModes doubles its reduction's cutoff before a speed is solved densely
 
 
 class FastModes:
@@ -90,9 +92,10 @@ class FastModes:
     [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (one dense solve; without
     ``coeffs_top``, ``cutoff_factor`` x ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
     ``N_LEAST_STABLE`` least stable eigenvalues are refined on the full model, so the frequencies, damping, shapes
-    and the largest real part are the full model's (within the dense eigenvalues' error bound).  A speed where the
-    check fails -- fewer than ``n`` reduced modes, the n-th above half the cutoff, or two refinements landing on one
-    full eigenvalue -- is solved densely instead (counted in ``fallbacks``).
+    and the largest real part are the full model's (within the dense eigenvalues' error bound).  The n-th reduced
+    mode above half the cutoff at a speed: the cutoff is doubled (up to ``CUTOFF_WIDENINGS`` times, kept for later
+    speeds); a speed with fewer than ``n`` reduced modes, one where the check still fails, or two refinements landing
+    on one full eigenvalue is solved densely instead (counted in ``fallbacks``).
     """
 
     def __init__(self, model: RotorModel, speed_top: float, coeffs_top: dict | None = None, n: int = 8,
@@ -107,13 +110,21 @@ class FastModes:
 
     def damped_modes(self, speed: float, coeffs: dict, n: int = 8) -> DampedModes:
         """As :func:`damped_modes` (the same numbers to refinement precision)."""
-        eig = self.eig
-        lr, Vr = eig.reduced(speed, coeffs, vectors=True)
-        under = np.flatnonzero(lr.imag > 1e-9 * np.maximum(1.0, np.abs(lr)))
-        low = under[np.argsort(lr[under].imag)][:n]
-        least = least_stable(lr, N_LEAST_STABLE)
-        if low.size < n or lr[low[-1]].imag > 0.5 * eig.cutoff:
+        for _ in range(CUTOFF_WIDENINGS + 1):
+            eig = self.eig
+            lr, Vr = eig.reduced(speed, coeffs, vectors=True)
+            under = np.flatnonzero(lr.imag > 1e-9 * np.maximum(1.0, np.abs(lr)))
+            low = under[np.argsort(lr[under].imag)][:n]
+            if low.size < n:
+                return self._dense(speed, coeffs, n)
+            if lr[low[-1]].imag <= 0.5 * eig.cutoff:
+                break
+            # the n-th mode lies above half the cutoff here (e.g. a speed where the bearings are stiffer): widen
+            # the reduction once for all later speeds rather than solve every such speed densely
+            self.eig = ReducedEigen(self.model, cutoff_hz=2.0 * eig.cutoff / (2 * np.pi))
+        else:
             return self._dense(speed, coeffs, n)
+        least = least_stable(lr, N_LEAST_STABLE)
         A = eig.pencil(speed, coeffs)
         got = {}
         for j in dict.fromkeys(np.concatenate([low, least]).tolist()):
@@ -223,7 +234,9 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
     Return the synchronous critical speeds [rad/s]: where a forward-whirl damped frequency crosses the 1X line.
 
     ``speed_range`` = (lo, hi) [rad/s], lo > 0.  The k-th forward mode's wd(Omega) - Omega is sampled on ``n_grid``
-    speeds, each sign change refined with Brent's method.  Returns the sorted crossings inside the range.
+    speeds, each sign change refined with Brent's method and kept only where a forward mode's frequency is within
+    ``CROSSING_RTOL`` of the speed (a sign change from two modes swapping order is no crossing).  Returns the sorted
+    crossings inside the range.
     ``campbell_grid``: a :func:`campbell` of the same model and bearings with ``n_modes`` modes on exactly that grid
     (``linspace(lo, hi, n_grid)``), whose modes are then reused instead of recomputed (the same numbers).
     The modes by :func:`modes_solver` (or a ``solver`` from it).
@@ -247,9 +260,13 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
                 f = _forward_frequencies(modes, s, bearing_fn, n_modes)
                 return (f[k] if k < len(f) else np.nan) - s
             try:
-                out.append(brentq(h, grid[i], grid[i + 1], xtol=1e-9 * grid[i + 1], rtol=1e-12))
-            except ValueError:  # mode order changed inside the bracket: keep the linear estimate
-                out.append(grid[i] - g[i] * (grid[i + 1] - grid[i]) / (g[i + 1] - g[i]))
+                s = brentq(h, grid[i], grid[i + 1], xtol=1e-9 * grid[i + 1], rtol=1e-12)
+            except ValueError:  # mode order changed inside the bracket: the linear estimate, checked below
+                s = grid[i] - g[i] * (grid[i + 1] - grid[i]) / (g[i + 1] - g[i])
+            # a crossing is a forward mode at the 1X line; a sign change from modes swapping order is none
+            f = _forward_frequencies(modes, s, bearing_fn, n_modes)
+            if f.size and np.min(np.abs(f - s)) <= CROSSING_RTOL * s:
+                out.append(s)
     return np.array(sorted(out))
 
 
