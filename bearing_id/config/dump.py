@@ -85,6 +85,8 @@ def rig_to_dict(rig: RigParams) -> dict:
             for j, b in enumerate('xy'):
                 out[f'k{a}{b}'] = [float(k[i][j]) for k in t.K]
                 out[f'c{a}{b}'] = [float(c[i][j]) for c in t.C]
+        if t.interpolation != 'linear':
+            out['interpolation'] = t.interpolation
         return out
 
     def bearing(b, seal=False):
