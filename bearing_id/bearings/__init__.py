@@ -23,7 +23,8 @@ A bearing of kind 'table' is interpolated (``k_scale``/``c_scale`` scale it; the
 viscosity/clearance factors do not apply to it); a short/finite bearing whose static load is not along -y
 (``bearing.load_direction``: a load vector, or gravity not along -y) has the coefficients for a load along -y rotated
 by :func:`bearing_id.conventions.load_rotation` (the plain journal bearing is axisymmetric); a finite bearing with
-``cavitation: gumbel`` uses the direct Reynolds solver with the half-Sommerfeld condition.
+``cavitation: gumbel`` uses the tabulated half-Sommerfeld solution like the Swift-Stieber one (``finite_direct``: the
+direct Reynolds solver with that condition).
 """
 from __future__ import annotations
 
@@ -69,8 +70,8 @@ def solution(bearing, speed: float, load: float, *, viscosity: float | None = No
     mu = float(bearing.viscosity if viscosity is None else viscosity)
     c = float(bearing.clearance if clearance is None else clearance)
     cav = getattr(bearing, 'cavitation', 'swift_stieber')
-    if model in ('finite', 'finite_direct') and cav == 'gumbel':
-        model = 'finite_gumbel'
+    if model in ('finite', 'finite_direct') and cav == 'gumbel':     # the table, or the direct solver
+        model = 'finite_gumbel' if model == 'finite' else 'finite_direct_gumbel'
     s = _solve(model, float(bearing.diameter), float(bearing.length), c, mu, float(load), speed)
     if not _load_along_y(bearing):
         s = _rotated(s, tuple(float(v) for v in bearing.load_direction))
@@ -92,14 +93,19 @@ def _load_along_y(bearing) -> bool:
     return direction is None or tuple(direction) == (0.0, 1.0)
 
 
-def _gumbel(D, L, c, mu, W, speed) -> BearingSolution:
+def _gumbel_direct(D, L, c, mu, W, speed) -> BearingSolution:
     return reynolds(D, L, c, mu, W, speed, cavitation='gumbel')
+
+
+def _gumbel_table(D, L, c, mu, W, speed) -> BearingSolution:
+    return finite_table.solution(D, L, c, mu, W, speed, cavitation='gumbel')
 
 
 @lru_cache(maxsize=8192)
 def _solve(model, D, L, c, mu, W, speed) -> BearingSolution:
     """Solve with a cache (identical bearings and repeated calls from the KF/identification cost nothing)."""
-    fn = {'short': ocvirk, 'finite': finite_table.solution, 'finite_direct': reynolds, 'finite_gumbel': _gumbel}[model]
+    fn = {'short': ocvirk, 'finite': finite_table.solution, 'finite_direct': reynolds, 'finite_gumbel': _gumbel_table,
+          'finite_direct_gumbel': _gumbel_direct}[model]
     s = fn(D, L, c, mu, W, speed)
     s.K.setflags(write=False)      # shared between callers: read-only
     s.C.setflags(write=False)
