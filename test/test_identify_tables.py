@@ -19,7 +19,7 @@ import re
 import subprocess
 import sys
 
-from bearing_id.config.params import default_rig_path, ExcitationEntry, parse_rig, Probe, Run
+from bearing_id.config.params import default_rig_path, ExcitationEntry, load_rig, parse_rig, Probe, Run
 from bearing_id.identify import identify
 from bearing_id.identify.result import format_results, undetermined_label
 from bearing_id.io import ross_import
@@ -73,9 +73,9 @@ def noisy(rig, truth_rig, model, runs, seed=7, probes=None):
     return data
 
 
-def z_scores(results, truth_rig):
-    """(z, relative error) of every determined coefficient against the truth tables."""
-    truth = bearing_fn(truth_rig)
+def z_scores(results, truth_rig, truth=None):
+    """(z, relative error) of every determined coefficient against the truth (a rig's bearings or a bearing_fn)."""
+    truth = truth or bearing_fn(truth_rig)
     z, rel = [], []
     for r in results:
         t = truth(r.speed)
@@ -343,3 +343,27 @@ def test_params_probe_disagreeing_with_the_recording_is_an_error_naming_both(rec
     wrong.write_text(yaml.safe_dump(d))
     rc, out, err = run_cli('identify', *files, '--params', wrong)
     assert rc == 2 and 'probe p6x is at node 6, 0 deg' in err and 'node 6, 30 deg' in err, out + err
+
+
+def test_physical_uses_the_film_model_that_fits_and_names_it():
+    """
+    Params: short bearings; truth: finite-length (Reynolds) bearings, viscosity x1.25, clearance x0.8.
+
+    The short model misfits, so `physical` fits the finite one, which fits: it is used and named with the option that
+    selects it; every determined coefficient within 3 sigma (or 5 %) of the truth.  Asked for the short model
+    explicitly, the misfit determines nothing.
+    """
+    rig = load_rig()
+    model = RotorModel.from_params(rig)
+    truth = bearing_fn(rig, model='finite', viscosity_factor=1.25, clearance_factor=0.8)
+    # 1X noise 0.1 % of each amplitude (1 % sample noise over the rig's 2 s dwells averages to ~0.01 %)
+    data = simulate_data(rig, rig.simulation.runs, RPM, noise=0.001, model=model, bearing_fn=truth)
+    rng = np.random.default_rng(3)
+    data.X[...] += data.X_std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))
+    res = identify('physical', model, rig, data)
+    assert res[0].extra.get('model_form') == {'params': 'short', 'used': 'finite'} and not res[0].misfit
+    assert '--bearing-model finite' in res[0].notes[0], res[0].notes[0]
+    z, rel = z_scores(res, truth_rig=None, truth=truth)
+    assert z.size and not np.any((np.abs(z) > 3) & (rel > 0.05)), (z, rel)
+    short = identify('physical', model, rig, data, options={'bearing_model': 'short'})
+    assert all(r.misfit and not np.any(r.K_determined) for r in short)

@@ -81,7 +81,11 @@ def reidentify(recordings, rig, augmented_rig, method: str = 'physical', options
     model = RotorModel.from_params(rig)
     fn = get_method(method)
     aug = AugmentedModel(model, augmented_rig)
-    before = fn(model, rig, data, data.probes, data.runs, dict(options or {}))
+    opts_before = dict(options or {})
+    own = {b.model for b in rig.bearings}
+    if method == 'physical' and 'bearing_model' not in opts_before and len(own) == 1 and own <= {'short', 'finite'}:
+        opts_before['bearing_model'] = next(iter(own))      # the nominal model as the params file has it
+    before = fn(model, rig, data, data.probes, data.runs, opts_before)
     opts_after = {**(options or {}), 'augment': aug}
     names = list(aug.names)
     forms = {b.model for b in augmented_rig.bearings}

@@ -506,6 +506,8 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     log-linear in between -- with one speed 8).  'auto' takes the most flexible form on purpose: a simpler one (2 or
     4 scales, even 8) can pass the misfit test on weak data and still be biased by its assumed shape, so its
     coefficients would look determined and be wrong; the flexible form leaves undetermined what the data do not fix.
+    A model form that misfits is never the answer: when the params file's film model (no ``bearing_model`` given)
+    misfits, the other film model is fitted and used if it fits, its note naming it and the option that selects it.
     Returns the per-speed IdentResult list; the fitted parameters are in each result's ``extra['fit']`` (a
     :class:`PhysicalFit`) -- or call :func:`fit_physical` for ``(fit, results)``.
     """
@@ -519,10 +521,31 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
         form = 2                    # no table: the form is not used
     elif form == 'auto':            # the most flexible form the speeds allow: values from the data, not a shape
         form = 16 if len({round(float(w), 9) for w in np.asarray(data.speeds, float)}) > 1 else 8
-    _, results = fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
-                              bearing_model=opts['bearing_model'], probes=probes, runs=runs,
-                              max_nfev=int(opts['max_nfev']), augment=opts['augment'], p0=opts['p0'],
-                              table_form=int(form))
+
+    def fit(bearing_model):
+        return fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
+                            bearing_model=bearing_model, probes=probes, runs=runs, max_nfev=int(opts['max_nfev']),
+                            augment=opts['augment'], p0=opts['p0'], table_form=int(form))
+
+    first, results = fit(opts['bearing_model'])
+    films = {b.model for b in rig.bearings if b.model != 'table'}
+    if first.misfit and opts['bearing_model'] is None and opts['augment'] is None and len(films) == 1:
+        # the params file's film model misfits: the other one is tried, and used when it fits (named, with the
+        # command that selects it); a misfit of both determines nothing
+        own = films.pop()
+        alt = next(m for m in bearing_models.MODELS if m != own)
+        second, alt_results = fit(alt)
+        if not second.misfit:
+            note = (f"the params file's {own} bearing model misfits these data (chi2/dof {first.quality.chi2_dof:.3g} "
+                    f'> {first.quality.threshold:.3g}); the {alt} bearing model fits them (chi2/dof '
+                    f'{second.quality.chi2_dof:.3g}) and is used: `bearing-id identify ... --method physical '
+                    f'--bearing-model {alt}` (or set kind: {alt} for the bearings in the params file)')
+            for r in alt_results:
+                r.notes.insert(0, note)
+                r.extra['model_form'] = {'params': own, 'used': alt}
+            return alt_results
+        for r in results:
+            r.notes.append(f'the {alt} bearing model misfits too (chi2/dof {second.quality.chi2_dof:.3g})')
     return results
 
 
