@@ -534,7 +534,12 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
         # command that selects it); a misfit of both determines nothing
         own = films.pop()
         alt = next(m for m in bearing_models.MODELS if m != own)
-        second, alt_results = fit(alt)
+        try:
+            second, alt_results = fit(alt)
+        except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:    # e.g. no film equilibrium there
+            for r in results:
+                r.notes.append(f'the {alt} bearing model could not be fitted to these data either ({exc})')
+            return results
         if not second.misfit:
             note = (f"the params file's {own} bearing model misfits these data (chi2/dof {first.quality.chi2_dof:.3g} "
                     f'> {first.quality.threshold:.3g}); the {alt} bearing model fits them (chi2/dof '
