@@ -81,6 +81,7 @@ def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n
 FAST_NDOF = 100           # models with more DOFs take :class:`FastModes` (:func:`modes_solver`)
 N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as rotor.stability.FastStability)
 CROSSING_RTOL = 1e-3      # a critical speed: some forward mode's frequency within this of the speed (relative)
+CRITICAL_XTOL = 1e-7      # relative precision of a critical speed (0.001 rpm at 10,000 rpm; its model is not better)
 CUTOFF_WIDENINGS = 2      # times FastModes doubles its reduction's cutoff before a speed is solved densely
 
 
@@ -260,7 +261,7 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
                 f = _forward_frequencies(modes, s, bearing_fn, n_modes)
                 return (f[k] if k < len(f) else np.nan) - s
             try:
-                s = brentq(h, grid[i], grid[i + 1], xtol=1e-9 * grid[i + 1], rtol=1e-12)
+                s = brentq(h, grid[i], grid[i + 1], xtol=CRITICAL_XTOL * grid[i + 1], rtol=CRITICAL_XTOL)
             except ValueError:  # mode order changed inside the bracket: the linear estimate, checked below
                 s = grid[i] - g[i] * (grid[i + 1] - grid[i]) / (g[i + 1] - g[i])
             # a crossing is a forward mode at the 1X line; a sign change from modes swapping order is none
