@@ -64,14 +64,19 @@ def _speeds(args, rig):
         v = list(rig.simulation.speeds_rpm)
     else:
         v = list(np.linspace(args.max_rpm / 10, args.max_rpm, 10))
-        tables = [b.table.speeds for b in tuple(rig.bearings) + tuple(rig.known_elements())
-                  if b.model == 'table' and b.table is not None and len(b.table.speeds) > 1]
+        tables = [b.table.speeds for b in _tables(rig)]
         if tables:       # where the tables say something: from the first row of any to the last of any
             lo, hi = min(t[0] for t in tables) * RPM_PER_RAD_S, max(t[-1] for t in tables) * RPM_PER_RAD_S
             v = list(np.linspace(lo, min(hi, args.max_rpm), 10))
     if not v or any(s <= 0 for s in v):
         raise ParamError('--speeds: every speed must be > 0 rpm (no hydrodynamic film at standstill)')
     return v
+
+
+def _tables(rig) -> list:
+    """Return the bearings and seals (identified or known) that are tables of more than one row."""
+    return [b for b in tuple(rig.bearings) + tuple(rig.known_elements())
+            if b.model == 'table' and b.table is not None and len(b.table.speeds) > 1]
 
 
 def machine_max_rpm(rig) -> float:
@@ -81,8 +86,7 @@ def machine_max_rpm(rig) -> float:
     6000 rpm (the paper rig's range) when the params give neither.
     """
     cand = [2.0 * max(rig.simulation.speeds_rpm)] if rig.simulation is not None and rig.simulation.speeds_rpm else []
-    cand += [b.table.speeds[-1] * RPM_PER_RAD_S for b in tuple(rig.bearings) + tuple(rig.known_elements())
-             if b.model == 'table' and b.table is not None and len(b.table.speeds) > 1]
+    cand += [b.table.speeds[-1] * RPM_PER_RAD_S for b in _tables(rig)]
     return float(max(cand)) if cand else 6000.0
 
 
@@ -119,9 +123,9 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     out['stability_threshold_rpm'] = cd.threshold_rpm
     out['stability_whirl_ratio'] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
     out['notes'] = list(cd.notes)
-    for b in tuple(rig.bearings) + tuple(rig.known_elements()):
-        t = b.table if b.model == 'table' else None
-        if t is not None and len(t.speeds) > 1 and (lo < t.speeds[0] or hi > t.speeds[-1]):
+    for b in _tables(rig):
+        t = b.table
+        if lo < t.speeds[0] or hi > t.speeds[-1]:
             out['notes'].append(f'{b.name}: its table covers {t.speeds[0] * RPM_PER_RAD_S:.0f}-'
                                 f'{t.speeds[-1] * RPM_PER_RAD_S:.0f} rpm; outside, its first / last row is held')
     if update and rig.modal_test is not None and rig.modal_test.measured_hz:

@@ -57,8 +57,7 @@ def choose_method(model, rig, data, probes, runs) -> tuple[str, str]:
     return 'physical', (f'the design check on these data determines {c} of {n} coefficients at {r.speed_rpm:.0f} rpm '
                         f'(rank {r.data.structural_rank} of {r.data.unknowns}, {r.data.rank} direction(s) known to '
                         f'{100 * DEFAULT_MAX_REL_STD:g} % at this noise; {len(short)} of {len(reports)} speeds short); '
-                        'physical fits the '
-                        "bearings' parameters across all speeds")
+                        "physical fits the bearings' parameters across all speeds")
 
 
 def identify_auto(model, rig, data, probes, runs, options=None) -> list[IdentResult]:

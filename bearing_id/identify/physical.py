@@ -175,7 +175,6 @@ class _Parametrisation:
         self.rig = rig
         self.bearings = tuple(rig.bearings)
         self.nodes = tuple(b.node for b in self.bearings)
-        self.model_name = bearing_model
         self.table_form = table_form
         w = [float(x) for x in speeds if x > 0]
         self.span = (min(w), max(w)) if w else (1.0, 1.0)

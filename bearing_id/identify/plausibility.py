@@ -30,7 +30,7 @@ from scipy.sparse.linalg import splu
 
 from .direct import SPARSE_NDOF
 from ..bearings.table import outside as table_outside
-from ..conventions import dof_index, RPM_PER_RAD_S
+from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
 from ..rotor.stability import threshold_speed
@@ -107,10 +107,6 @@ def bearing_orbits(result, model, data, s: int, runs, probes) -> dict:
     return out
 
 
-def _rpm(w: float) -> float:
-    return float(w) * RPM_PER_RAD_S
-
-
 def known_clearance(bearing) -> bool:
     """Return True when the bearing's radial clearance [m] is a known positive number (a table may have none)."""
     c = bearing.clearance
@@ -152,16 +148,17 @@ def gate(results, model, rig, data, runs, probes) -> list:
                     reasons.append(f'the journal orbit at bearing {names[node]} would be {r_orb / c:.3g} x its '
                                    f'radial clearance at {rpm:.0f} rpm (limit {ORBIT_LIMIT:g}): outside the linear '
                                    f"coefficients' range -- or the samples are not in metres")
-        held = [f'{b.name} ({_rpm(b.table.speeds[0]):.0f}-{_rpm(b.table.speeds[-1]):.0f} rpm)'
-                for b in tuple(rig.bearings) + tuple(rig.known_elements())
+        held = [b for b in tuple(rig.bearings) + tuple(rig.known_elements())
                 if b.model == 'table' and b.table is not None and table_outside(b.table, res.speed)]
         if held:
+            spans = ', '.join(f'{b.name} ({rad_s_to_rpm(b.table.speeds[0]):.0f}-{rad_s_to_rpm(b.table.speeds[-1]):.0f}'
+                              ' rpm)' for b in held)
             res.notes = list(res.notes) + [
-                f"{rpm:.0f} rpm is outside the rows of the table(s) of {', '.join(held)}: their coefficients are held "
+                f'{rpm:.0f} rpm is outside the rows of the table(s) of {spans}: their coefficients are held '
                 f'at the nearest row there (a table says nothing beyond its ends)']
             if res.method == 'physical':      # a fitted table bearing there is a scaled held row: not the data's
                 for i, b in enumerate(rig.bearings):
-                    if b.model == 'table' and b.table is not None and table_outside(b.table, res.speed):
+                    if any(b is h for h in held):
                         res.K_determined[i] = False
                         res.C_determined[i] = False
         if unknown and not reasons:
