@@ -1,5 +1,5 @@
 """
-Scale benchmark (issue 12 item 4): a 9-speed identification with every method on a 160-element rotor.
+Scale benchmark (issues 12 and 22): `bearing-id model` and a 9-speed identification by every method, 160 elements.
 
 Rotor: ``params/examples/plant_like.yaml`` (a between-bearings compressor-type rotor, schema v2) with each of its
 32 elements split into 5 (``--factor``): 160 Timoshenko elements, 161 nodes, the discs, coupling mass, bearings,
@@ -12,7 +12,9 @@ directional shaker) simulated in the time domain by ``rig.simulate_run`` at 9 sp
 example's dwell, noise and truth: viscosity and clearance 7 ... 15 % off the nominal), all 6 probes
 (+-45 deg pairs beside each bearing and at midspan) -> ``identify.harmonics.from_recordings``.  Not timed.
 
-Timed: ``identify.identify(method, model, rig, data)`` in-process, the model built inside the timed call and the
+Timed: ``bearing-id model --params <this rotor> --out <tmp>`` as a process with its default options (the machine's
+speed range, Campbell diagram, critical speeds, stability threshold, mode shapes, plots; target <= 10 s, issue 22);
+``identify.identify(method, model, rig, data)`` in-process, the model built inside the timed call and the
 bearing-solution cache cleared before it (nothing reused from a previous repeat: the plausibility gate's stability
 threshold is kept on the model object), wall (``perf_counter``) and CPU (``process_time``), min and median over
 ``--repeats`` (default 3: a paper-method repeat at 160 elements takes seconds and the machine is shared).  Methods:
@@ -23,7 +25,7 @@ entries of both bearings) against the simulator's true bearings, over the entrie
 over all it returns; the not-determined entries are counted.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_large.py [--repeats 3] [--factor 5] [--pedestal]
-      [--methods paper,direct,physical,conventional]
+      [--methods paper,direct,physical,conventional] [--no-model]
 """
 import os
 
@@ -36,6 +38,7 @@ import copy  # noqa: E402
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -51,9 +54,9 @@ TARGET_S = 10.0
 OPTIONS = {'paper': {'reduce': True}}
 
 
-def large_rig(factor: int = 5, pedestal: bool = False):
-    """Return the plant-like example with every element split into ``factor`` (RigParams)."""
-    from bearing_id.config.params import load_yaml_bounded, parse_rig
+def large_params(factor: int = 5, pedestal: bool = False) -> dict:
+    """Return the plant-like example's params with every element split into ``factor`` (the YAML's dict)."""
+    from bearing_id.config.params import load_yaml_bounded
     d = copy.deepcopy(load_yaml_bounded(EXAMPLE))
 
     def node(n):
@@ -70,7 +73,23 @@ def large_rig(factor: int = 5, pedestal: bool = False):
     for r in d['simulation']['runs']:
         for e in r['excitation']:
             e['node'] = node(e['node'])
-    return parse_rig(d, base_dir=EXAMPLE.parent)
+    return d
+
+
+def large_rig(factor: int = 5, pedestal: bool = False):
+    """Return the plant-like example with every element split into ``factor`` (RigParams)."""
+    from bearing_id.config.params import parse_rig
+    return parse_rig(large_params(factor, pedestal), base_dir=EXAMPLE.parent)
+
+
+def time_model(factor: int, pedestal: bool, repeats: int):
+    """Time ``bearing-id model --params <the large rig> --out <tmp>`` as a process (default options)."""
+    import yaml
+    with tempfile.TemporaryDirectory() as tmp:
+        params = Path(tmp) / 'large.yaml'
+        params.write_text(yaml.safe_dump(large_params(factor, pedestal)))
+        return bl.time_process(bl.cli('model', '--params', params, '--out', Path(tmp) / 'model'), repeats,
+                               ok_codes=(0,))
 
 
 def simulate(rig):
@@ -133,6 +152,7 @@ def main(argv=None) -> int:
     ap.add_argument('--factor', type=int, default=5, help='elements per element of the example (32 x factor)')
     ap.add_argument('--pedestal', action='store_true', help="keep the DE bearing's pedestal")
     ap.add_argument('--methods', default='paper,conventional,direct,physical')
+    ap.add_argument('--no-model', action='store_true', help='skip the `bearing-id model` row')
     args = ap.parse_args(argv)
     from bearing_id.rotor.assembly import RotorModel
     rig = large_rig(args.factor, args.pedestal)
@@ -148,6 +168,11 @@ def main(argv=None) -> int:
           f'runs x {len(data.speeds)} speeds x {len(data.probes)} probes (simulated in {t_sim:.1f} s wall, not timed); '
           f'{args.repeats} repeats; {bl.load_note()}\n')
     rows = []
+    if not args.no_model:
+        t = time_model(args.factor, args.pedestal, args.repeats)
+        rows.append(bl.timing_row('`bearing-id model` (process, default options)', t, TARGET_S, 'cpu',
+                                  ['', '', '', '', '']) + ['Campbell, critical speeds, stability, mode shapes, plots'])
+        print(f'model: CPU min {t.cpu_min:.2f} s', file=sys.stderr, flush=True)
     for method in args.methods.split(','):
         try:
             t = bl.time_call(lambda: run_method(method, rig, data), args.repeats)

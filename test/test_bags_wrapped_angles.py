@@ -5,7 +5,8 @@ The packaged unbalance bag rewritten so (no ``sample_angles``; ``angle`` = the f
 `bearing-id identify` reads it as one continuous angle per run (each block moved by whole turns by the block timing,
 io.recordings.joined_angles) and identifies it like the original -- against the simulator's truth with the bag's
 documented targets (bags/README.md: paper eq. 38 error <= 2 % K, <= 3 % C with `physical`) and every determined
-coefficient within 3 of its stated 1-sigma of the truth.
+coefficient within 3 of its stated 1-sigma of the truth.  The identifier node's route (its ROS-free core fed the
+bag's blocks one by one, identify.harmonics.RunStream joining them by the same rule) gives the offline results.
 """
 from __future__ import annotations
 
@@ -16,11 +17,14 @@ from pathlib import Path
 import subprocess
 import sys
 
+import agreement
 from bearing_id.config.params import load_rig
-from bearing_id.identify import eq38_error
+from bearing_id.identify import eq38_error, identify
 from bearing_id.io import bags
-from bearing_id.io.messages import block_from_msg
-from bearing_id.io.recordings import joined_angles
+from bearing_id.io.messages import block_from_msg, excitation_from_msg, stamp_to_ns
+from bearing_id.io.recordings import from_bag, joined_angles
+from bearing_id.nodes.identifier_core import IdentifierCore
+from bearing_id.rotor.assembly import RotorModel
 from bearing_id.simulation.rig import truth_bearing_fn
 import numpy as np
 import pytest
@@ -80,3 +84,31 @@ def test_identify_on_wrapped_angles_meets_the_bags_targets(wrapped_bag, tmp_path
                 assert np.all(np.abs(z) <= 3), (x['speed_rpm'], sym, z)
     e = eq38_error(ident, truths)
     assert e['K'] <= 2.0 and e['C'] <= 3.0, e
+
+
+def test_the_identifier_nodes_route_on_wrapped_angles_equals_the_offline_one(wrapped_bag, tmp_path):
+    """The node's core fed block by block (live) == `identify` on the whole bag (offline), within 0.01 sigma."""
+    rig = load_rig()
+    core = IdentifierCore(rig, 'physical', tmp_path / 'record')
+    runs, cur, last_seq = {}, None, None
+    for topic, _, _, msg in bags.read_bag(wrapped_bag, ['/rotor/displacement', '/rotor/excitation']):
+        if topic == '/rotor/excitation':
+            run = excitation_from_msg(msg)
+            if run.id not in runs:
+                runs[run.id] = run
+                core.add_excitation(run, stamp=1e-9 * stamp_to_ns(msg))
+            cur = run.id
+            continue
+        b = block_from_msg(msg)
+        assert not b.has_sample_angles and 0 <= b.angle < 2 * math.pi
+        run = runs[b.run_id or cur]
+        for w in core.feed(b, run, last_seq is not None and b.seq == last_seq + 1, 0.0):
+            core.add_window(w)
+        last_seq = b.seq
+    for w in core.flush(1e9, 0.0):
+        core.add_window(w)
+    live, _ = core.solve(record=False)
+    core.close()
+    ref = identify('physical', RotorModel.from_params(rig), rig, from_bag(wrapped_bag))
+    assert len(ref) == 9
+    agreement.assert_results_agree(live, ref, 'wrapped angles, node core vs offline')

@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import json
 from pathlib import Path
+import re
 import subprocess
 import sys
 
@@ -108,7 +109,8 @@ def test_model_takes_its_range_from_the_machine_and_lists_true_critical_speeds(t
     """
     `bearing-id model` on the example without options: the range from its plan and tables, critical speeds checked.
 
-    Range: twice the plan's top speed (7800 rpm) = 15600 rpm, above the tables' last row (12000 rpm).  Every listed
+    Range: twice the plan's top speed (7800 rpm) = 15600 rpm, above the tables' last row (12000 rpm); modes: all below
+    1.25 x that at either end of the range, plus 2 (numpy's dense eigenvalues, zeta < 0.99995).  Every listed
     critical speed is a forward mode at the 1X line with damping ratio <= 0.2, checked here with numpy's dense
     eigenvalues of the state matrix (rotor.assembly.state_space); crossings with a larger ratio are listed apart.
     """
@@ -118,6 +120,14 @@ def test_model_takes_its_range_from_the_machine_and_lists_true_critical_speeds(t
     r = json.loads((tmp_path / 'model.json').read_text())
     rig = parse_rig(yaml.safe_load(YAML.read_text()))
     model, fn = RotorModel.from_params(rig), bearing_fn(rig)
+    # modes: every one below 1.25 x 15600 rpm at either end of the range (260 rpm, 15600 rpm), plus 2 (>= 6)
+    top = 15600 * 2 * np.pi / 60
+    below = []
+    for w in (260 * 2 * np.pi / 60, top):
+        lam = np.linalg.eigvals(state_space(model, w, fn(w))[0])
+        below.append(int(np.sum((lam.imag > 1e-2 * np.abs(lam)) & (lam.imag <= 1.25 * top))))
+    n = int(re.search(r'modes: (\d+) ', out).group(1))
+    assert n == max(6, max(below) + 2) and len(r['speeds'][0]['modes_hz']) == n, (n, below)
     assert r['critical_speeds_rpm']
     for rpm, zeta in zip(r['critical_speeds_rpm'], r['critical_damping_ratio']):
         w = rpm * 2 * np.pi / 60

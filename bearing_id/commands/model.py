@@ -23,14 +23,13 @@ from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
 from ..plots.campbell import campbell_figure, mode_shapes_figure
 from ..plots.coefficients import theory_coefficients_figure
 from ..plots.common import save_png
-from ..plots.data import campbell_data, CampbellData, critical_mode_index, mode_shapes
+from ..plots.data import campbell_data, CampbellData, critical_mode_index, CRITICALLY_DAMPED, mode_shapes
 from ..rotor import supports
 from ..rotor.assembly import RotorModel, static_bearing_loads
-from ..rotor.modal import damped_modes, free_free_frequencies
+from ..rotor.modal import free_free_frequencies, modes_below, modes_solver
 from ..rotor.updating import update_model
 
 TWO_PI = 2.0 * math.pi
-CRITICALLY_DAMPED = 0.2    # damping ratio above which a 1X crossing is critically damped (API 684: amplification < 2.5)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -49,7 +48,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         'and seal tables, whichever is higher; 6000 when it has neither)')
     p.add_argument('--speeds', help='comma-separated speeds [rpm] for the coefficient and mode tables '
                                     '(default: simulation.speeds_rpm)')
-    p.add_argument('--modes', type=int, default=6, help='number of modes to report (default 6)')
+    p.add_argument('--modes', type=int, default=None,
+                   help="number of modes to report and search for critical speeds (default: the machine's -- every "
+                        'mode below 1.25 x the top speed at either end of the range, plus 2; at least 6)')
     p.add_argument('--no-update', action='store_true', help='skip the model updating (Table 2)')
     return p
 
@@ -90,6 +91,23 @@ def machine_max_rpm(rig) -> float:
     return float(max(cand)) if cand else 6000.0
 
 
+MODES_ABOVE_TOP = 1.25     # modes below this x the top speed can reach the 1X line within the range: all searched
+MODES_MIN, MODES_MAX = 6, 24
+
+
+def machine_modes(rig, max_rpm: float) -> int:
+    """
+    Return the number of modes ``model`` needs on this machine: every mode below 1.25 x the top speed, plus 2.
+
+    Counted on the bearings at the two ends of the range (the film or table stiffens or softens the modes with speed);
+    at least 6 (the lowest bending pairs), at most 24.
+    """
+    model, bfn = RotorModel.from_params(rig), supports.bearing_fn(rig)
+    lo, hi = float(rpm_to_rad_s(max(50.0, max_rpm / 60))), float(rpm_to_rad_s(max_rpm))
+    count = max(modes_below(model, bfn, w, MODES_ABOVE_TOP * hi) for w in (lo, hi))
+    return int(min(MODES_MAX, max(MODES_MIN, count + 2)))
+
+
 def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
     """Everything the command prints, as a dict (SI, with rpm/Hz copies)."""
     model = RotorModel.from_params(rig)
@@ -100,26 +118,26 @@ def analyse(rig, speeds_rpm, max_rpm=6000.0, n_modes=6, update=True) -> dict:
                  'known_elements': [{'name': b.name, 'node': b.node, 'kind': b.model} for b in model.known]}
     ff = free_free_frequencies(model, 4)
     out['free_free_hz'] = (ff / TWO_PI).tolist()
+    lo, hi = float(rpm_to_rad_s(max(50.0, max_rpm / 60))), float(rpm_to_rad_s(max_rpm))
+    modes = modes_solver(model, max([hi, *rpm_to_rad_s(np.asarray(speeds_rpm, float))]), bfn, n_modes)
     rows = []
     for rpm in speeds_rpm:
         W = float(rpm_to_rad_s(rpm))
         co = bfn(W)
-        m = damped_modes(model, W, co, n_modes)
+        m = modes(W, co, n_modes)
         rows.append({'speed_rpm': rpm, 'speed': W,
                      'bearings': {str(n): {'K': np.asarray(k).tolist(), 'C': np.asarray(c).tolist()}
                                   for n, (k, c) in co.items()},
                      'modes_hz': (m.frequency / TWO_PI).tolist(), 'log_dec': m.log_dec.tolist(),
                      'whirl': list(m.whirl)})
     out['speeds'] = rows
-    lo, hi = float(rpm_to_rad_s(max(50.0, max_rpm / 60))), float(rpm_to_rad_s(max_rpm))
-    cd = campbell_data(model, bfn, hi, min_speed=lo, n_modes=n_modes, n_grid=40)
+    cd = campbell_data(model, bfn, hi, min_speed=lo, n_modes=n_modes, n_grid=40, solver=modes)
     out['campbell'] = {'speeds_rpm': cd.speeds_rpm.tolist(), 'frequency_hz': cd.frequency_hz.tolist(),
                        'log_dec': cd.log_dec.tolist(), 'whirl': cd.whirl.tolist()}
-    crit = np.asarray(cd.critical_zeta, float) <= CRITICALLY_DAMPED    # API 684: above it no resonance peak to speak of
-    out['critical_speeds_rpm'] = cd.critical_rpm[crit].tolist()
-    out['critical_damping_ratio'] = cd.critical_zeta[crit].tolist()   # of the forward mode crossing 1X (AF ~ 1/2 zeta)
-    out['critically_damped_crossings_rpm'] = cd.critical_rpm[~crit].tolist()
-    out['critically_damped_zeta'] = cd.critical_zeta[~crit].tolist()
+    out['critical_speeds_rpm'] = cd.critical_rpm.tolist()
+    out['critical_damping_ratio'] = cd.critical_zeta.tolist()     # of the forward mode crossing 1X (AF ~ 1/2 zeta)
+    out['critically_damped_crossings_rpm'] = cd.damped_crossings_rpm.tolist()
+    out['critically_damped_zeta'] = cd.damped_crossings_zeta.tolist()
     out['stability_threshold_rpm'] = cd.threshold_rpm
     out['stability_whirl_ratio'] = cd.threshold_ratio            # whirl frequency / speed of the mode going unstable
     out['notes'] = list(cd.notes)
@@ -194,7 +212,9 @@ def campbell_from_report(r: dict):
                         critical_zeta=np.array(r['critical_damping_ratio'], float),
                         threshold=(float(rpm_to_rad_s(thr)) if thr is not None else
                                    (None if r.get('notes') else math.inf)),
-                        threshold_ratio=r.get('stability_whirl_ratio'), label='theory (nominal params)')
+                        threshold_ratio=r.get('stability_whirl_ratio'), label='theory (nominal params)',
+                        damped_crossings=rpm_to_rad_s(np.array(r.get('critically_damped_crossings_rpm', []), float)),
+                        damped_crossings_zeta=np.array(r.get('critically_damped_zeta', []), float))
 
 
 def _plots(r: dict, out: Path, rig=None) -> list[Path]:
@@ -215,8 +235,9 @@ def _plots(r: dict, out: Path, rig=None) -> list[Path]:
         model = RotorModel.from_params(rig)
         bfn = supports.bearing_fn(rig)
         sh = []
+        modes = modes_solver(model, float(np.max(cd.critical[:3])), bfn, 4)
         for w in cd.critical[:3]:
-            m = mode_shapes(model, bfn, w, 4)
+            m = mode_shapes(model, bfn, w, 4, solver=modes)
             sh.append((f'{w * 60 / TWO_PI:.0f} rpm (critical)', m, critical_mode_index(m, w)))
         paths.append(save_png(mode_shapes_figure(sh, bearing_nodes=model.bearing_nodes,
                                                  disc_nodes=[d.node for d in rig.discs]),
@@ -231,6 +252,10 @@ def run(args) -> int:
         print(f"speed range: up to {args.max_rpm:.0f} rpm (the machine's; --max-rpm sets another)")
     if args.max_rpm <= 0:
         raise ParamError('--max-rpm must be > 0')
+    if args.modes is None:
+        args.modes = machine_modes(rig, args.max_rpm)
+        print(f'modes: {args.modes} (every mode below {MODES_ABOVE_TOP:g} x the top speed, plus 2; --modes sets '
+              'another)')
     if args.modes < 1:
         raise ParamError('--modes must be >= 1')
     r = analyse(rig, _speeds(args, rig), max_rpm=args.max_rpm, n_modes=args.modes, update=not args.no_update)

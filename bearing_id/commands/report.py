@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 from .inputs import attach_excitation, check_probe_nodes, check_probes_against_params, load_recordings
+from .model import machine_modes
 from ..config import defaults
 from ..config.params import load_rig, ParamError
 from ..conventions import COEFF_ORDER, RPM_PER_RAD_S, rpm_to_rad_s
@@ -408,9 +409,10 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
                              'and after.'))
     # ---------------------------------------------------------------- Campbell, critical speeds, mode shapes
     cd_ident = None
+    n_modes = machine_modes(rig, hi_rpm)           # as `bearing-id model`: every mode that can reach 1X in the range
     if ident is not None and ident.speed_range is None:
-        cd_ident = fd.campbell_data(model, ident.fn, hi, label=ident.label)
-    cd_theory = fd.campbell_data(model, theory, hi, label='theory (nominal params)')
+        cd_ident = fd.campbell_data(model, ident.fn, hi, label=ident.label, n_modes=n_modes)
+    cd_theory = fd.campbell_data(model, theory, hi, label='theory (nominal params)', n_modes=n_modes)
     cd = cd_ident or cd_theory
     fdata['campbell'], fdata['campbell_theory'] = cd, cd_theory
     sec_campbell = []
@@ -422,8 +424,10 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
                                  f'Bearings: {c_.label}. ' + CAPTIONS['campbell']))
     crit_speeds = list(cd.critical) or ([float(test_speeds.max())] if test_speeds.size else [])
     rows = []
+    shape_fn = ident.fn if cd_ident is not None else theory
+    modes = modes_solver(model, max(crit_speeds[:3]), shape_fn, 4) if crit_speeds else None
     for w in crit_speeds[:3]:
-        shapes = fd.mode_shapes(model, ident.fn if cd_ident is not None else theory, w, 4)
+        shapes = fd.mode_shapes(model, shape_fn, w, 4, solver=modes)
         lab = f'{_rpm(w):.0f} rpm' + (' (critical)' if cd.critical.size else ' (highest test speed)')
         rows.append((lab, shapes, fd.critical_mode_index(shapes, w) if cd.critical.size else None))
     fdata['mode_shapes'] = rows
@@ -457,10 +461,13 @@ def build_report(rig, recordings, outdir, *, data=None, results=None, method: st
         kv.append(('steady test speeds [rpm]', ', '.join(f'{v:.0f}' for v in test_rpm)))
 
     def crit_text(c):
-        if not c.critical.size:
-            return f'none below {hi_rpm:.0f} rpm'
-        return '; '.join(f'{v:.0f} rpm (ζ {z:.3f}, amplification ≈ {1 / (2 * z) if z > 0 else np.inf:.0f})'
-                         for v, z in zip(c.critical_rpm, c.critical_zeta))
+        s = ('; '.join(f'{v:.0f} rpm (ζ {z:.3f}, amplification ≈ {1 / (2 * z) if z > 0 else np.inf:.0f})'
+                       for v, z in zip(c.critical_rpm, c.critical_zeta)) or f'none below {hi_rpm:.0f} rpm')
+        if c.damped_crossings.size:
+            pairs = zip(c.damped_crossings_rpm, c.damped_crossings_zeta)
+            s += (f'; critically damped 1X crossings (ζ > {fd.CRITICALLY_DAMPED:g}, not critical speeds): '
+                  + ', '.join(f'{v:.0f} rpm (ζ {z:.2f})' for v, z in pairs))
+        return s
 
     def thr_text(c):
         if c.threshold_rpm is None:

@@ -28,6 +28,7 @@ import numpy as np
 from ..config import defaults
 from ..config.params import Run
 from ..signals.harmonics import harmonic_vectors
+from ..signals.keyphasor import continued_angle
 from ..signals.windows import SteadyWindowTracker
 
 
@@ -184,10 +185,12 @@ class RunStream:
     One excitation run's sample stream, cut into steady windows as it arrives -- the route every 1X vector takes.
 
     ``feed(samples (n, nch), angle (n,), contiguous=True)`` appends a chunk (a whole recording, or one
-    DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window.
-    The per-sample speed is :func:`bearing_id.signals.windows.speed_from_angle` of the concatenated angle (each
-    chunk's last sample waits for the next chunk's first); windows follow
-    :class:`bearing_id.signals.windows.SteadyWindowTracker`, so any chunking gives the windows of the whole record.
+    DisplacementBlock) and returns the :class:`ClosedWindow` s it closed; ``close()`` ends the stream's open window. The
+    per-sample speed is :func:`bearing_id.signals.windows.speed_from_angle` of the concatenated angle (each chunk's last
+    sample waits for the next chunk's first); windows follow :class:`bearing_id.signals.windows.SteadyWindowTracker`, so
+    any chunking gives the windows of the whole record. A contiguous chunk whose angle restarts (a sender writing each
+    block's angle wrapped to [0, 2 pi)) is moved by whole turns to continue the last one
+    (:func:`bearing_id.signals.keyphasor.continued_angle`, the rule the bag reader joins blocks by).
     ``contiguous=False`` (data were lost before this chunk) ends the open window at the gap.  A window is also closed
     once it reaches ``max_duration`` [s] (bounds memory; the next window is then marked ``continued``).  Only the open
     window's samples are buffered.  ``peek()`` returns the windows ``close()`` would return now without closing anything
@@ -223,6 +226,9 @@ class RunStream:
             return out
         if self._held is not None:
             hx, ha, hst, hseq = self._held
+            w = self._last_speed if math.isfinite(self._last_speed) else (
+                (a[-1] - a[0]) * self.fs / (a.size - 1) if a.size > 1 else math.nan)
+            a = continued_angle(a, stamp, float(ha[-1]), hst, w, self.fs)     # a block restarting its angle
             ang = np.concatenate((ha, a))
             sp = np.diff(ang) * self.fs
             out += self._push(hx, ha, sp[:1], hst, hseq)

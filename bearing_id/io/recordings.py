@@ -20,6 +20,7 @@ from .bags import read_bag
 from .messages import block_from_msg, excitation_from_msg
 from ..config.params import ExcitationEntry, Probe, Run
 from ..identify.harmonics import from_recordings, HarmonicData
+from ..signals.keyphasor import continued_angle
 from ..signals.recording import check_recording, Recording
 from ..signals.windows import speed_from_angle
 
@@ -310,19 +311,17 @@ def joined_angles(blocks, fs: float) -> np.ndarray:
 
     A sender may restart its angle in each block (only the first sample's angle, wrapped to [0, 2 pi), as other
     recorders write it): each block is moved by the whole number of turns that puts its first sample where the
-    previous block's last one leads by the block timing (speed x the time between them, from the stamps, at least
-    one sample period).  A whole number of turns changes no phase; an angle already continuous moves by none.
+    previous block's last one leads by the block timing (:func:`bearing_id.signals.keyphasor.continued_angle`; the
+    speed is the two blocks' mean header speed, else the previous block's angle slope).
     """
     out, prev = [], None
     for b in blocks:
         a = np.asarray(b.angles(), dtype=float)
         if prev is not None and a.size:
             pb, pa = prev
-            dt = b.stamp - (pb.stamp + (pb.n_samples - 1) / fs)
-            dt = dt if np.isfinite(dt) and 1.0 / fs <= dt <= 1e3 else 1.0 / fs
             speeds = [w for w in (pb.speed, b.speed) if np.isfinite(w) and w > 0]
             w = float(np.mean(speeds)) if speeds else ((pa[-1] - pa[0]) * fs / (pa.size - 1) if pa.size > 1 else 0.0)
-            a = a + 2 * np.pi * np.round((pa[-1] + w * dt - a[0]) / (2 * np.pi))
+            a = continued_angle(a, b.stamp, pa[-1], pb.stamp + (pb.n_samples - 1) / fs, w, fs)
         if a.size:
             prev = (b, a)
         out.append(a)

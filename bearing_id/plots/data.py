@@ -32,23 +32,28 @@ from ..conventions import DOF_PER_NODE, LOCAL_DOF, orbit_semi_axes, probe_row, R
 from ..excitation import harmonic_forces
 from ..rotor import stability, supports
 from ..rotor.assembly import dynamic_stiffness, probe_matrix
-from ..rotor.modal import campbell, critical_speeds, damped_modes, modes_solver
+from ..rotor.modal import campbell, critical_speeds, modes_solver
 
 TWO_PI = 2.0 * math.pi
 ORDERS = (0.5, 1.0, 2.0)          # the order lines of the Campbell diagram and the spectra
 
 
 # ------------------------------------------------------------------------------------------------ Campbell
+CRITICALLY_DAMPED = 0.2    # damping ratio above which a 1X crossing is critically damped (API 684: amplification < 2.5)
+
+
 @dataclass
 class CampbellData:
     """
     Campbell diagram of one rotor-bearing model.
 
-    speeds (ns,) rad/s; frequency, log_dec, damping_ratio (ns, n) [rad/s, -, -] (NaN where fewer modes);
-    whirl (ns, n) 'forward'/'backward'; critical (nc,) rad/s synchronous critical speeds (forward mode = 1X);
-    critical_zeta (nc,) damping ratio of that mode there; threshold rad/s (inf: stable over the range, None: not
-    computed / already unstable at the low end); threshold_ratio: whirl frequency / speed of the mode that goes
-    unstable; label: which bearings (for titles); notes: what could not be computed.
+    speeds (ns,) rad/s; frequency, log_dec, damping_ratio (ns, n) [rad/s, -, -] (NaN where fewer modes); whirl (ns, n)
+    'forward'/'backward'; critical (nc,) rad/s synchronous critical speeds (a forward mode = 1X with damping ratio <=
+    :data:`CRITICALLY_DAMPED`); critical_zeta (nc,) damping ratio of that mode there; damped_crossings,
+    damped_crossings_zeta: the 1X crossings of more heavily damped forward modes (API 684: no resonance to speak of, not
+    critical speeds) and their damping ratios; threshold rad/s (inf: stable over the range, None: not computed / already
+    unstable at the low end); threshold_ratio: whirl frequency / speed of the mode that goes unstable; label: which
+    bearings (for titles); notes: what could not be computed.
     """
 
     speeds: np.ndarray
@@ -62,6 +67,8 @@ class CampbellData:
     threshold_ratio: float | None
     label: str = ''
     notes: list = field(default_factory=list)
+    damped_crossings: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    damped_crossings_zeta: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def speeds_rpm(self) -> np.ndarray:
@@ -76,6 +83,10 @@ class CampbellData:
         return self.critical * RPM_PER_RAD_S
 
     @property
+    def damped_crossings_rpm(self) -> np.ndarray:
+        return self.damped_crossings * RPM_PER_RAD_S
+
+    @property
     def threshold_rpm(self) -> float | None:
         if self.threshold is None or not np.isfinite(self.threshold):
             return None
@@ -83,20 +94,22 @@ class CampbellData:
 
 
 def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | None = None, n_modes: int = 8,
-                  n_grid: int = 40, label: str = '') -> CampbellData:
+                  n_grid: int = 40, label: str = '', solver=None) -> CampbellData:
     """
     Campbell data of ``model`` on ``bearing_fn`` over (min_speed, max_speed] [rad/s].
 
     Critical speeds: :func:`bearing_id.rotor.modal.critical_speeds` on (lo, max_speed) with 40 grid points and
-    ``n_modes`` modes (the ``bearing-id model`` call); stability threshold: :func:`rotor.stability.threshold_speed`
-    on (lo, max_speed), scanned on the Campbell grid (whose eigenvalues are computed anyway; the crossing refined by
-    brentq) and :func:`rotor.stability.whirl_ratio` at it.  The modes by :func:`bearing_id.rotor.modal.modes_solver`
-    (the reduced screen with full refinement on large models).
+    ``n_modes`` modes (the ``bearing-id model`` call), split by the damping ratio of the crossing mode at
+    :data:`CRITICALLY_DAMPED` into critical speeds and critically damped crossings; stability threshold:
+    :func:`rotor.stability.threshold_speed` on (lo, max_speed), scanned on the Campbell grid (whose eigenvalues are
+    computed anyway; the crossing refined by brentq) and :func:`rotor.stability.whirl_ratio` at it.  The modes by
+    :func:`bearing_id.rotor.modal.modes_solver` (the reduced screen with full refinement on large models), or ``solver``
+    (one from it, for these bearings).
     """
     hi = float(max_speed)
     lo = float(min_speed) if min_speed is not None else max(50.0 / RPM_PER_RAD_S, hi / 60.0)
     grid = np.linspace(lo, hi, int(n_grid))
-    modes = modes_solver(model, hi, bearing_fn, n_modes)
+    modes = solver or modes_solver(model, hi, bearing_fn, n_modes)
     cb = campbell(model, grid, bearing_fn, n_modes, solver=modes)
     notes = []
     crit = critical_speeds(model, bearing_fn, (lo, hi), n_grid=40, n_modes=n_modes, campbell_grid=cb, solver=modes)
@@ -112,9 +125,12 @@ def campbell_data(model, bearing_fn, max_speed: float, *, min_speed: float | Non
             ratio = stability.whirl_ratio(model, bearing_fn, thr * (1 + 1e-6))
     except ValueError as exc:
         notes.append(f'stability threshold not computed: {exc}')
+    crit, zc = np.asarray(crit, float), np.asarray(zc, float)
+    keep = zc <= CRITICALLY_DAMPED
     return CampbellData(speeds=grid, frequency=cb.frequency, log_dec=cb.log_dec, damping_ratio=cb.damping_ratio,
-                        whirl=cb.whirl, critical=np.asarray(crit, float), critical_zeta=np.asarray(zc, float),
-                        threshold=thr, threshold_ratio=ratio, label=label, notes=notes)
+                        whirl=cb.whirl, critical=crit[keep], critical_zeta=zc[keep], threshold=thr,
+                        threshold_ratio=ratio, label=label, notes=notes, damped_crossings=crit[~keep],
+                        damped_crossings_zeta=zc[~keep])
 
 
 # ------------------------------------------------------------------------------------------------ mode shapes
@@ -159,9 +175,13 @@ class ModeShape:
         return np.array([orbit_semi_axes(a, b)[0] for a, b in zip(self.x, self.y)])
 
 
-def mode_shapes(model, bearing_fn, speed: float, n: int = 4) -> list[ModeShape]:
-    """Return the lowest ``n`` damped modes at ``speed`` [rad/s] as :class:`ModeShape` (ordered by frequency)."""
-    m = damped_modes(model, speed, bearing_fn(speed), n)
+def mode_shapes(model, bearing_fn, speed: float, n: int = 4, solver=None) -> list[ModeShape]:
+    """
+    Return the lowest ``n`` damped modes at ``speed`` [rad/s] as :class:`ModeShape` (ordered by frequency).
+
+    The modes by :func:`bearing_id.rotor.modal.modes_solver` (dense on small models) or ``solver`` (one from it).
+    """
+    m = (solver or modes_solver(model, speed, bearing_fn, n))(speed, bearing_fn(speed), n)
     out = []
     for k in range(m.frequency.size):
         v = m.shapes[:, k]
@@ -504,7 +524,7 @@ def diagnosis_curves(diag) -> dict:
     return {'panels': panels, 'orders': orders, 'residual_before': np.array(rb), 'residual_after': np.array(ra)}
 
 
-__all__ = ['ORDERS', 'CampbellData', 'campbell_data', 'ModeShape', 'mode_shapes',
+__all__ = ['ORDERS', 'CRITICALLY_DAMPED', 'CampbellData', 'campbell_data', 'ModeShape', 'mode_shapes',
            'critical_mode_index', 'InterpolatedBearings', 'IdentifiedModel', 'identified_bearing_fn',
            'curve_speeds', 'response_curves', 'response_curves_adaptive', 'align_phase',
            'journal_positions', 'amplitude_spectrum', 'waterfall_data', 'OrbitData', 'orbit_data',

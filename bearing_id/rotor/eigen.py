@@ -31,6 +31,8 @@ from .reduction import craig_bampton, film_and_known_dofs
 ITER_MAX = 30             # inverse iterations per refined eigenvalue before ARPACK takes over
 ITER_TOL = 1e-13          # relative change of the eigenvalue estimate at convergence
 RESIDUAL_TOL = 1e-8       # and backward error |A x - lambda B x| / (|A x| + |lambda| |B x|) of the eigenpair
+MAX_SHIFTS = 3            # re-factorisations at the current estimate when the iteration creeps ...
+SHIFT_SETTLED = 1e-4      # ... once consecutive estimates agree to this (relative): the iterate is on one eigenvalue
 
 
 def least_stable(lam: np.ndarray, n: int) -> np.ndarray:
@@ -78,29 +80,42 @@ class ReducedEigen:
         """
         Return the full pencil's eigenpair (lambda [1/s], unit state vector (2 ndof,)) nearest ``lam_r``.
 
-        Inverse iteration from ``x0`` with one sparse LU at a shift 1e-7 |lam_r| off ``lam_r`` (never exactly on an
-        eigenvalue).  Converged when two iterates agree to 1e-13 |lambda| and the backward error is below 1e-8 (it
-        floors at 1e-12 ... 1e-10 on this badly scaled pencil; 2-6 iterations from the reduced eigenpair); otherwise
-        ARPACK shift-invert (scipy ``eigs``) decides.
+        Inverse iteration from ``x0`` with a sparse LU at a shift 1e-7 |lam_r| off ``lam_r`` (never exactly on an
+        eigenvalue); when the estimates have settled (consecutive ones within 1e-4) but still creep -- a reduced
+        eigenvalue far from the full one, near others -- the shift moves to the current estimate (at most ``MAX_SHIFTS``
+        times: Rayleigh-quotient iteration).  Converged when two iterates agree to 1e-13 |lambda| and the backward error
+        is below 1e-8 (it floors at 1e-12 ... 1e-10 on this badly scaled pencil; 2-6 iterations from the reduced
+        eigenpair); otherwise ARPACK shift-invert (scipy ``eigs``) decides.
         """
-        sig = complex(lam_r) + 1e-7 * max(abs(lam_r), 1.0) * (1 + 1j)
         B = self.B
-        lu = splu((A - sig * B).tocsc())
+
+        def factor(at):
+            s = complex(at) + 1e-7 * max(abs(at), 1.0) * (1 + 1j)
+            return s, splu((A - s * B).tocsc())
+
+        sig, lu = factor(lam_r)
         x = x0 / np.linalg.norm(x0)
-        lam_prev = None
-        for _ in range(ITER_MAX):
+        lam_prev, shifts = None, 0
+        for it in range(ITER_MAX):
             y = lu.solve(B @ x)
             mu = np.vdot(x, y)                                # x^H y: Rayleigh quotient of (A - sig B)^-1 B
             lam = sig + 1.0 / mu
             x = y / np.linalg.norm(y)
-            if lam_prev is not None and abs(lam - lam_prev) <= ITER_TOL * abs(lam):
+            step = math.inf if lam_prev is None else abs(lam - lam_prev)
+            if step <= ITER_TOL * abs(lam):
                 Ax, Bx = A @ x, B @ x                         # residual check against the pencil itself
                 if np.linalg.norm(Ax - lam * Bx) <= RESIDUAL_TOL * (np.linalg.norm(Ax) + abs(lam) * np.linalg.norm(Bx)):
                     return complex(lam), x
+            elif it >= 2 and shifts < MAX_SHIFTS and step <= SHIFT_SETTLED * abs(lam) \
+                    and abs(lam - sig) > 1e3 * 1e-7 * max(abs(lam), 1.0):
+                # settled on one eigenvalue but creeping (the reduced estimate lay far from it, near others): move
+                # the shift to the estimate (Rayleigh-quotient iteration: converges in a few steps)
+                sig, lu = factor(lam)
+                shifts += 1
             lam_prev = lam
         vals, vecs = eigs(A, k=2, M=B, sigma=sig, which='LM', tol=0.0)
         k = int(np.argmin(np.abs(vals - sig)))
         return complex(vals[k]), vecs[:, k] / np.linalg.norm(vecs[:, k])
 
 
-__all__ = ['ReducedEigen', 'least_stable', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL']
+__all__ = ['ReducedEigen', 'least_stable', 'ITER_MAX', 'ITER_TOL', 'RESIDUAL_TOL', 'MAX_SHIFTS']

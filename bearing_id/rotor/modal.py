@@ -57,16 +57,31 @@ def damped_modes(model: RotorModel, speed: float, coeffs: dict, n: int = 8) -> D
     """
     Damped modes of the rotor on bearings ``coeffs`` at spin ``speed`` [rad/s]; the lowest ``n`` by wd.
 
-    Overdamped (real) eigenvalues are not modes of vibration and are left out.
+    Overdamped (real) eigenvalues and nearly so (zeta > 0.99995: :func:`underdamped`) are not modes of vibration
+    and are left out.
     """
     A, _ = state_space(model, speed, coeffs)
     lam, V = np.linalg.eig(A)
     return _modes(model, lam, V, float(np.max(lam.real)), n)
 
 
+def underdamped(lam: np.ndarray) -> np.ndarray:
+    """
+    Return which eigenvalues ``lam`` [1/s] are modes of vibration: Im > ``UNDERDAMPED_RTOL`` |lambda| (bool mask).
+
+    Im / |lambda| = sqrt(1 - zeta^2): 1e-2 leaves out zeta > 0.99995 (log dec > 630).  Such eigenvalues do not
+    vibrate; a large stiff model has many of them (a 160-element rotor with seals, dense eigenvalues at 4000 rpm: 148
+    x/y pairs of heavily damped element modes with Im / |lambda| ~ 1e-5 ... 1.2e-3 -- genuinely complex, Im 2e7 x
+    LAPACK's error bound or more -- listed as "modes" at 0.06 ... 150 Hz with log dec 5e3 ... 1e7 under the former
+    1e-9 threshold, and invisible to the reduced screen).
+    """
+    lam = np.asarray(lam)
+    return lam.imag > UNDERDAMPED_RTOL * np.maximum(1.0, np.abs(lam))
+
+
 def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n: int) -> DampedModes:
     """Return the DampedModes of the lowest ``n`` underdamped eigenpairs (lam (k,), state vectors (2 ndof, k))."""
-    keep = lam.imag > 1e-9 * np.maximum(1.0, np.abs(lam))
+    keep = underdamped(lam)
     lam, V = lam[keep], V[:, keep]
     order = np.argsort(lam.imag)[:n]
     lam, V = lam[order], V[:DOF_PER_NODE * model.n_nodes, order]
@@ -78,11 +93,12 @@ def _modes(model: RotorModel, lam: np.ndarray, V: np.ndarray, max_real: float, n
                        whirl=whirl, eigenvalues=lam, shapes=V, max_real=max_real)
 
 
+UNDERDAMPED_RTOL = 1e-2   # Im / |lambda| below this (zeta > 0.99995) is no mode of vibration: see underdamped()
 FAST_NDOF = 100           # models with more DOFs take :class:`FastModes` (:func:`modes_solver`)
 N_LEAST_STABLE = 4        # reduced eigenvalues refined for the largest real part (as rotor.stability.FastStability)
 CROSSING_RTOL = 1e-3      # a critical speed: some forward mode's frequency within this of the speed (relative)
 CRITICAL_XTOL = 1e-7      # relative precision of a critical speed (0.001 rpm at 10,000 rpm; its model is not better)
-CUTOFF_WIDENINGS = 2      # times FastModes doubles its reduction's cutoff before a speed is solved densely
+CUTOFF_WIDENINGS = 2      # times a FastModes doubles its reduction's cutoff in all (then speeds are solved densely)
 
 
 class FastModes:
@@ -90,51 +106,77 @@ class FastModes:
     The lowest damped modes of a large model without its dense eigen-decomposition.
 
     :class:`bearing_id.rotor.eigen.ReducedEigen` with the cutoff at ``cutoff_factor`` x the larger of ``speed_top``
-    [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (one dense solve; without
-    ``coeffs_top``, ``cutoff_factor`` x ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
+    [rad/s] and the n-th mode's frequency at ``speed_top`` on ``coeffs_top`` (from the reduced screen, re-reduced
+    until it is below the cutoff's third; no dense solve; without ``coeffs_top``, ``cutoff_factor`` x
+    ``speed_top``): the reduced model's lowest ``n`` underdamped modes and its
     ``N_LEAST_STABLE`` least stable eigenvalues are refined on the full model, so the frequencies, damping, shapes
     and the largest real part are the full model's (within the dense eigenvalues' error bound).  The n-th reduced
-    mode above half the cutoff at a speed: the cutoff is doubled (up to ``CUTOFF_WIDENINGS`` times, kept for later
-    speeds); a speed with fewer than ``n`` reduced modes, one where the check still fails, or two refinements landing
-    on one full eigenvalue is solved densely instead (counted in ``fallbacks``).
+    mode above half the cutoff at a speed, fewer than ``n`` reduced modes, or two refinements landing on one full
+    eigenvalue: the cutoff is doubled (up to ``CUTOFF_WIDENINGS`` times in all, kept for later speeds); a speed where
+    it still fails is solved densely (counted in ``fallbacks``).
     """
 
     def __init__(self, model: RotorModel, speed_top: float, coeffs_top: dict | None = None, n: int = 8,
                  cutoff_factor: float = 3.0):
         self.model = model
         top = float(speed_top)
-        if coeffs_top is not None:
-            f = damped_modes(model, top, coeffs_top, n).frequency
-            top = max(top, float(f[-1]) if f.size else 0.0)
-        self.eig = ReducedEigen(model, cutoff_hz=float(cutoff_factor) * top / (2 * np.pi))
-        self.fallbacks = 0
+        cut = float(cutoff_factor) * top
+        self.eig = ReducedEigen(model, cutoff_hz=cut / (2 * np.pi))
+        for _ in range(CUTOFF_WIDENINGS if coeffs_top is not None else 0):
+            # the n-th mode at the top speed from the reduced screen itself (it errs high: a Ritz value)
+            lr = self.eig.reduced(top, coeffs_top)
+            f = np.sort(lr.imag[underdamped(lr)])
+            need = float(cutoff_factor) * max(top, float(f[n - 1]) if f.size >= n else 2.0 * cut / cutoff_factor)
+            if need <= cut:
+                break
+            cut = need
+            self.eig = ReducedEigen(model, cutoff_hz=cut / (2 * np.pi))
+        self.fallbacks, self.widenings = 0, 0
 
     def damped_modes(self, speed: float, coeffs: dict, n: int = 8) -> DampedModes:
         """As :func:`damped_modes` (the same numbers to refinement precision)."""
-        for _ in range(CUTOFF_WIDENINGS + 1):
-            eig = self.eig
-            lr, Vr = eig.reduced(speed, coeffs, vectors=True)
-            under = np.flatnonzero(lr.imag > 1e-9 * np.maximum(1.0, np.abs(lr)))
-            low = under[np.argsort(lr[under].imag)][:n]
-            if low.size < n:
+        while True:
+            got = self._refined(speed, coeffs, n)
+            if got is not None:
+                return got
+            if self.widenings >= CUTOFF_WIDENINGS:
                 return self._dense(speed, coeffs, n)
-            if lr[low[-1]].imag <= 0.5 * eig.cutoff:
-                break
-            # the n-th mode lies above half the cutoff here (e.g. a speed where the bearings are stiffer): widen
-            # the reduction once for all later speeds rather than solve every such speed densely
-            self.eig = ReducedEigen(self.model, cutoff_hz=2.0 * eig.cutoff / (2 * np.pi))
-        else:
-            return self._dense(speed, coeffs, n)
-        least = least_stable(lr, N_LEAST_STABLE)
+            # the n-th mode lies above half the cutoff here (e.g. a speed where the bearings are softer), or two
+            # reduced estimates were too coarse to refine apart (close x / y pairs): widen the reduction once for
+            # all later speeds rather than solve every such speed densely
+            self.eig = ReducedEigen(self.model, cutoff_hz=2.0 * self.eig.cutoff / (2 * np.pi))
+            self.widenings += 1
+
+    def _refined(self, speed, coeffs, n):
+        """
+        Return the lowest ``n`` modes from the current reduction, refined; None when it is too coarse for them here.
+
+        The reduced modes are refined in order of frequency; one that lands on an eigenvalue that is no mode of
+        vibration (a mode becoming overdamped at this speed: :func:`underdamped`) is left out, as the dense
+        solution leaves it out, and the next one taken.
+        """
+        eig = self.eig
+        lr, Vr = eig.reduced(speed, coeffs, vectors=True)
+        under = np.flatnonzero(underdamped(lr))
         A = eig.pencil(speed, coeffs)
-        got = {}
-        for j in dict.fromkeys(np.concatenate([low, least]).tolist()):
+        got, low = {}, []
+        for j in under[np.argsort(lr[under].imag)].tolist():
+            if len(low) == n:
+                break
             got[j] = eig.refine(A, lr[j], eig.lift(Vr[:, j]))
+            if underdamped(got[j][0]):
+                low.append(j)
+        if len(low) < n or lr[low[-1]].imag > 0.5 * eig.cutoff:
+            return None
+        least = least_stable(lr, N_LEAST_STABLE)
+        for j in least.tolist():
+            if j not in got:
+                got[j] = eig.refine(A, lr[j], eig.lift(Vr[:, j]))
         lam = np.array([got[j][0] for j in low])
         gap = np.abs(lam[:, None] - lam[None, :])
         np.fill_diagonal(gap, np.inf)
-        if np.min(gap) <= 1e-8 * np.max(np.abs(lam)) or np.any(lam.imag <= 1e-9 * np.maximum(1.0, np.abs(lam))):
-            return self._dense(speed, coeffs, n)
+        if np.min(gap) <= 1e-8 * np.max(np.abs(lam)):
+            return None
         V = np.column_stack([got[j][1] for j in low])
         max_real = max(float(np.max(lam.real)), max(float(got[j][0].real) for j in least))
         return _modes(self.model, lam, V, max_real, n)
@@ -156,6 +198,22 @@ def modes_solver(model: RotorModel, speed_top: float, bearing_fn=None, n: int = 
         top = float(speed_top)
         return FastModes(model, top, bearing_fn(top) if bearing_fn is not None else None, n).damped_modes
     return lambda speed, coeffs, n: damped_modes(model, speed, coeffs, n)
+
+
+def modes_below(model: RotorModel, bearing_fn, speed: float, frequency: float) -> int:
+    """
+    Return how many modes of vibration ``model`` has below ``frequency`` [rad/s] at ``speed`` [rad/s].
+
+    Dense eigenvalues up to ``FAST_NDOF`` DOFs; above, those of the Craig-Bampton screen with its cutoff at 3 x
+    ``frequency`` (Ritz values: each mode lies a little below its screen value, so a count at the margin may be one
+    pair short).
+    """
+    coeffs = bearing_fn(speed)
+    if model.ndof > FAST_NDOF:
+        lam = ReducedEigen(model, cutoff_hz=3.0 * frequency / (2 * np.pi)).reduced(speed, coeffs)
+    else:
+        lam = np.linalg.eigvals(state_space(model, speed, coeffs)[0])
+    return int(np.sum(underdamped(lam) & (lam.imag <= frequency)))
 
 
 def free_free_frequencies(model: RotorModel, n: int = 4, return_shapes: bool = False):
@@ -253,23 +311,30 @@ def critical_speeds(model: RotorModel, bearing_fn, speed_range, n_grid: int = 60
     else:
         fw = [_forward_frequencies(modes, s, bearing_fn, n_modes) for s in grid]
     kmax = min(len(f) for f in fw)
+    known = dict(zip(grid.tolist(), fw))          # forward frequencies by speed: the grid's, then every one solved
+
+    def forward(s):
+        if s not in known:
+            known[s] = _forward_frequencies(modes, s, bearing_fn, n_modes)
+        return known[s]
+
     out = []
     for k in range(kmax):
         g = np.array([f[k] for f in fw]) - grid
         for i in np.nonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0)[0]:
             def h(s, k=k):
-                f = _forward_frequencies(modes, s, bearing_fn, n_modes)
+                f = forward(float(s))
                 return (f[k] if k < len(f) else np.nan) - s
             try:
                 s = brentq(h, grid[i], grid[i + 1], xtol=CRITICAL_XTOL * grid[i + 1], rtol=CRITICAL_XTOL)
             except ValueError:  # mode order changed inside the bracket: the linear estimate, checked below
                 s = grid[i] - g[i] * (grid[i + 1] - grid[i]) / (g[i + 1] - g[i])
             # a crossing is a forward mode at the 1X line; a sign change from modes swapping order is none
-            f = _forward_frequencies(modes, s, bearing_fn, n_modes)
+            f = forward(float(s))
             if f.size and np.min(np.abs(f - s)) <= CROSSING_RTOL * s:
                 out.append(s)
     return np.array(sorted(out))
 
 
-__all__ = ['DampedModes', 'damped_modes', 'mode_whirl', 'free_free_frequencies', 'Campbell', 'campbell',
+__all__ = ['DampedModes', 'damped_modes', 'modes_below', 'mode_whirl', 'free_free_frequencies', 'Campbell', 'campbell',
            'critical_speeds', 'forward_frequencies', 'FastModes', 'modes_solver', 'FAST_NDOF']

@@ -135,6 +135,26 @@ def key_marks(pulse, sample_rate: float, *, edge: str = 'rising', max_jump: floa
     return KeyMarks(index, sigma, locked, 'sharp', fs)
 
 
+def continued_angle(angle, stamp, prev_angle: float, prev_stamp, speed: float, sample_rate: float) -> np.ndarray:
+    """
+    Return a block's angles ``angle`` (n,) [rad] moved by the whole number of turns that continues ``prev_angle``.
+
+    ``prev_angle`` [rad] is the previous block's last sample, taken at ``prev_stamp`` [s]; ``stamp`` [s] is this
+    block's first sample; ``speed`` [rad/s] the speed between them.  The first sample is put nearest to
+    ``prev_angle + speed * dt`` (dt from the stamps; one sample period when a stamp is missing or implausible --
+    not in [1 / sample_rate, 1000 s]).  A whole number of turns changes no phase; an angle already continuous
+    moves by none.  Right while the speed error times dt stays below half a turn.  One rule for every route that
+    joins blocks (a bag read offline, the identifier node's stream).
+    """
+    a = np.asarray(angle, dtype=float)
+    if not a.size or not math.isfinite(prev_angle):
+        return a
+    dt = math.nan if stamp is None or prev_stamp is None else float(stamp) - float(prev_stamp)
+    dt = dt if math.isfinite(dt) and 1.0 / sample_rate <= dt <= 1e3 else 1.0 / sample_rate
+    w = speed if math.isfinite(speed) else 0.0
+    return a + 2 * np.pi * np.round((prev_angle + w * dt - a[0]) / (2 * np.pi))
+
+
 def angle_from_marks(mark_times, n_samples: int, sample_rate: float, *, max_jump: float = MAX_JUMP) -> np.ndarray:
     """
     Rotor angle (n_samples,) [rad] at t = i / sample_rate from key-mark times (m,) [s] (0 = first sample).
