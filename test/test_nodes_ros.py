@@ -55,7 +55,7 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
         assert rc == 0, p.output()
         assert 'SIGTERM: shutting down' in p.stderr + p.stdout and 'Traceback' not in p.stderr, p.output()
     if node == 'identifier':
-        assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['session']
+        assert [e['type'] for e in Record(tmp_path / 'rec', fsync=False).entries()] == ['machine', 'session']
 
 
 @pytest.mark.slow(reason='simulation, three node processes and the offline route (~5-10 s)')

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+import sys
 
 from ..config.params import ParamError
 from ..io.bags import bag_topics, BagError
@@ -140,8 +141,8 @@ def attach_excitation(recordings, rig, *, required: bool) -> list:
     Attach the params' excitation to each recording that carries none.
 
     A recording that carries no excitation (a CSV DAQ export, an npz without ``ex_*``) takes that of the params' run
-    with the same id (``simulation.runs[].id``).  ``required``: otherwise refuse it (identification needs the known
-    excitation); else leave it as it is.
+    with the same id (``simulation.runs[].id``), and says so on stderr (never a silent substitution).  ``required``:
+    otherwise refuse it (identification needs the known excitation); else leave it as it is.
     """
     runs = {r.id: r for r in (rig.simulation.runs if rig.simulation is not None else ())}
     out = []
@@ -149,6 +150,9 @@ def attach_excitation(recordings, rig, *, required: bool) -> list:
         if not rec.run.excitation:
             if rec.run.id in runs:
                 rec = dataclasses.replace(rec, run=runs[rec.run.id])
+                print(f"note: run {rec.run.id!r} carries no excitation; the params file's run {rec.run.id!r} is used: "
+                      + '; '.join(f'{e.kind} at node {e.node}, {e.magnitude:g}' for e in rec.run.excitation),
+                      file=sys.stderr)
             elif required:
                 raise InputError(f'run {rec.run.id!r} carries no excitation (a DAQ export names only the run) and the '
                                  f'params file has no run {rec.run.id!r} to take it from (its runs: '

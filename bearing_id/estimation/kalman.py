@@ -595,6 +595,20 @@ class StreamingKF:
         self._e = np.zeros(km.n)           # e(k|k-1) for the next sample
         self.n_samples = 0
 
+    def continue_from(self, prev: 'StreamingKF', angle: float) -> None:
+        """
+        Start from ``prev``'s predicted state at the next sample (keyphasor ``angle`` [rad]) instead of a steady state.
+
+        The model changed (the speed moved to the next band, the bearings or the noise were updated) but the rotor did
+        not: the physical state x = e + x_p carries over, e' = x - x_p' (x_p, x_p' each model's forced response at the
+        sample).  Both models need the same states (the full FE model).
+        """
+        if prev.km.n != self.km.n:
+            raise ValueError(f'models of {prev.km.n} and {self.km.n} states: the state cannot carry over')
+        eye = np.eye(self.km.n)
+        a = np.array([float(angle)])
+        self._e = prev._e + prev.km.particular(a, eye)[0] - self.km.particular(a, eye)[0]
+
     def in_band(self, speed: float) -> bool:
         sp = self.km.speed
         return sp == 0.0 or abs(float(speed) - sp) <= self.band_tol_rel * abs(sp)

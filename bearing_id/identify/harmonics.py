@@ -432,8 +432,9 @@ def common_speeds(per_run, tol_rel: float = defaults.SPEED_TOLERANCE) -> tuple[l
     Find the speeds present in every run.
 
     per_run[r] = list of objects with ``.speed`` (or tuples whose first item is the speed) in the run's order.  Returns
-    (speeds of the first run, picks) with picks[s][r] the index into per_run[r] of the first entry within ``tol_rel`` of
-    speed s.  A speed repeated in the first run counts once.
+    (speeds of the first run, picks) with picks[s][r] the index into per_run[r] of the LATEST entry within ``tol_rel``
+    of speed s: a speed dwelt at again is the machine as it is now (the tracking rule, live and offline alike).  A
+    speed repeated in the first run counts once, at its first place.
     """
     def sp(v):
         return float(v.speed) if hasattr(v, 'speed') else float(v[0])
@@ -445,7 +446,7 @@ def common_speeds(per_run, tol_rel: float = defaults.SPEED_TOLERANCE) -> tuple[l
             m = [k for k, v in enumerate(lst) if abs(sp(v) - w) <= tol_rel * w]
             if not m:
                 break
-            row.append(m[0])
+            row.append(m[-1])
         else:
             if not any(abs(w - s) <= tol_rel * w for s in speeds):
                 speeds.append(w)

@@ -138,6 +138,8 @@ class IdentResult:
             'misfit': self.misfit,
             'notes': list(self.notes),
         }
+        if self.extra.get('data_span') is not None:      # (first, last) stamp [s] of the data behind it (live)
+            out['data_span'] = [float(t) for t in self.extra['data_span']]
         fq = self.extra.get('fit_quality')
         if fq is not None:
             out['fit_quality'] = fq.to_dict() if hasattr(fq, 'to_dict') else dict(fq)

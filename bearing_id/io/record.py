@@ -11,6 +11,7 @@ Complex numbers and numpy arrays are stored as ``{"re": ..., "im": ...}`` / nest
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 from pathlib import Path
@@ -74,6 +75,39 @@ def decode(obj):
     return _unf(obj)
 
 
+LOCK_NAME = 'record.lock'
+
+
+class RecordInUse(ValueError):
+    """The record directory is held by another writer (another identifier process)."""
+
+
+def lock_record(directory: str | Path):
+    """
+    Take the record directory for this process: an exclusive, non-blocking ``flock`` on ``<directory>/record.lock``.
+
+    Returns the open lock file (keep it open; the lock ends with it or with the process, also on kill -9).  Raises
+    :class:`RecordInUse` naming the directory and the holder's pid when another process holds it: two writers on one
+    record interleave their line numbers and each resumes the other's vectors.
+    """
+    d = Path(directory).expanduser()
+    d.mkdir(parents=True, exist_ok=True)
+    fh = open(d / LOCK_NAME, 'a+', encoding='utf-8')
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.seek(0)
+        holder = fh.read().strip() or 'unknown'
+        fh.close()
+        raise RecordInUse(f'the record {d} is in use by another identifier (pid {holder}); give each identifier its '
+                          'own record_dir (the default is one per namespace and node name)') from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(str(os.getpid()))
+    fh.flush()
+    return fh
+
+
 class Record:
     """
     The append-only record in ``directory`` (created if missing).
@@ -91,6 +125,7 @@ class Record:
         existing = self.entries()
         self._lock = threading.Lock()
         self._n = (existing[-1]['n'] + 1) if existing else 0
+        self.lines = len(existing) + self.torn_lines      # lines in the file (what compaction bounds)
         self._repair_tail()
         self._fh = open(self.path, 'a', encoding='utf-8')
 
@@ -115,7 +150,32 @@ class Record:
             if self.fsync:
                 os.fsync(self._fh.fileno())
             self._n += 1
+            self.lines += 1
             return n
+
+    def rewrite(self, entries: list[dict]) -> None:
+        """
+        Replace the file by ``entries`` (decoded, as :meth:`entries` returns them; each keeps its ``n``).
+
+        Atomic: a temporary file is written and fsync'ed, then renamed over the record (a crash leaves the old or the
+        new file whole).  Appends wait meanwhile; later ones continue the numbering.
+        """
+        with self._lock:
+            tmp = self.path.with_name(self.path.name + '.tmp')
+            with open(tmp, 'w', encoding='utf-8') as fh:
+                for e in entries:
+                    fh.write(json.dumps(encode(e), separators=(',', ':'), allow_nan=False) + '\n')
+                fh.flush()
+                os.fsync(fh.fileno())
+            self._fh.close()
+            os.replace(tmp, self.path)
+            dfd = os.open(self.directory, os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+            self._fh = open(self.path, 'a', encoding='utf-8')
+            self.lines = len(entries)
 
     def entries(self, type_: str | None = None) -> list[dict]:
         """Every complete entry (decoded), oldest first; lines that do not parse are counted in ``torn_lines``."""

@@ -1,6 +1,7 @@
 """Declaring a node's parameters on an rclpy node: descriptors (description, unit, range, read-only) and validation."""
 from __future__ import annotations
 
+import difflib
 import sys
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -53,4 +54,28 @@ def declare_parameters(node, specs: list[ParamSpec]) -> dict:
             text = str(exc).split('\n')[0]
             raise ParamError(f"parameter '{s.name}': {text} (expected {s.doc()})") from None
         values[s.name] = p.value
+    check_overrides(getattr(node, '_parameter_overrides', {}), specs)
     return validate_values(specs, values)
+
+
+# parameters rclpy declares on every node, or reads from overrides itself
+ROS_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
+def check_overrides(overrides, specs: list[ParamSpec]) -> None:
+    """
+    Raise ParamError for a parameter given to the node (params file or ``-p``) that it does not have.
+
+    rclpy ignores such a value and the node would run on its default: a misspelled ``proces_noise`` must not pass as
+    a tuned filter.  The message names the key and the nearest known one.  rclpy's own parameters and QoS overrides
+    (``qos_overrides.*``) are known.
+    """
+    known = {s.name for s in specs} | set(ROS_PARAMETERS)
+    unknown = sorted(k for k in overrides if k not in known and not k.startswith('qos_overrides.'))
+    if not unknown:
+        return
+    hints = []
+    for k in unknown:
+        near = difflib.get_close_matches(k, sorted(known), n=1, cutoff=0.6)
+        hints.append(f"'{k}'" + (f" (did you mean '{near[0]}'?)" if near else ''))
+    raise ParamError(f"unknown parameter(s) {', '.join(hints)}: this node has {', '.join(s.name for s in specs)}")

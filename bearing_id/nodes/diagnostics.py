@@ -3,36 +3,44 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from .machine import status_name
 from .status import DiagItem, WARN
 from .topics import relative
 
 
-def flag_publishers(node, topic: str, item: DiagItem) -> DiagItem:
+INTERLEAVE = 'their blocks interleave (sequence restarts, stamps going back) -- stop all but one'
+
+
+def flag_publishers(node, topic: str, item: DiagItem, consequence: str = INTERLEAVE, expected: int = 1) -> DiagItem:
     """
-    WARN on ``item`` when more than one publisher feeds ``topic``.
+    WARN on ``item`` when more than ``expected`` publishers are on ``topic`` (this node's own included, if any).
 
     E.g. two DAQ drivers, or a bag replayed into a live system: their blocks interleave and every window breaks
-    (``publishers`` is added to its values).
+    (``publishers`` is added to its values); ``consequence`` says what it does.
     """
     try:
         n = node.count_publishers(relative(topic))
     except Exception:            # noqa: BLE001 -- a graph query must never take diagnostics down
         return item
     item.values['publishers'] = n
-    if n > 1 and item.level < WARN:
+    if n > expected and item.level < WARN:
         item.level = WARN
-        item.message = (f'{n} publishers on {topic}: their blocks interleave (sequence restarts, stamps going '
-                        f'back) -- stop all but one')
+        item.message = f'{n} publishers on {topic}: {consequence}'
     return item
 
 
-def diagnostics_msg(items: list[DiagItem], stamp, hardware_id: str = ''):
-    """Build a DiagnosticArray with one status per item (values formatted with repr-precision for floats)."""
+def diagnostics_msg(items: list[DiagItem], stamp, hardware_id: str = '', machine: str = ''):
+    """
+    Build a DiagnosticArray with one status per item (values formatted with repr-precision for floats).
+
+    ``machine``: the machine id (:mod:`bearing_id.nodes.machine`) that prefixes every status name, so that an
+    aggregator keyed on the name keeps two machines' statuses apart.
+    """
     arr = DiagnosticArray()
     arr.header.stamp = stamp
     for it in items:
-        st = DiagnosticStatus(level=bytes([int(it.level)]), name=it.name, message=str(it.message)[:1000],
-                              hardware_id=hardware_id)
+        st = DiagnosticStatus(level=bytes([int(it.level)]), name=status_name(machine, it.name),
+                              message=str(it.message)[:1000], hardware_id=hardware_id)
         st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in it.values.items()]
         arr.status.append(st)
     return arr

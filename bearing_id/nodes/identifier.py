@@ -22,6 +22,7 @@ from rclpy.node import Node
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_publishers
 from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
+from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
@@ -43,12 +44,14 @@ class Identifier(Node):
         self.values = v
         rig = load_rig(v['rig_params'] or None)
         self.rig = rig
+        self.machine = machine_id(v['machine_id'], self.get_namespace())
+        self.label = label(self.machine, rig.name)            # hardware_id and frame_id
         channels = v['channels'] or [p.name for p in rig.probes]
-        self.core = IdentifierCore(rig, v['method'], v['record_dir'], v['runs'], v['speed_tolerance'],
-                                   v['settle_fraction'], v['min_window'],
+        self.core = IdentifierCore(rig, v['method'], record_dir(v['record_dir'], self.get_namespace(), self.get_name()),
+                                   v['runs'], v['speed_tolerance'], v['settle_fraction'], v['min_window'],
                                    options={'kf': {'Q': v['kf_process_noise'],
                                                    'R': v['kf_measurement_noise'] ** 2 or None}},
-                                   max_window=v['max_segment'])
+                                   max_window=v['max_segment'], machine=self.machine)
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
         self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
@@ -193,7 +196,7 @@ class Identifier(Node):
             for r in results:
                 if r.fully_determined or self.values['publish_undetermined']:
                     self.pub.publish(M.coefficients_to_msg(r, stamp=self.get_clock().now().to_msg(),
-                                                           frame_id=self.rig.name))
+                                                           frame_id=self.label))
                     sent += 1
             self.published += sent
             if sent:
@@ -249,7 +252,12 @@ class Identifier(Node):
             acc.values['problems'] = ' | '.join(problems[-5:])
         items.append(acc)
         items.append(identifiability_item(self.last_results, self.values['publish_undetermined']))
-        self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
+        items.append(self.core.gaps_item())
+        items.append(flag_publishers(self, TOPIC_COEFFICIENTS, DiagItem(
+            f'{NAME}: output {TOPIC_COEFFICIENTS}', OK, f'{self.published} result(s) published', {}),
+            'another node publishes coefficients here too (a second identifier, or another machine in this '
+            'namespace): a consumer cannot tell whose they are -- give each machine its own namespace'))
+        self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.label, self.machine))
 
     def close(self):
         self._jobs.put(None)

@@ -29,11 +29,13 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from datetime import datetime, timezone
 import math
 import threading
 
 import numpy as np
 
+from .machine import label
 from .specs import ParamSpec
 from .status import DiagItem, OK, WARN
 from ..config import defaults
@@ -43,16 +45,20 @@ from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
                                   WindowVector)
 from ..identify.plausibility import stability_threshold
-from ..io.record import Record
+from ..io.record import lock_record, Record
 from ..rotor.assembly import RotorModel
 
 NAME = 'identifier'
+COMPACT_AFTER = 10_000  # record lines (~4 MB, ~3 h of 1 s dwells) after which it is compacted (IdentifierCore.compact)
+CHANGE_SIGMAS = 3.0     # a determined coefficient that moves more than this many sigma since the last result is named
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
     ParamSpec('method', defaults.METHOD, 'identification method (bearing-id identify --method); auto: direct where '
               'the data determine every coefficient at every speed, else physical', choices=METHODS),
-    ParamSpec('record_dir', '~/.ros/bearing_id_record', 'directory of the append-only record (resumed on restart)'),
+    ParamSpec('record_dir', '', 'directory of the append-only record (resumed on restart; one identifier per record). '
+              'Empty: ~/.ros/bearing_id_record in the root namespace, else ~/.ros/bearing_id_record/<namespace>/<node '
+              'name>'),
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
@@ -121,8 +127,9 @@ class IdentifierCore:
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = defaults.SPEED_TOLERANCE,
                  settle: float = defaults.SETTLE_FRACTION, min_window: float = defaults.MIN_WINDOW, options=None,
                  max_window: float | None = None,
-                 warm_start: bool = True):
+                 warm_start: bool = True, machine: str = ''):
         self.rig = rig
+        self.machine = label(machine, rig.name)    # the machine the record belongs to
         self.model = RotorModel.from_params(rig)
         self.method = method
         self.options = options
@@ -137,8 +144,12 @@ class IdentifierCore:
         self._last_stored: dict = {}           # run id -> index of the vector its last window went to
         self._parts: dict = {}                 # run id -> per vector: [[key, (speed, X, X_std, plain)]]
         self._window_at: dict = {}             # (run id, window key) -> (vector index, part index)
+        self._span: dict = {}                  # (run id, vector index) -> (first, last) stamp [s] of its data
+        self._data_spans: dict = {}            # speed [rad/s] -> (first, last) stamp [s] of the data assembled
         self._noted_combined: set = set()      # window keys whose 'combined' note was given
         self._noted_no_plain = False           # the note on resumed vectors without a plain fit was given
+        self._seq_before: dict = {}            # run id -> last block seq in the record (resumed; consumed at 1st block)
+        self.missed: list = []                 # (run id, first seq, last seq) not received while the node was down
         self.stream = None                     # _Stream: the open stream of the measured probes
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
@@ -148,8 +159,23 @@ class IdentifierCore:
         self._ran = None                       # the method the last solve ran (auto chooses per solve)
         self.lock = threading.Lock()
         get_method(method)
-        self.record = Record(record_dir)
-        self.resumed = self._resume()
+        self._lock_file = lock_record(record_dir)      # one writer per record (RecordInUse otherwise)
+        try:
+            self.record = Record(record_dir)
+            self._check_machine()
+            self.resumed = self._resume()
+        except BaseException:
+            self._lock_file.close()
+            raise
+
+    def _check_machine(self) -> None:
+        """Refuse another machine's record (ValueError); name this machine in a record that names none."""
+        named = self.record.entries('machine')
+        if named and str(named[-1].get('machine')) != self.machine:
+            raise ValueError(f"the record {self.record.path} belongs to machine '{named[-1].get('machine')}', this "
+                             f"identifier serves '{self.machine}': give it its own record_dir (or machine_id)")
+        if not named:
+            self.record.append('machine', machine=self.machine, rig=self.rig.name)
 
     # ---- record
     def _resume(self) -> dict:
@@ -174,11 +200,16 @@ class IdentifierCore:
                     if X.size != len(probes) or Xs.size != len(probes) or not float(e['speed']) > 0 or \
                             (plain is not None and plain.X.size != len(probes)):
                         raise ValueError(f'{X.size} values for {len(probes)} probes')
+                    t0 = e.get('stamp')
+                    span = None if t0 is None else (float(t0), float(t0) + float(e.get('duration') or 0.0))
                     self._store(str(e['run_id']), float(e['speed']), X, Xs, probes, bool(e.get('after_gap', False)),
-                                e.get('window'), plain)
+                                e.get('window'), plain, span)
                     if e.get('sample_rate') is not None:
                         self.sample_rate = float(e['sample_rate'])
                     n_vec += 1
+                    if e.get('seqs'):
+                        rid = str(e['run_id'])
+                        self._seq_before[rid] = max(self._seq_before.get(rid, -1), int(e['seqs'][1]))
                 elif e['type'] == 'withdrawn':
                     self._withdraw(str(e['run_id']), str(e['window']))
                 elif e['type'] == 'result':
@@ -189,8 +220,42 @@ class IdentifierCore:
                                   f'({type(exc).__name__}: {exc}); skipped')
         if self.record.torn_lines:
             self.notes.append(f'record {self.record.path}: {self.record.torn_lines} torn line(s) skipped')
+        out = {'vectors': n_vec, 'results': n_res, 'torn_lines': self.record.torn_lines, 'malformed': n_bad}
         self.record.append('session', resumed_vectors=n_vec, resumed_results=n_res, method=self.method)
-        return {'vectors': n_vec, 'results': n_res, 'torn_lines': self.record.torn_lines, 'malformed': n_bad}
+        if self.record.lines > COMPACT_AFTER:
+            self.compact()
+        return out
+
+    def compact(self) -> int:
+        """
+        Rewrite the record with what the identifier's state rests on; returns the number of lines dropped.
+
+        Kept: the machine and every excitation; of the vectors, the last cut of each window whose part is stored now
+        (the latest dwell at each run, speed and probe set, with the parts of a dwell split by lost data; vectors of
+        records without window keys are all kept); the latest result at each speed.  Dropped: superseded dwells,
+        provisional cuts, withdrawn windows, sessions, older results.  Resuming the compacted record gives the same
+        vectors.  Runs when the record exceeds ``COMPACT_AFTER`` lines (at start-up and after a solve), so it stays
+        bounded over months of dwells.
+        """
+        with self.lock:
+            live = set(self._window_at)
+        entries = self.record.entries()
+        keep, vec, res = [], {}, {}
+        for e in entries:
+            t = e.get('type')
+            if t in ('machine', 'excitation'):
+                keep.append(e)
+            elif t == 'vector' and e.get('window') is None:
+                keep.append(e)
+            elif t == 'vector' and (str(e.get('run_id')), e.get('window')) in live:
+                vec[(str(e['run_id']), e['window'])] = e
+            elif t == 'result' and isinstance(e.get('result'), dict):
+                res[round(float(e['result'].get('speed_rad_s', math.nan)), 6)] = e
+        kept = sorted(keep + list(vec.values()) + list(res.values()), key=lambda e: e['n'])
+        self.record.rewrite(kept)
+        dropped = len(entries) - len(kept)
+        self.record.append('compacted', kept=len(kept), dropped=dropped)
+        return dropped
 
     def add_excitation(self, run: Run, stamp: float = -math.inf) -> bool:
         with self.lock:
@@ -206,15 +271,16 @@ class IdentifierCore:
                                     for e in run.excitation])
         return True
 
-    def _store(self, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None) -> str:
+    def _store(self, run_id, speed, X, X_std, probes, after_gap=False, key=None, plain=None, span=None) -> str:
         """
-        Store a window's vector; returns 'new', 'combined', 'replaced' or 'duplicate'.
+        Store a window's vector; returns 'new', 'combined', 'replaced' or 'updated'.
 
         'combined': the rest of a dwell split by lost data, inverse-variance merged with the vector of the window before
         the gap (also when a later cut of that rest replaces it).  'replaced': a later cut of a window already stored
         (``key``, :attr:`ClosedWindow.key`; the final cut after a provisional one): its part is replaced and the vector
-        recombined.  'duplicate': a later window at a speed the run already has with this probe set: recorded, not
-        used -- the offline route keeps the first too.
+        recombined.  'updated': a new dwell at a speed the run already has with this probe set supersedes the stored
+        one -- the machine as it is now (the tracking rule; :func:`~bearing_id.identify.harmonics.common_speeds`
+        takes the latest dwell offline too).  ``span``: (first, last) stamp [s] of the window's data.
         """
         pkey = _probe_key(probes)
         lst = self.vectors.setdefault(run_id, [])
@@ -223,6 +289,7 @@ class IdentifierCore:
         if at is not None:
             parts[at[0]][at[1]][1] = (speed, X, X_std, plain)
             lst[at[0]] = self._combined(parts[at[0]], probes)
+            self._widen_span(run_id, at[0], span)
             return 'combined' if at[1] > 0 else 'replaced'
         last = self._last_stored.get(run_id)
         if after_gap and last is not None and lst[last] is not None and _probe_key(lst[last][3]) == pkey and \
@@ -230,19 +297,35 @@ class IdentifierCore:
             parts[last].append([key, (speed, X, X_std, plain)])
             self._window_at[(run_id, key)] = (last, len(parts[last]) - 1)
             lst[last] = self._combined(parts[last], probes)
+            self._widen_span(run_id, last, span)
             return 'combined'
-        if any(v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey for v in lst):
-            self._last_stored.pop(run_id, None)
-            return 'duplicate'
+        same = [i for i, v in enumerate(lst)
+                if v is not None and abs(v[0] - speed) <= self.tol_rel * speed and _probe_key(v[3]) == pkey]
+        if same:
+            i = same[-1]
+            for k in [k for k, a in self._window_at.items() if k[0] == run_id and a[0] == i]:
+                del self._window_at[k]                  # the superseded dwell's windows
+            lst[i] = (speed, X, X_std, probes, plain)
+            parts[i] = [[key, (speed, X, X_std, plain)]]
+            self._window_at[(run_id, key)] = (i, 0)
+            self._last_stored[run_id] = i
+            self._span[(run_id, i)] = span
+            return 'updated'
         lst.append((speed, X, X_std, probes, plain))
         parts.append([[key, (speed, X, X_std, plain)]])
         self._window_at[(run_id, key)] = (len(lst) - 1, 0)
         self._last_stored[run_id] = len(lst) - 1
+        self._span[(run_id, len(lst) - 1)] = span
         if self.probe_set is not None and self.probe_set != pkey:
             self.notes.append(f'probe set changed from {[k[0] for k in self.probe_set]} to {[k[0] for k in pkey]}: '
                               f'vectors of different probe sets are kept apart; the new set is identified')
         self.probe_set = pkey
         return 'new'
+
+    def _widen_span(self, run_id, i, span) -> None:
+        old = self._span.get((run_id, i))
+        if span is not None:
+            self._span[(run_id, i)] = span if old is None else (min(old[0], span[0]), max(old[1], span[1]))
 
     @staticmethod
     def _combined(parts, probes):
@@ -275,6 +358,9 @@ class IdentifierCore:
         ``seq``.
         """
         out = []
+        last = self._seq_before.pop(run.id, None)
+        if last is not None and block.seq is not None and int(block.seq) > last + 1:
+            self.missed.append((run.id, last + 1, int(block.seq) - 1))   # streamed while this node was down
         cur = self.stream
         probes = tuple(block.probes)
         if cur is not None and (cur.run.id != run.id or _probe_key(cur.probes) != _probe_key(probes)
@@ -334,25 +420,63 @@ class IdentifierCore:
             elif win.duration >= 0.5 * self.min_window and not win.provisional:
                 self.notes.append(f'{what} ({win.duration:.2f} s): too short for a 1X vector; not used')
             return []
+        span = None if win.stamp is None else (float(win.stamp), float(win.stamp) + float(win.duration))
         with self.lock:
             how = self._store(win.run.id, v.speed, v.X, v.X_std, win.probes, win.after_gap or win.continued, win.key,
-                              v.plain)
+                              v.plain, span)
             self.sample_rate = win.sample_rate
         self.record.append('vector', source='measured', run_id=win.run.id, speed=v.speed, X=v.X, X_std=v.X_std,
                            plain_X=None if v.plain is None else v.plain.X, sample_rate=win.sample_rate,
                            plain_var=None if v.plain is None else np.array(v.plain.arrays()[1:]),
                            probes=[[p.name, p.node, p.direction] for p in win.probes], stamp=win.stamp,
                            seqs=list(win.seqs) if win.seqs else None, after_gap=win.after_gap or win.continued,
-                           used=how != 'duplicate', window=win.key, provisional=win.provisional)
-        if how == 'duplicate':
-            if not win.provisional:     # (a provisional cut's notes wait for its final cut)
-                self.notes.append(f'{what}: run {win.run.id} already has a vector at {rad_s_to_rpm(v.speed):.0f} '
-                                  f'rpm; recorded, not used (the first window at a speed is used, as offline)')
-            return []
+                           used=True, window=win.key, provisional=win.provisional, duration=float(win.duration))
         if how == 'combined' and win.key not in self._noted_combined:     # once per window, provisional or final
             self._noted_combined.add(win.key)
             self.notes.append(f'{what}: the rest of a dwell split by lost data, combined with its first part')
         return [(v.speed, v.X)]
+
+    def incomplete(self) -> list[tuple]:
+        """
+        Return [(speed [rad/s], runs lacking it)] for the speeds some required runs have and others lack.
+
+        Such a speed is not identified (every required run is needed there): after a restart it names what the node
+        missed while down, until the machine dwells there again.
+        """
+        with self.lock:
+            req = self.required_runs()
+            have = {rid: [v[0] for v in self.vectors.get(rid, []) if v is not None and
+                          (self.probe_set is None or _probe_key(v[3]) == self.probe_set)] for rid in req}
+        out = []
+        for w in sorted(w for ws in have.values() for w in ws):
+            if any(abs(w - u) <= self.tol_rel * w for u, _ in out):
+                continue
+            lack = [rid for rid, ws in have.items() if not any(abs(w - u) <= self.tol_rel * w for u in ws)]
+            if lack:
+                out.append((w, lack))
+        return out
+
+    def gaps_item(self) -> DiagItem:
+        """
+        Return the /diagnostics item of data missed while the node was down and of the speeds that lack a run.
+
+        WARN naming the missed sequence ranges (and the speeds lacking a run) until no speed lacks a run any more (the
+        machine dwelt there again); otherwise OK (the runs of a plan arrive one after the other).
+        """
+        name = f'{NAME}: completeness'
+        inc = self.incomplete()
+        if not inc:
+            self.missed.clear()
+        parts = [f"{rad_s_to_rpm(w):.0f} rpm lacks run(s) {', '.join(lack)}" for w, lack in inc]
+        missed = [f'run {rid} blocks seq {a}..{b}' for rid, a, b in self.missed]
+        vals = {'speeds_lacking_a_run': len(inc), 'missed_while_down': '; '.join(missed) or 'none'}
+        if not inc and not missed:
+            return DiagItem(name, OK, 'every speed has every required run', vals)
+        text = '; '.join(parts[:4]) + (' ...' if len(parts) > 4 else '')
+        if not missed:          # the runs of a plan arrive one after the other: waiting is normal
+            return DiagItem(name, OK, f'waiting: {text}', vals)
+        text = f"not received while this node was down: {'; '.join(missed[:3])}" + (' -- ' + text if text else '')
+        return DiagItem(name, WARN, text + ' (not identified until the machine dwells there again)', vals)
 
     def vector_counts(self) -> dict:
         """Return {run id: number of usable vectors}."""
@@ -374,22 +498,26 @@ class IdentifierCore:
                 return None
 
             def of_set(rid):
-                out = [v for v in self.vectors.get(rid, [])
+                out = [(i, v) for i, v in enumerate(self.vectors.get(rid, []))
                        if v is not None and _probe_key(v[3]) == self.probe_set]
-                if self.method == 'paper' and any(v[4] is None for v in out):
+                if self.method == 'paper' and any(v[4] is None for _, v in out):
                     if not self._noted_no_plain:
                         self._noted_no_plain = True
                         self.notes.append('method paper: vectors resumed from a record of an older version lack '
                                           "the plain 1X fit the paper method's filter takes; they are not used "
                                           '(start with an empty record_dir to identify those speeds again)')
-                    out = [v for v in out if v[4] is not None]
+                    out = [(i, v) for i, v in out if v[4] is not None]
                 return out
 
-            meas = [of_set(rid) for rid in req]
+            indexed = [of_set(rid) for rid in req]
+            meas = [[v for _, v in m] for m in indexed]
             speeds, picks = common_speeds(meas, self.tol_rel)
             if not speeds:
                 return None
             rows = [[meas[r][k] for r, k in enumerate(row)] for row in picks]
+            spans = [[self._span.get((req[r], indexed[r][k][0])) for r, k in enumerate(row)] for row in picks]
+            self._data_spans = {float(w): (min(t[0] for t in sp), max(t[1] for t in sp))
+                                for w, sp in zip(speeds, spans) if all(t is not None for t in sp)}
             probes = rows[0][0][3]
             ns, nr = len(speeds), len(req)
             X = np.array([[rows[s][r][1] for s in range(ns)] for r in range(nr)], dtype=complex)
@@ -435,6 +563,13 @@ class IdentifierCore:
                               f"{results[0].extra['auto']['reason']}")
         self._ran = ran or self._ran
         for r in results:
+            span = self._data_spans.get(float(r.speed))
+            if span is not None:
+                r.extra['data_span'] = span
+                r.notes.append(f'data of {_utc(span[0])} to {_utc(span[1])}')
+            moved = _moved(self.results.get(float(r.speed)), r)
+            if moved:
+                r.notes.append(moved)
             self.results[float(r.speed)] = r
         if record:
             self.record_results(results)
@@ -455,9 +590,40 @@ class IdentifierCore:
         """Append results to the record (one fsync'ed line each)."""
         for r in results:
             self.record.append('result', **_result_payload(r))
+        if self.record.lines > COMPACT_AFTER:
+            self.compact()
 
     def close(self):
         self.record.close()
+        self._lock_file.close()
+
+
+def _utc(stamp: float) -> str:
+    """Return the ISO time (UTC, whole seconds) of a stamp [s since the epoch], for people."""
+    return datetime.fromtimestamp(float(stamp), timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ')
+
+
+def _moved(old, new) -> str:
+    """
+    Return a note naming the determined coefficient of ``new`` that moved most since ``old`` (> 3 sigma), else ''.
+
+    ``old``: the last result at that speed.  The sigma of a change: both 1-sigma in quadrature (independent windows).
+    """
+    if old is None or tuple(old.nodes) != tuple(new.nodes):
+        return ''
+    best = (0.0, '')
+    for sym in ('K', 'C'):
+        a, b = getattr(old, sym), getattr(new, sym)
+        sd = np.hypot(getattr(old, sym + '_std'), getattr(new, sym + '_std'))
+        both = np.asarray(getattr(old, sym + '_determined'), bool) & np.asarray(getattr(new, sym + '_determined'), bool)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            z = np.where(both & (sd > 0), np.abs(b - a) / sd, 0.0)
+        i = np.unravel_index(int(np.argmax(z)), z.shape)
+        if z[i] > best[0]:
+            best = (float(z[i]), f"{new.bearings[i[0]]} {sym}{'xy'[i[1]]}{'xy'[i[2]]} {a[i]:.4g} -> {b[i]:.4g}")
+    if best[0] <= CHANGE_SIGMAS:
+        return ''
+    return f'changed since the last result at this speed: {best[1]} ({best[0]:.1f} sigma)'
 
 
 def _result_payload(r) -> dict:

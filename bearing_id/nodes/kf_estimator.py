@@ -14,18 +14,20 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+import numpy as np
 from rclpy.node import Node
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_publishers
 from .kf_estimator_core import block_speed, EstimatorCore, NAME, SPECS
+from .machine import label, machine_id
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_stream, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, WARN
-from .topics import (relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_INNOVATION,
-                     TOPIC_SPEED)
+from .topics import (relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION,
+                     TOPIC_INNOVATION, TOPIC_SPEED)
 from ..config.params import load_rig
 from ..conventions import rpm_to_rad_s
 from ..io import messages as M
@@ -40,6 +42,7 @@ class KFEstimator(Node):
         self.values = v
         rig = load_rig(v['rig_params'] or None)
         self.rig = rig
+        self.machine = machine_id(v['machine_id'], self.get_namespace())
         channels = v['channels'] or [p.name for p in rig.probes]
         self.core = EstimatorCore(rig, v['process_noise'], v['measurement_noise'], v['speed_band'],
                                   v['max_pending_blocks'], v['nis_window'])
@@ -66,18 +69,47 @@ class KFEstimator(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # excitation and speed subscriptions first: ready together with a block, they are taken first
         subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
+        self._coeff_seen: deque = deque(maxlen=1000)       # (stamp, speed) of results taken (each arrives twice)
+        self.coeff_used = self.coeff_skipped = 0
+        if v['bearing_source'] == 'identified':
+            subscribe_latched(self, M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), self.on_coefficients)
         self.create_subscription(M.RotorSpeed, relative(TOPIC_SPEED), self.on_speed, qos_input(self, 50))
         self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
         self.create_timer(0.02, self.drain)
         self.create_timer(v['diagnostics_period'], self.diagnostics)
-        self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, "
-                               f"R ({v['measurement_noise']:g} m)^2; prebuilding {len(speeds or [])} models")
+        noise = f"({v['measurement_noise']:g} m)^2" if v['measurement_noise'] else 'per channel from the data'
+        self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, R {noise}; "
+                               f'prebuilding {len(speeds or [])} models')
 
     def on_speed(self, msg):
         s = float(msg.speed)
         if math.isfinite(s):
             self.last_speed = (s, time.monotonic())
         self.speed_msgs += 1
+
+    def on_coefficients(self, msg):
+        """Take an identifier's result: its fully determined coefficients become the model's bearings there."""
+        try:
+            d = M.coefficients_from_msg(msg)
+        except (ValueError, TypeError, AttributeError) as exc:
+            self._problem(f'malformed BearingCoefficients rejected: {exc}')
+            return
+        key = (d['stamp_ns'], d['speed'])
+        if key in self._coeff_seen:
+            return
+        self._coeff_seen.append(key)
+        finite = all(np.all(np.isfinite(d[k])) for k in ('K', 'C', 'K_std', 'C_std'))
+        if not (finite and np.all(d['K_determined']) and np.all(d['C_determined']) and d['speed'] > 0):
+            self.coeff_skipped += 1          # not determined: the model keeps what it has there
+            return
+        try:
+            self.core.set_coefficients(d['speed'], d['coeffs'])
+        except ValueError as exc:
+            self._problem(f'BearingCoefficients not used: {exc}')
+            return
+        self.coeff_used += 1
+        self.get_logger().info(f"bearing model: identified coefficients at {d['speed'] * 30 / math.pi:.0f} rpm "
+                               f'({self.core.bearings.describe()})')
 
     def on_excitation(self, msg):
         try:
@@ -180,14 +212,16 @@ class KFEstimator(Node):
         proc = DiagItem(f'{NAME}: processing', OK, 'ok', {
             'blocks_without_speed': self.skipped['no_speed'], 'blocks_below_min_speed': self.skipped['slow'],
             'blocks_without_sample_angles': self.skipped['no_angles'],
-            'pending_blocks': self.core.pending})
+            'pending_blocks': self.core.pending, 'bearing_model': self.core.bearings.describe(),
+            'identified_results_used': self.coeff_used, 'undetermined_results_ignored': self.coeff_skipped})
         if self.problems:
             proc.level, proc.message = WARN, self.problems[-1]
             proc.values['problems'] = ' | '.join(list(self.problems)[-5:])
             self.problems.clear()
         items += [proc, self.core.nis_status(), self.core.health_status(),
                   self.core.validity_status(self.last_block_speed)]
-        self.pub_diag.publish(diagnostics_msg(items, self.get_clock().now().to_msg(), self.rig.name))
+        stamp = self.get_clock().now().to_msg()
+        self.pub_diag.publish(diagnostics_msg(items, stamp, label(self.machine, self.rig.name), self.machine))
 
     def close(self):
         self.core.close()

@@ -6,11 +6,13 @@ chi-square band; model health: 1X/2X-coherent or correlated innovations; model v
 ``ORBIT_LIMIT`` of the clearance, speed against the stability threshold).
 
 Model cache
-    The discretised FE model (theoretical bearing coefficients at the speed, :func:`bearing_id.estimation.kalman.
-    rotor_kalman_model`) is cached per speed band (relative width ``speed_band``) and built by a worker thread.  A block
-    whose band has no model yet waits in an ordered queue (at most ``max_pending_blocks``) while the callback returns at
-    once: rebuilds never stall the data path.  Expected speeds (``prebuild_speeds_rpm``) are built at start-up.
-    The filter restarts from the model's steady state (kalman.StreamingKF) after a gap, a band change or a run change.
+    The discretised FE model (:func:`bearing_id.estimation.kalman.rotor_kalman_model`; its bearings are the
+    identifier's latest fully determined coefficients where they cover the speed, else the theory's:
+    :class:`IdentifiedBearings`) is cached per speed band (relative width ``speed_band``) and bearing generation, and
+    built by a worker thread.  A block whose band has no model yet waits in an ordered queue (at most
+    ``max_pending_blocks``) while the callback returns at once: rebuilds never stall the data path.  Expected speeds
+    (``prebuild_speeds_rpm``) are built at start-up.  The filter restarts from the model's steady state
+    (kalman.StreamingKF) after a gap, a band change, a run change or new bearing coefficients.
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ from ..excitation import harmonic_forces
 from ..identify.plausibility import ORBIT_LIMIT
 from ..rotor import stability, supports
 from ..rotor.assembly import RotorModel
+from ..signals.harmonics import harmonic_vectors
 
 NAME = 'kf_estimator'
 
@@ -40,8 +43,12 @@ SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
     ParamSpec('process_noise', defaults.KF_PROCESS_NOISE, 'Q, process noise variance per step times identity '
               '(paper: 1e-16 .. 1e-18)', 'm^2', lo=0.0, hi=1.0),
-    ParamSpec('measurement_noise', 1e-7, 'probe noise standard deviation (R = value^2 times identity)', 'm',
-              lo=1e-12, hi=1e-3),
+    ParamSpec('bearing_source', 'identified', "the model's bearing coefficients: the identifier's latest fully "
+              'determined ones (subscribed on bearing_id/coefficients; theory where none cover the speed), or always '
+              'the theory', choices=('identified', 'theory')),
+    ParamSpec('measurement_noise', 0.0, 'probe noise standard deviation (R = value^2 times identity); 0: per '
+              'channel from the data (the residual of a DC + 1X + 2X fit, median over the last 8 blocks)', 'm',
+              lo=0.0, hi=1e-3),
     ParamSpec('speed_band', 0.01, 'relative width of the speed bands a model is cached and reused for', '-',
               lo=1e-5, hi=0.2),
     ParamSpec('min_speed_rpm', 60.0, 'below this speed no oil-film model is run (blocks are skipped)', 'rpm',
@@ -60,6 +67,19 @@ SPECS = [
     ParamSpec('stale_after', 5.0, 'an input silent for this long is reported STALE', 's', lo=0.1, hi=3600.0),
     ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
 ]
+
+
+NOISE_BLOCKS = 8         # blocks whose median DC and noise the filter uses
+NOISE_STEP = 1.25       # a channel's noise std moving by more than this factor re-solves the filter's gain
+NOISE_FLOOR = 1e-12     # m: the smallest noise std used (a noise-free signal still needs R > 0)
+DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
+
+
+def _noise_moved(R, R_used) -> bool:
+    """Whether the per-channel noise variance ``R`` moved by more than NOISE_STEP (in std) from ``R_used``."""
+    if R_used is None:
+        return True
+    return bool(np.any(np.abs(np.log(R / R_used)) > 2 * math.log(NOISE_STEP)))
 
 
 HEALTH_COHERENT = 0.2   # share of innovation power coherent with 1X or 2X above which the model is flagged
@@ -89,6 +109,75 @@ def innovation_health(terms: list) -> dict:
         out['fraction'][k] = float(np.max(2 * np.abs(c) ** 2 / np.maximum(power / n, 1e-300)))
     out['lag1'] = float(np.max(sum(t['lag1'] for t in terms) / np.maximum(power, 1e-300)))
     return out
+
+
+class IdentifiedBearings:
+    """
+    The bearing coefficients the filter's model uses: the identifier's latest fully determined ones, else the theory.
+
+    ``add(speed, coeffs)`` takes a result ({node: (K (2, 2), C (2, 2))} [N/m, N s/m] at ``speed`` [rad/s]); a result
+    within ``tol_rel`` of a known speed replaces it.  Called with a speed, it returns the coefficients there: inside the
+    range of identified speeds linearly interpolated between the two nearest (a single identified speed: within
+    ``tol_rel`` of it), outside it the theory's (``theory_fn``).  ``generation`` counts the changes (the model cache is
+    keyed by it).  With one probe station the bearing-node motion is the model's extrapolation: theory bearings 25 %
+    off put it ~80 % off, identified ones within their accuracy (issue 23).
+    """
+
+    def __init__(self, theory_fn, tol_rel: float):
+        self.theory_fn = theory_fn
+        self.tol_rel = float(tol_rel)
+        self.speeds: list = []
+        self.coeffs: list = []
+        self.generation = 0
+        self.lock = threading.Lock()
+
+    def add(self, speed: float, coeffs: dict) -> None:
+        with self.lock:
+            for i, w in enumerate(self.speeds):
+                if abs(w - speed) <= self.tol_rel * speed:
+                    self.speeds[i], self.coeffs[i] = float(speed), coeffs
+                    break
+            else:
+                self.speeds.append(float(speed))
+                self.coeffs.append(coeffs)
+            order = np.argsort(self.speeds)
+            self.speeds = [self.speeds[k] for k in order]
+            self.coeffs = [self.coeffs[k] for k in order]
+            self.generation += 1
+
+    def source(self, speed: float) -> str:
+        """Return what the model at ``speed`` [rad/s] uses: 'identified' or 'theory'."""
+        with self.lock:
+            return 'identified' if self._bracket(speed) is not None else 'theory'
+
+    def _bracket(self, speed):
+        sp = self.speeds
+        if not sp or speed < sp[0] * (1 - self.tol_rel) or speed > sp[-1] * (1 + self.tol_rel):
+            return None
+        k = int(np.clip(np.searchsorted(sp, speed), 1, max(len(sp) - 1, 1)))
+        if len(sp) == 1:
+            return 0, 0, 0.0
+        a, b = k - 1, k
+        t = float(np.clip((speed - sp[a]) / (sp[b] - sp[a]), 0.0, 1.0))
+        return a, b, t
+
+    def __call__(self, speed: float) -> dict:
+        with self.lock:
+            br = self._bracket(speed)
+            if br is None:
+                return self.theory_fn(speed)
+            a, b, t = br
+            ca, cb = self.coeffs[a], self.coeffs[b]
+            return {n: ((1 - t) * np.asarray(ca[n][0]) + t * np.asarray(cb[n][0]),
+                        (1 - t) * np.asarray(ca[n][1]) + t * np.asarray(cb[n][1])) for n in ca}
+
+    def describe(self) -> str:
+        with self.lock:
+            if not self.speeds:
+                return 'theory bearings (no identified coefficients received yet)'
+            lo, hi = rad_s_to_rpm(self.speeds[0]), rad_s_to_rpm(self.speeds[-1])
+            return (f'identified bearings at {len(self.speeds)} speed(s), {lo:.0f}-{hi:.0f} rpm (interpolated '
+                    f'between them); theory outside')
 
 
 # ------------------------------------------------------------------------------------------------ pure part
@@ -133,8 +222,10 @@ class EstimatorCore:
         self.rig = rig
         self.rotor = RotorModel.from_params(rig)
         self.bearing_fn = supports.bearing_fn(rig)
+        self.bearings = IdentifiedBearings(self.bearing_fn, band)     # what the filter's models use
         self.Q = float(Q)
-        self.R = float(R_std) ** 2
+        self.R_fixed = float(R_std) > 0                 # else R per channel from the data (_clean)
+        self.R = float(R_std) ** 2 if self.R_fixed else DEFAULT_R_STD ** 2     # the cached models' (replaced)
         self.band = float(band)
         self.max_pending = int(max_pending)
         self.outputs_probes = tuple(Probe(f'{b.name}_{d}', b.node, d) for b in rig.bearings for d in ('x', 'y'))
@@ -151,7 +242,10 @@ class EstimatorCore:
         self.n_meas = None
         self.threshold = None        # stability threshold [rad/s] (computed by the worker)
         self.last_orbit: dict = {}
-        self.resets = 0
+        self.resets = 0               # filter restarts from a steady state (new run, lost data)
+        self.switches = 0             # model changes the state carried over (speed band, bearings, noise)
+        self._dc: deque = deque(maxlen=NOISE_BLOCKS)
+        self._noise: deque = deque(maxlen=NOISE_BLOCKS)
         self.errors: list = []
         self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
         self._worker.start()
@@ -168,7 +262,7 @@ class EstimatorCore:
                 if key == 'threshold':
                     self.threshold = float(stability.threshold_speed(self.rotor, self.bearing_fn, speed))
                     continue
-                km = rotor_kalman_model(self.rotor, speed, self.bearing_fn(speed), probes, fs, Q=self.Q, R=self.R,
+                km = rotor_kalman_model(self.rotor, speed, self.bearings(speed), probes, fs, Q=self.Q, R=self.R,
                                         outputs=[(p.node, p.direction) for p in self.outputs_probes])
                 StreamingKF(km)          # builds and caches the steady-state gain and the chunked operator
                 with self._lock:
@@ -195,7 +289,21 @@ class EstimatorCore:
         self._jobs.put(('threshold', speed_max, (), 0.0))
 
     def key(self, speed, probes, fs):
-        return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs))
+        return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs),
+                self.bearings.generation)
+
+    def set_coefficients(self, speed: float, coeffs: dict) -> None:
+        """
+        Use identified coefficients {node: (K, C)} at ``speed`` [rad/s] from now on (see :class:`IdentifiedBearings`).
+
+        The models are rebuilt for the new bearings as blocks ask for them; the filter restarts on the new model.
+        """
+        if set(coeffs) != set(self.rotor.bearing_nodes):
+            raise ValueError(f'coefficients for bearing nodes {sorted(coeffs)}, the model has '
+                             f'{sorted(self.rotor.bearing_nodes)}')
+        self.bearings.add(float(speed), coeffs)
+        with self._lock:                     # the older generation's models are never asked for again
+            self._models = {k: v for k, v in self._models.items() if k[3] == self.bearings.generation}
 
     def ready(self, key) -> bool:
         with self._lock:
@@ -230,16 +338,26 @@ class EstimatorCore:
             if isinstance(km, Exception):
                 continue
             act = self._active
-            if act is None or act[0] != key or act[1] != run.id or not contiguous:
-                forces = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof)
-                kf = StreamingKF(km.with_forces(forces, speed), band_tol_rel=self.band)
-                self._active = act = (key, run.id, kf)
-                self.resets += 1
-                self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
-            kf = act[2]
             angle = block.angles()
             n = angle.size
-            est, nu, nis = kf.step_block(block.samples, angle, speed)
+            same_stream = act is not None and act[1] == run.id and contiguous
+            if not same_stream:
+                self._dc.clear()
+                self._noise.clear()
+            z, R = self._clean(block.samples, angle)
+            if not same_stream or act[0] != key or (R is not None and _noise_moved(R, act[3])):
+                forces = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof)
+                kmf = km.with_forces(forces, speed)
+                kf = StreamingKF(kmf if R is None else kmf.with_noise(R=R), band_tol_rel=self.band)
+                if same_stream and act[2].km.n == kf.km.n:
+                    kf.continue_from(act[2], angle[0])   # the model follows the speed (or bearings, noise): no restart
+                    self.switches += 1
+                else:
+                    self.resets += 1
+                    self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
+                self._active = act = (key, run.id, kf, R)
+            kf = act[2]
+            est, nu, nis = kf.step_block(z, angle, speed)
             self.nis_hist.append((float(np.sum(nis)), n))
             self.health_hist.append(innovation_health_terms(nu, angle))
             self.n_meas = nu.shape[1]
@@ -248,6 +366,29 @@ class EstimatorCore:
                 self.last_orbit[b.name] = (float(np.max(r)), speed)
             out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id))
         return out
+
+    def _clean(self, samples, angle):
+        """
+        Return (samples with their DC removed, R [m^2] per channel or None) for the filter.
+
+        Each block's DC and noise are those of a DC + 1X + 2X least-squares fit
+        (:func:`bearing_id.signals.harmonics.harmonic_vectors`; noise = its residual RMS); the values used are the
+        medians over the last ``NOISE_BLOCKS`` blocks of the stream (a probe gap offset never reaches the filter, R
+        follows the real noise of each channel).  R is None with a fixed ``measurement_noise``.
+        """
+        try:
+            fit = harmonic_vectors(samples, angle, (1, 2), whole_revs=False)
+        except ValueError:            # too few samples for the fit: the previous blocks' values
+            fit = None
+        if fit is not None:
+            self._dc.append(np.asarray(fit.offset, float))
+            self._noise.append(np.asarray(fit.residual_rms, float))
+        dc = np.median(np.array(self._dc), axis=0) if self._dc else 0.0
+        z = np.asarray(samples, float) - dc
+        if self.R_fixed or not self._noise:
+            return z, None
+        sd = np.median(np.array(self._noise), axis=0)
+        return z, np.maximum(sd, NOISE_FLOOR) ** 2
 
     # ---- health
     def nis_status(self) -> DiagItem:
@@ -259,7 +400,7 @@ class EstimatorCore:
         mean = tot / n
         lo, hi = nis_band(n, self.n_meas)
         vals = {'mean_nis': mean, 'band_lo': lo, 'band_hi': hi, 'expected': self.n_meas, 'samples': n,
-                'filter_restarts': self.resets}
+                'filter_restarts': self.resets, 'model_switches_state_kept': self.switches}
         if lo <= mean <= hi:
             return DiagItem(name, OK, f'consistent: mean NIS {mean:.3g} in [{lo:.3g}, {hi:.3g}]', vals)
         how = 'model or noise settings disagree with the data (model error, R too small)' if mean > hi else \
@@ -303,6 +444,8 @@ class EstimatorCore:
                               f'{rad_s_to_rpm(self.threshold):.0f} rpm (oil whip)')
         if speed is not None:
             vals['speed_rpm'] = rad_s_to_rpm(speed)
+            vals['bearing_model'] = self.bearings.source(speed)
+        vals['bearing_models'] = self.bearings.describe()
         with self._lock:          # the builder thread adds models while the diagnostics timer reads
             vals['models_cached'] = sum(1 for v in self._models.values() if not isinstance(v, Exception))
         vals['pending_blocks'] = self.pending

@@ -55,9 +55,19 @@ class StopFlag:
 
 
 def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
-    """Strip ROS arguments, answer --help (listing every parameter), return (ros_argv, ns)."""
+    """
+    Strip ROS arguments, answer --help (listing every parameter), return (ros_argv, ns).
+
+    ROS arguments rcl cannot parse (a params file that is missing or not YAML, a malformed ``-p``) end the process
+    with one line and exit code 2.
+    """
     argv = list(sys.argv if argv is None else argv)
-    non_ros = remove_ros_args(argv)[1:]
+    try:
+        non_ros = remove_ros_args(argv)[1:]
+    except RCLError as exc:
+        text = str(exc).split(', at ')[0].strip()
+        print(f'{prog}: bad ROS arguments: {text}', file=sys.stderr)
+        raise SystemExit(2) from None
     ap = argparse.ArgumentParser(prog=prog, description=description, epilog=help_epilog(with_common(specs)),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ns = ap.parse_args(non_ros)

@@ -21,6 +21,7 @@ from rclpy.node import Node
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg
+from .machine import label, machine_id
 from .process import run_node
 from .qos import qos_latched, qos_stream
 from .sensor_driver_core import block_spans, load_recordings, NAME, SPECS, stream_messages
@@ -42,7 +43,8 @@ class SensorDriver(Node):
         if len(fs) != 1:
             raise ParamError(f"parameter 'files': the runs have different sample rates {sorted(fs)} Hz")
         self.fs = fs.pop()
-        self.frame_id = v['frame_id'] or self.recordings[0].rig_name
+        self.machine = machine_id(v['machine_id'], self.get_namespace())
+        self.frame_id = v['frame_id'] or label(self.machine, self.recordings[0].rig_name)
         self.spans = block_spans([r.samples.shape[0] for r in self.recordings], self.fs, v['block_size'])
         self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
         self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
@@ -104,7 +106,7 @@ class SensorDriver(Node):
             'source': self.values['source'], 'blocks_sent': self.sent, 'blocks_total': len(self.spans),
             'late_blocks': self.late, 'sample_rate_hz': self.fs,
             'subscribers': self.pub_disp.get_subscription_count()})
-        self.pub_diag.publish(diagnostics_msg([item], self.get_clock().now().to_msg(), self.frame_id))
+        self.pub_diag.publish(diagnostics_msg([item], self.get_clock().now().to_msg(), self.frame_id, self.machine))
 
     def close(self):
         self._stop.set()

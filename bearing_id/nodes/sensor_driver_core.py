@@ -44,7 +44,7 @@ SPECS = [
     ParamSpec('subscriber_timeout', 60.0, 'give up waiting for subscribers after this long and start anyway', 's',
               lo=0.0, hi=3600.0),
     ParamSpec('exit_when_done', False, 'exit after the last block (else stay up, reporting diagnostics)'),
-    ParamSpec('frame_id', '', 'header frame_id (empty: the rig name)'),
+    ParamSpec('frame_id', '', 'header frame_id (empty: the machine id, else the rig name)'),
     ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics', 's', lo=0.05, hi=60.0),
 ]
 

@@ -154,6 +154,9 @@ COMMON_SPECS = [
               'best_effort = also accepts a best-effort publisher (e.g. a DAQ driver with SensorDataQoS), but a '
               'block lost on the way is not re-sent (it is detected by its sequence number and ends the steady '
               'window). Publishers stay reliable', choices=INPUT_RELIABILITY),
+    ParamSpec('machine_id', '', 'the machine this node serves: prefixes its /diagnostics status names and is their '
+              "hardware_id, the coefficients' frame_id and the machine named in the identifier's record (empty: the "
+              'node namespace without its leading slash; in the root namespace none, and the rig name identifies it)'),
 ]
 
 

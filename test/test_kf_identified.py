@@ -1,0 +1,141 @@
+"""
+The Kalman-filter node's bearing-node estimates once the identifier has answered (issue 23 item 1).
+
+With one probe station the bearing-node motion is the model's extrapolation.  On the theory bearings (25 % off the
+simulator's truth in viscosity and clearance) the estimated 1X at the bearing nodes is tens of percent off; once the
+identifier's fully determined coefficients at that speed are given (`physical` on the two unbalance runs, as the node
+receives them on bearing_id/coefficients) it is within 1 % in amplitude and 1 degree in phase.  Reference: the
+simulator's noise-free motion at the bearing nodes (the same simulation, probes there, no noise); the 1X of both by
+a plain DFT over whole revolutions of the steady part (numpy here, not the package's harmonic fit).  The filter's noise
+is each channel's own (from the data), a probe gap offset never reaches it, and on speed ramps its state carries over
+from band to band (no restart, orbits as the simulator's).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+
+from bearing_id.config.params import load_rig, Probe
+from bearing_id.identify import harmonics, identify
+from bearing_id.io.messages import Block
+from bearing_id.nodes.kf_estimator_core import EstimatorCore, IdentifiedBearings
+from bearing_id.nodes.status import OK, WARN
+from bearing_id.rotor.assembly import RotorModel
+from bearing_id.simulation import rig as R
+import numpy as np
+import pytest
+
+RPM = 1500.0
+
+
+def one_x(x, angle):
+    """1X phasors (m,) of x (n, m) over the whole revolutions of ``angle`` (n,): 2 mean(x e^{-j angle})."""
+    turns = (angle - angle[0]) / (2 * math.pi)
+    n = int(np.searchsorted(turns, math.floor(turns[-1])))
+    return 2 * np.mean(x[:n] * np.exp(-1j * angle[:n, None]), axis=0)
+
+
+def filtered(core, rec, run):
+    fs = rec.sample_rate
+    out = []
+    for k, i0 in enumerate(range(0, rec.samples.shape[0], 1024)):
+        i1 = min(i0 + 1024, rec.samples.shape[0])
+        b = Block(stamp_ns=int(i0 / fs * 1e9), sequence=k, sample_rate=fs, speed=float(rec.speed[i0]),
+                  angle=float(rec.angle[i0]), channels=tuple(p.name for p in rec.probes),
+                  nodes=tuple(p.node for p in rec.probes), directions=tuple(p.direction for p in rec.probes),
+                  samples=rec.samples[i0:i1], sample_angles=rec.angle[i0:i1], run_id=run.id)
+        core.submit(b, run, float(np.mean(rec.speed[i0:i1])), k > 0)
+        while core.pending:
+            out += core.drain()
+    return np.concatenate([o.estimates for o in out])
+
+
+@pytest.fixture(scope='module')
+def case():
+    rig = load_rig()
+    recs = [R.simulate_run(rig, run, speeds_rpm=[RPM], dwell=2.0, ramp=0.0) for run in rig.simulation.runs]
+    at_bearings = tuple(Probe(f'b{b.node}{d}', b.node, d) for b in rig.bearings for d in 'xy')
+    truth = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[RPM], dwell=2.0, ramp=0.0, probes=at_bearings,
+                           noise=0.0)
+    return rig, recs, truth
+
+
+def errors(rig, rec, truth, core):
+    est = filtered(core, rec, rec.run)
+    steady = slice(est.shape[0] // 4, None)              # the filter has settled from its steady-state start
+    got, ref = one_x(est[steady], rec.angle[steady]), one_x(truth.samples[steady], truth.angle[steady])
+    amp = np.abs(np.abs(got) / np.abs(ref) - 1)
+    phase = np.abs(np.degrees(np.angle(got / ref)))
+    return amp, phase
+
+
+def test_bearing_node_estimates_follow_the_identified_bearings(case):
+    rig, recs, truth = case
+    theory = EstimatorCore(rig, 1e-16, 0.0, 0.01)
+    amp0, _ = errors(rig, recs[0], truth, theory)
+    health0 = theory.health_status()
+    theory.close()
+    assert np.mean(amp0) > 0.1                 # theory bearings: the extrapolation is far off (issue 23: 79 %) ...
+    assert health0.level == WARN and 'coherent with 1X' in health0.message, health0.message   # ... and it says so
+    res = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
+    (r,) = res
+    assert r.fully_determined
+    core = EstimatorCore(rig, 1e-16, 0.0, 0.01)
+    core.set_coefficients(r.speed, {n: (r.K[i], r.C[i]) for i, n in enumerate(r.nodes)})
+    assert core.bearings.source(r.speed) == 'identified' and core.bearings.source(2 * r.speed) == 'theory'
+    amp, phase = errors(rig, recs[0], truth, core)
+    health = core.health_status()
+    core.close()
+    assert np.all(amp <= 0.01) and np.all(phase <= 1.0), (amp, phase)
+    assert health.level == OK and 'white' in health.message, health.message
+
+
+def test_a_probe_gap_offset_never_reaches_the_filter(case):
+    """A 30 um DC on every probe (a gap voltage not subtracted): the same estimates, within 1e-3 of the 1X."""
+    rig, recs, truth = case
+    plain, offset = EstimatorCore(rig, 1e-16, 0.0, 0.01), EstimatorCore(rig, 1e-16, 0.0, 0.01)
+    a = filtered(plain, recs[0], recs[0].run)
+    b = filtered(offset, replace(recs[0], samples=recs[0].samples + 30e-6), recs[0].run)
+    nis = offset.nis_status().values['mean_nis'], plain.nis_status().values['mean_nis']
+    plain.close()
+    offset.close()
+    steady = slice(a.shape[0] // 4, None)
+    x1 = np.abs(one_x(a[steady], recs[0].angle[steady]))
+    assert np.max(np.abs(a[steady] - b[steady])) <= 1e-3 * np.max(x1)
+    assert abs(nis[0] / nis[1] - 1) <= 0.01, nis
+
+
+def test_speed_ramps_carry_the_state_over(case):
+    """Through the critical speed on 0.5 s ramps: one start, no restart at the speed bands, orbits as the truth's."""
+    rig = case[0]
+    run = rig.simulation.runs[0]
+    speeds = [1500.0, 2100.0, 2700.0]
+    rec = R.simulate_run(rig, run, speeds_rpm=speeds, dwell=1.0, ramp=0.5)
+    at = tuple(Probe(f'b{b.node}{d}', b.node, d) for b in rig.bearings for d in 'xy')
+    truth = R.simulate_run(rig, run, speeds_rpm=speeds, dwell=1.0, ramp=0.5, probes=at, noise=0.0)
+    core = EstimatorCore(rig, 1e-16, 0.0, 0.01)
+    fn = R.truth_bearing_fn(rig)
+    for rpm in speeds:                          # identified bearings at the dwells (here: the simulator's own)
+        w = rpm * math.pi / 30
+        core.set_coefficients(w, fn(w))
+    est = filtered(core, rec, run)
+    validity = core.validity_status(None)
+    assert core.resets == 1 and core.switches > 10, (core.resets, core.switches)
+    core.close()
+    orbit = np.hypot(est[:, 0::2], est[:, 1::2]).max(axis=0)
+    true_orbit = np.hypot(truth.samples[:, 0::2], truth.samples[:, 1::2]).max(axis=0)
+    assert np.all(orbit <= 1.5 * true_orbit), (orbit, true_orbit)
+    assert validity.level == OK, validity.message
+
+
+def test_identified_bearings_interpolate_between_speeds_and_hold_theory_outside():
+    theory = {2: (np.eye(2), np.eye(2))}
+    ib = IdentifiedBearings(lambda w: theory, 0.01)
+    ib.add(200.0, {2: (2 * np.eye(2), 3 * np.eye(2))})
+    ib.add(100.0, {2: (4 * np.eye(2), 5 * np.eye(2))})
+    K, C = ib(150.0)[2]
+    assert np.allclose(K, 3 * np.eye(2)) and np.allclose(C, 4 * np.eye(2))
+    assert ib(300.0) is theory and ib(50.0) is theory and ib.source(201.0) == 'identified'
+    g = ib.generation
+    ib.add(200.5, {2: (np.eye(2), np.eye(2))})           # within the band of 200: replaces it
+    assert ib.generation == g + 1 and len(ib.speeds) == 2
