@@ -206,6 +206,7 @@ class Output:
     nis: np.ndarray              # (n,)
     block: object = None         # the input block (sample rate, angle, probes, frame)
     run_id: str = ''             # the excitation run the block was filtered with
+    offset: np.ndarray | float = 0.0     # (m,) DC removed from the block's samples before filtering [m]
 
 
 class EstimatorCore:
@@ -344,7 +345,7 @@ class EstimatorCore:
             if not same_stream:
                 self._dc.clear()
                 self._noise.clear()
-            z, R = self._clean(block.samples, angle)
+            z, R, dc = self._clean(block.samples, angle)
             if not same_stream or act[0] != key or (R is not None and _noise_moved(R, act[3])):
                 forces = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof)
                 kmf = km.with_forces(forces, speed)
@@ -364,12 +365,12 @@ class EstimatorCore:
             for j, b in enumerate(self.rig.bearings):
                 r = np.sqrt(est[:, 2 * j] ** 2 + est[:, 2 * j + 1] ** 2)
                 self.last_orbit[b.name] = (float(np.max(r)), speed)
-            out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id))
+            out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id, dc))
         return out
 
     def _clean(self, samples, angle):
         """
-        Return (samples with their DC removed, R [m^2] per channel or None) for the filter.
+        Return (samples with their DC removed, R [m^2] per channel or None, the DC removed (m,) [m]) for the filter.
 
         Each block's DC and noise are those of a DC + 1X + 2X least-squares fit
         (:func:`bearing_id.signals.harmonics.harmonic_vectors`; noise = its residual RMS); the values used are the
@@ -386,9 +387,9 @@ class EstimatorCore:
         dc = np.median(np.array(self._dc), axis=0) if self._dc else 0.0
         z = np.asarray(samples, float) - dc
         if self.R_fixed or not self._noise:
-            return z, None
+            return z, None, dc
         sd = np.median(np.array(self._noise), axis=0)
-        return z, np.maximum(sd, NOISE_FLOOR) ** 2
+        return z, np.maximum(sd, NOISE_FLOOR) ** 2, dc
 
     # ---- health
     def nis_status(self) -> DiagItem:
