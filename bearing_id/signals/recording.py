@@ -109,4 +109,39 @@ def check_recording(rec: 'Recording', where: str = 'recording') -> 'Recording':
         if e.kind not in ('unbalance', 'force') or e.direction not in ('forward', 'x', 'y') or e.node < 1 \
                 or not all(math.isfinite(v) for v in (e.magnitude, e.phase, e.frequency_ratio)):
             raise ValueError(f'{where}: run {rec.run.id}: invalid excitation entry {e}')
+    _check_angle_and_speed(np.asarray(rec.angle, float), np.asarray(rec.speed, float), float(fs), where)
     return rec
+
+
+SLIP_RAD = 0.5           # rad: an angle step this far from its neighbours' within one sample is a keyphasor slip
+SPEED_MISMATCH = 0.05    # relative: a speed channel this far from the angle's speed (median) contradicts it
+
+
+def _check_angle_and_speed(angle: np.ndarray, speed: np.ndarray, fs: float, where: str) -> None:
+    """
+    Refuse a keyphasor slip and a speed channel that contradicts the angle (ValueError naming where and how much).
+
+    Slip: one sample's angle step differs from the median step of its 64 neighbours by more than ``SLIP_RAD`` (no rotor
+    accelerates so within one sample; a lost or extra key mark, or a wrapped angle).  Contradiction: the speed channel,
+    where given (not all zero), differs from the angle's speed by more than ``SPEED_MISMATCH`` (the median of their
+    ratio over the samples; a speed in rpm or Hz instead of rad/s, a multi-pulse keyphasor).  The pipeline takes the
+    speed from the angle; these are named instead of passing silently.
+    """
+    d = np.diff(angle)
+    k = 64
+    for i in np.flatnonzero(np.abs(np.diff(d)) > SLIP_RAD)[:100] + 1:      # candidates: a step in the step (O(N))
+        i = int(min(i, d.size - 1))
+        local = float(np.median(d[max(0, i - k):i + k + 1]))
+        if abs(d[i] - local) > SLIP_RAD:
+            raise ValueError(f'{where}: keyphasor angle jumps by {d[i] - local:+.3g} rad at sample {i + 1} '
+                             f'(t = {(i + 1) / fs:.4g} s) against its neighbours: a keyphasor slip (a lost or extra '
+                             'key mark) or a wrapped angle; repair the angle there or split the recording')
+    turning = d > 0
+    if np.any(speed != 0) and np.any(turning):
+        w_angle = d[turning] * fs
+        ratio = float(np.median(speed[:-1][turning] / w_angle))
+        if abs(ratio - 1) > SPEED_MISMATCH:
+            raise ValueError(f'{where}: the speed channel is x{ratio:.3g} the speed of the keyphasor angle (median '
+                             f'over the samples; e.g. {float(np.median(speed)):.6g} against '
+                             f'{float(np.median(w_angle)):.6g} rad/s): a speed in rpm or Hz instead of rad/s, or a '
+                             'keyphasor with more than one mark per revolution?')
