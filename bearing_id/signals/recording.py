@@ -113,7 +113,10 @@ def check_recording(rec: 'Recording', where: str = 'recording') -> 'Recording':
     return rec
 
 
-SLIP_RAD = 0.5           # rad: an angle step this far from its neighbours' within one sample is a keyphasor slip
+# rad: an angle step this far from its neighbours' within one sample is a keyphasor slip.  Blocks that carry only their
+# first sample's angle are joined with a constant speed per block: on a speed ramp that is off by up to alpha T^2 / 2
+# at a join (0.79 rad on the shipped bag's ramps), which must pass; a quarter turn is beyond any such join.
+SLIP_RAD = math.pi / 2
 SPEED_MISMATCH = 0.05    # relative: a speed channel this far from the angle's speed (median) contradicts it
 
 
@@ -121,11 +124,11 @@ def _check_angle_and_speed(angle: np.ndarray, speed: np.ndarray, fs: float, wher
     """
     Refuse a keyphasor slip and a speed channel that contradicts the angle (ValueError naming where and how much).
 
-    Slip: one sample's angle step differs from the median step of its 64 neighbours by more than ``SLIP_RAD`` (no rotor
-    accelerates so within one sample; a lost or extra key mark, or a wrapped angle).  Contradiction: the speed channel,
-    where given (not all zero), differs from the angle's speed by more than ``SPEED_MISMATCH`` (the median of their
-    ratio over the samples; a speed in rpm or Hz instead of rad/s, a multi-pulse keyphasor).  The pipeline takes the
-    speed from the angle; these are named instead of passing silently.
+    Slip: one sample's angle step differs from the median step of its 64 neighbours by more than ``SLIP_RAD`` (a quarter
+    turn: no rotor accelerates so within one sample; a lost or extra key mark, or a wrapped angle).  Contradiction: the
+    speed channel, where given (not all zero), differs from the angle's speed by more than ``SPEED_MISMATCH`` (the
+    median of their ratio over the samples; a speed in rpm or Hz instead of rad/s, a multi-pulse keyphasor).  The
+    pipeline takes the speed from the angle; these are named instead of passing silently.
     """
     d = np.diff(angle)
     k = 64
