@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 import math
+import time
 
 from bearing_id.config.params import load_rig, Probe
 from bearing_id.identify import harmonics, identify
@@ -139,3 +140,32 @@ def test_identified_bearings_interpolate_between_speeds_and_hold_theory_outside(
     g = ib.generation
     ib.add(200.5, {2: (np.eye(2), np.eye(2))})           # within the band of 200: replaces it
     assert ib.generation == g + 1 and len(ib.speeds) == 2
+
+
+def test_blocks_queued_before_new_coefficients_are_still_filtered(case):
+    """A result arriving while blocks wait for their model: they keep that model and none is left waiting."""
+    rig, recs, _ = case
+    core = EstimatorCore(rig, 1e-16, 0.0, 0.01)
+    rec = recs[0]
+    fs = rec.sample_rate
+    blocks = [Block(stamp_ns=int(i0 / fs * 1e9), sequence=k, sample_rate=fs, speed=float(rec.speed[i0]),
+                    angle=float(rec.angle[i0]), channels=tuple(p.name for p in rec.probes),
+                    nodes=tuple(p.node for p in rec.probes), directions=tuple(p.direction for p in rec.probes),
+                    samples=rec.samples[i0:i0 + 1024], sample_angles=rec.angle[i0:i0 + 1024], run_id=rec.run.id)
+              for k, i0 in enumerate(range(0, 4 * 1024, 1024))]
+    w = float(np.mean(rec.speed))
+    for k, b in enumerate(blocks[:2]):
+        core.submit(b, rec.run, w, k > 0)
+    key, t_end = core.key(w, rec.probes, fs), time.monotonic() + 60
+    while not core.ready(key) and time.monotonic() < t_end:       # their model is built, not yet used
+        time.sleep(0.01)
+    fn = R.truth_bearing_fn(rig)
+    core.set_coefficients(w, fn(w))                       # while the first two wait
+    for b in blocks[2:]:
+        core.submit(b, rec.run, w, True)
+    out, t_end = [], time.monotonic() + 60
+    while len(out) < 4 and time.monotonic() < t_end:
+        out += core.drain()
+        time.sleep(0.01)
+    core.close()
+    assert [o.seq for o in out] == [0, 1, 2, 3] and core.resets == 1 and core.switches == 1

@@ -172,6 +172,7 @@ class IdentifiedBearings:
                         (1 - t) * np.asarray(ca[n][1]) + t * np.asarray(cb[n][1])) for n in ca}
 
     def describe(self) -> str:
+        """Return, for people, which bearings the models use (identified where, theory where)."""
         with self.lock:
             if not self.speeds:
                 return 'theory bearings (no identified coefficients received yet)'
@@ -297,14 +298,17 @@ class EstimatorCore:
         """
         Use identified coefficients {node: (K, C)} at ``speed`` [rad/s] from now on (see :class:`IdentifiedBearings`).
 
-        The models are rebuilt for the new bearings as blocks ask for them; the filter restarts on the new model.
+        The models are rebuilt for the new bearings as blocks ask for them; the filter goes on from its state on the
+        new model.  Blocks already queued keep the model they were queued for.
         """
         if set(coeffs) != set(self.rotor.bearing_nodes):
             raise ValueError(f'coefficients for bearing nodes {sorted(coeffs)}, the model has '
                              f'{sorted(self.rotor.bearing_nodes)}')
         self.bearings.add(float(speed), coeffs)
-        with self._lock:                     # the older generation's models are never asked for again
-            self._models = {k: v for k, v in self._models.items() if k[3] == self.bearings.generation}
+        queued = {p[4] for p in self._pending}
+        with self._lock:                     # older models no queued block needs are never asked for again
+            self._models = {k: v for k, v in self._models.items()
+                            if k[3] == self.bearings.generation or k in queued}
 
     def ready(self, key) -> bool:
         with self._lock:
