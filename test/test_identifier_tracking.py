@@ -11,6 +11,7 @@ missed while down (WARN) until every speed has every run again.
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 
 import agreement
 from bearing_id.config.params import load_rig, Probe
@@ -142,3 +143,33 @@ def test_a_restart_names_the_blocks_it_missed_until_the_speeds_are_complete(pass
     item = again.gaps_item()                                     # A dwelt at 2400 rpm again: complete
     assert item.level == OK and not again.missed, item.message
     again.close()
+
+
+def test_a_dwell_cut_by_a_speed_glitch_is_one_dwell(passes, tmp_path):
+    """
+    A dwell cut in two by a 4 ms speed glitch is one dwell: one vector from both pieces, offline and live.
+
+    The 1.5 s dwell's keyphasor angle runs 5 % fast for 4 ms in the middle (beyond the window tolerance): the tracker
+    cuts it (the glitch a short window of its own); the second piece is marked continued and combined with the first,
+    not taken for a later dwell that supersedes it.
+    """
+    rig, _, first, _ = passes
+    rec = first[0]
+    fs = rec.sample_rate
+    seg = next(s for s in rec.segments if s[3] and abs(s[2] - SPEEDS[0] * math.pi / 30) < 1)    # the 1500 rpm dwell
+    mid = (seg[0] + seg[1]) // 2
+    bump = np.zeros_like(rec.angle)
+    n = int(0.004 * fs)                                                     # 4 ms of a 5 % speed excursion
+    bump[mid:mid + n] = np.cumsum(np.full(n, 0.05 * seg[2] / fs))
+    bump[mid + n:] = bump[mid + n - 1]
+    jittered = replace(rec, angle=rec.angle + bump)
+    wins = harmonics.recording_windows(jittered)
+    at = [w for w in wins if abs(np.median(w.speed) - seg[2]) <= 0.01 * seg[2]]
+    assert len(at) == 2 and at[1].continued and not at[0].continued, [(w.i0, w.i1, w.continued) for w in at]
+    vecs = [v for v in harmonics.recording_vectors(jittered) if abs(v.speed - seg[2]) <= 0.01 * seg[2]]
+    assert len(vecs) == 1 and vecs[0].i1 == at[1].i1                      # one dwell: both pieces in its vector
+    core = IdentifierCore(rig, 'physical', tmp_path)
+    feed(core, [jittered], 0.0)
+    live = [v for v in core.vectors[rec.run.id] if v is not None and abs(v[0] - seg[2]) <= 0.01 * seg[2]]
+    core.close()
+    assert len(live) == 1 and np.all(np.abs(live[0][1] - vecs[0].X) <= 0.01 * vecs[0].X_std), (live, vecs)

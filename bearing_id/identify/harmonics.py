@@ -18,6 +18,7 @@ paper method's filter takes); ``speeds`` (n_speeds,) rad/s.
 """
 from __future__ import annotations
 
+from collections import deque
 import copy
 from dataclasses import dataclass, field, replace
 import math
@@ -191,10 +192,13 @@ class RunStream:
     any chunking gives the windows of the whole record. A contiguous chunk whose angle restarts (a sender writing each
     block's angle wrapped to [0, 2 pi)) is moved by whole turns to continue the last one
     (:func:`bearing_id.signals.keyphasor.continued_angle`, the rule the bag reader joins blocks by).
-    ``contiguous=False`` (data were lost before this chunk) ends the open window at the gap.  A window is also closed
-    once it reaches ``max_duration`` [s] (bounds memory; the next window is then marked ``continued``).  Only the open
-    window's samples are buffered.  ``peek()`` returns the windows ``close()`` would return now without closing anything
-    (a live consumer's provisional look at the open window while its data pause; the stream goes on as if not asked).
+    ``contiguous=False`` (data were lost before this chunk) ends the open window at the gap.  A window that starts
+    within ``SAME_DWELL_REVS`` revolutions of the last one's end at its speed (a dwell cut by a brief speed glitch, e.g.
+    keyphasor jitter) is marked ``continued``: the two are one dwell, combined, and a later dwell at that speed is not
+    confused with its second piece.  A window is also closed once it reaches ``max_duration`` [s] (bounds memory; the
+    next window is then marked ``continued``).  Only the open window's samples are buffered.  ``peek()`` returns the
+    windows ``close()`` would return now without closing anything (a live consumer's provisional look at the open window
+    while its data pause; the stream goes on as if not asked).
     """
 
     def __init__(self, run, probes, sample_rate: float, *, tol_rel: float = defaults.SPEED_TOLERANCE,
@@ -209,6 +213,8 @@ class RunStream:
         self._last_speed = math.nan
         self._after_gap = False        # the next window starts after a gap
         self._continued = False        # the next window continues one closed for its length
+        self._recent: deque = deque(maxlen=8)   # (end sample, median speed [rad/s]) of the last windows cut
+        self.tol_rel = float(tol_rel)
         self.n_fed = 0
         self.id = uuid.uuid4().hex[:16]  # names its windows (ClosedWindow.key), unique across processes and restarts
 
@@ -303,12 +309,19 @@ class RunStream:
             c0, s0 = sl[0]
             st = None if c0[4] is None else c0[4] + s0.start / self.fs
             seqs = None if c0[5] is None else (c0[5], sl[-1][0][5])
+            w = float(np.median(sp))
+            # a dwell cut by a speed glitch (the glitch a short window of its own): its pieces are one dwell
+            glitch = not self._after_gap and w > 0 and any(
+                0 <= i0 - end <= SAME_DWELL_REVS * 2 * math.pi / w * self.fs and abs(w - w0) <= self.tol_rel * w
+                for end, w0 in self._recent)
             out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap,
-                                    self._continued, st, seqs, self.id))
+                                    self._continued or glitch, st, seqs, self.id))
             self._after_gap = self._continued = False
+            self._recent.append((i1, w))
         return out
 
 
+SAME_DWELL_REVS = 2.0   # a window at the last one's speed starting within this many revolutions of its end: same dwell
 STATIONARITY_SIGMA = 3.0   # halves of a window disagreeing by more than this many sigma count as a transient
 
 
