@@ -260,6 +260,7 @@ class RunStream:
         snap = copy.copy(self)
         snap.tracker = copy.copy(self.tracker)
         snap._chunks = list(self._chunks)       # its close() appends the held sample to this list; arrays are shared
+        snap._recent = copy.copy(self._recent)  # ... and its windows to this one
         return [replace(w, provisional=True) for w in snap.close()]
 
     def _gap(self) -> list[ClosedWindow]:
