@@ -162,15 +162,16 @@ class IdentifierCore:
         self._lock_file = lock_record(record_dir)      # one writer per record (RecordInUse otherwise)
         try:
             self.record = Record(record_dir)
-            self._check_machine()
-            self.resumed = self._resume()
+            entries = self.record.entries()          # read once for both
+            self._check_machine(entries)
+            self.resumed = self._resume(entries)
         except BaseException:
             self._lock_file.close()
             raise
 
-    def _check_machine(self) -> None:
+    def _check_machine(self, entries: list) -> None:
         """Refuse another machine's record (ValueError); name this machine in a record that names none."""
-        named = self.record.entries('machine')
+        named = [e for e in entries if e['type'] == 'machine']
         if named and str(named[-1].get('machine')) != self.machine:
             raise ValueError(f"the record {self.record.path} belongs to machine '{named[-1].get('machine')}', this "
                              f"identifier serves '{self.machine}': give it its own record_dir (or machine_id)")
@@ -178,9 +179,9 @@ class IdentifierCore:
             self.record.append('machine', machine=self.machine, rig=self.rig.name)
 
     # ---- record
-    def _resume(self) -> dict:
+    def _resume(self, entries: list) -> dict:
         n_vec = n_res = n_bad = 0
-        for e in self.record.entries():
+        for e in entries:
             try:
                 if e['type'] == 'excitation':
                     run = Run(str(e['run_id']), tuple(ExcitationEntry(**x) for x in e['entries']))
