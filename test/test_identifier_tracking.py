@@ -173,3 +173,15 @@ def test_a_dwell_cut_by_a_speed_glitch_is_one_dwell(passes, tmp_path):
     live = [v for v in core.vectors[rec.run.id] if v is not None and abs(v[0] - seg[2]) <= 0.01 * seg[2]]
     core.close()
     assert len(live) == 1 and np.all(np.abs(live[0][1] - vecs[0].X) <= 0.01 * vecs[0].X_std), (live, vecs)
+
+
+def test_a_dwell_after_a_ramp_is_not_taken_for_a_continued_piece():
+    """
+    A dwell after a fine ramp starts fresh: its settling transient is trimmed (regression: the ramp's last slice, at
+    0.1 % of the dwell speed and ending where the dwell starts, made the dwell 'continued' and untrimmed).
+    """
+    rig = load_rig()
+    rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0, 1800.0, 2100.0], dwell=1.0, ramp=0.5)
+    dwell_windows = [w for w in harmonics.recording_windows(rec) if (w.i1 - w.i0) / rec.sample_rate > 0.5]
+    assert len(dwell_windows) == 3 and not any(w.continued for w in dwell_windows), \
+        [(w.i0, w.i1, w.continued) for w in dwell_windows]

@@ -318,7 +318,8 @@ class RunStream:
             out.append(ClosedWindow(self.run, self.probes, self.fs, i0, i1, xs, an, sp, self._after_gap,
                                     self._continued or glitch, st, seqs, self.id))
             self._after_gap = self._continued = False
-            self._recent.append((i1, w))
+            if (i1 - i0) / self.fs >= defaults.MIN_WINDOW:   # a dwell's piece; not a ramp's slice or the glitch
+                self._recent.append((i1, w))
         return out
 
 

@@ -24,10 +24,9 @@ from .diagnostics import diagnostics_msg
 from .machine import label, machine_id
 from .process import run_node
 from .qos import qos_latched, qos_stream
-from .sensor_driver_core import block_spans, load_recordings, NAME, SPECS, stream_messages
-from .status import DiagItem, OK, WARN
+from .sensor_driver_core import load_sources, n_blocks, NAME, opened, SPECS, stream_messages
+from .status import DiagItem, ERROR, OK, WARN
 from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
-from ..config.params import ParamError
 from ..io import messages as M
 
 
@@ -38,14 +37,14 @@ class SensorDriver(Node):
         super().__init__(NAME)
         v = declare_parameters(self, SPECS)
         self.values = v
-        self.recordings = load_recordings(v)
-        fs = {r.sample_rate for r in self.recordings}
-        if len(fs) != 1:
-            raise ParamError(f"parameter 'files': the runs have different sample rates {sorted(fs)} Hz")
-        self.fs = fs.pop()
+        self.sources = load_sources(v)
+        self.sources[0] = opened(self.sources[0])    # a first file that cannot be read: a clear error, exit 2
         self.machine = machine_id(v['machine_id'], self.get_namespace())
-        self.frame_id = v['frame_id'] or label(self.machine, self.recordings[0].rig_name)
-        self.spans = block_spans([r.samples.shape[0] for r in self.recordings], self.fs, v['block_size'])
+        known = [src for src in self.sources if hasattr(src, 'n_samples')]     # files: known once read
+        self.frame_id = v['frame_id'] or label(self.machine, known[0].rig_name if known else 'daq')
+        self.blocks_total = (sum(n_blocks(src.n_samples, v['block_size']) for src in known)
+                             if len(known) == len(self.sources) else None)
+        self.skipped = []        # (source, reason) of runs that could not be streamed
         self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
         self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
         self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
@@ -58,11 +57,9 @@ class SensorDriver(Node):
         self.create_timer(v['diagnostics_period'], self._diagnostics)
         self._thread = threading.Thread(target=self._publish_loop, name='sensor_driver_pub', daemon=True)
         self._thread.start()
-        n = sum(r.samples.shape[0] for r in self.recordings)
-        self.get_logger().info(
-            f"source {v['source']}: {len(self.recordings)} run(s), {n} samples x "
-            f'{self.recordings[0].samples.shape[1]} channels at {self.fs:.0f} Hz, {len(self.spans)} blocks, '
-            f"rate factor {v['rate_factor']:g}")
+        what = (f'{len(self.sources)} simulated run(s), {self.blocks_total} blocks' if v['source'] == 'sim' else
+                f'{len(self.sources)} file(s), each read when its turn comes')
+        self.get_logger().info(f"source {v['source']}: {what}, rate factor {v['rate_factor']:g}")
 
     def _publish_loop(self):
         v = self.values
@@ -77,7 +74,8 @@ class SensorDriver(Node):
         base_ns = self.get_clock().now().nanoseconds
         rate = v['rate_factor']
         pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc}
-        for topic, t_ns, msg, end_ns in stream_messages(self.recordings, v['block_size'], base_ns, self.frame_id):
+        for topic, t_ns, msg, end_ns in stream_messages(self.sources, v['block_size'], base_ns, self.frame_id,
+                                                        on_skip=self._skip):
             if self._stop.is_set():
                 return
             if topic == TOPIC_EXCITATION:
@@ -87,7 +85,7 @@ class SensorDriver(Node):
                 delay = t0_wall + (end_ns - base_ns) * 1e-9 / rate - time.monotonic()
                 if delay > 0:
                     self._stop.wait(delay)
-                elif -delay > v['block_size'] / self.fs / rate:
+                elif -delay > (end_ns - t_ns) * 1e-9 / rate:
                     self.late += 1
                 self.sent += 1
             pubs[topic].publish(msg)
@@ -98,13 +96,24 @@ class SensorDriver(Node):
             time.sleep(0.5)          # let reliable QoS deliver the tail
             self.finished = True
 
+    def _skip(self, source, reason):
+        """Log a run that cannot be streamed (unreadable file, other sample rate); /diagnostics names it."""
+        self.skipped.append((getattr(source, 'path', str(source)), reason))
+        self.get_logger().error(f'skipped {self.skipped[-1][0]}: {reason}')
+
     def _diagnostics(self):
-        level = OK if self.late == 0 else WARN
-        msg = self.state if self.late == 0 else f'{self.state}; {self.late} block(s) published late ' \
-                                                f"(machine too slow for rate_factor {self.values['rate_factor']})"
-        item = DiagItem(f'{NAME}: source', level, msg, {
-            'source': self.values['source'], 'blocks_sent': self.sent, 'blocks_total': len(self.spans),
-            'late_blocks': self.late, 'sample_rate_hz': self.fs,
+        problems = []
+        if self.late:
+            problems.append(f'{self.late} block(s) published late (machine too slow for rate_factor '
+                            f"{self.values['rate_factor']})")
+        if self.skipped:
+            problems.append(f'{len(self.skipped)} run(s) skipped: ' +
+                            '; '.join(f'{name}: {why}' for name, why in self.skipped))
+        level = ERROR if self.skipped else WARN if self.late else OK
+        item = DiagItem(f'{NAME}: source', level, '; '.join([self.state] + problems), {
+            'source': self.values['source'], 'blocks_sent': self.sent,
+            'blocks_total': 'unknown until every file is read' if self.blocks_total is None else self.blocks_total,
+            'late_blocks': self.late, 'skipped_runs': len(self.skipped),
             'subscribers': self.pub_disp.get_subscription_count()})
         self.pub_diag.publish(diagnostics_msg([item], self.get_clock().now().to_msg(), self.frame_id, self.machine))
 

@@ -2,20 +2,25 @@
 The ``sensor_driver`` node's core (no ROS): its sources and the message stream it publishes.
 
 Sources
-    ``sim`` (default): the simulated rig of ``rig_params`` (:func:`bearing_id.simulation.rig.simulate_run`, truth
-    bearings != theory), one recording per excitation run of the chosen scenario. ``file``: DAQ exports (CSV or NPZ,
-    :mod:`bearing_id.io.daq`), one per run.  :func:`stream_messages` turns them into the node's messages (also
-    ``scripts/make_bags.py``'s bags).
+    ``sim`` (default): the simulated rig of ``rig_params`` (:func:`bearing_id.simulation.rig.simulate_stream`, truth
+    bearings != theory), one run per excitation run of the chosen scenario, computed piece by piece while it streams
+    (the first block goes out at once, memory stays bounded for any stream length).  ``file``: DAQ exports (CSV or
+    NPZ, :mod:`bearing_id.io.daq`), one per run, each read when its turn comes (one file in memory at a time).
+    :func:`stream_messages` turns them into the node's messages (also ``scripts/make_bags.py``'s bags).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
 
 from .specs import ParamSpec
 from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
 from ..config.params import load_rig, ParamError, parse_probes
 from ..io import messages as M
 from ..io.daq import read_daq
+from ..rotor.assembly import RotorModel
+from ..signals.recording import Recording
 from ..simulation import rig as rigmod
 
 NAME = 'sensor_driver'
@@ -49,23 +54,46 @@ SPECS = [
 ]
 
 
-@dataclass(frozen=True)
-class BlockSpan:
-    """One block of a recording: rows [i0, i1) of run ``run_index``; ``t_offset`` [s] of the run in the stream."""
+class RecordingRun:
+    """A Recording held in memory, served in pieces like a :class:`bearing_id.simulation.rig.SimulatedRun`."""
 
-    run_index: int
-    i0: int
-    i1: int
-    t_offset: float
+    def __init__(self, rec):
+        self.rec = rec
+        self.sample_rate, self.probes, self.run, self.rig_name = rec.sample_rate, rec.probes, rec.run, rec.rig_name
+        self.n_samples = rec.samples.shape[0]
+
+    def pieces(self):
+        """Yield (i0, speed (n,) [rad/s], angle (n,) [rad], samples (n, nch) [m]), whole."""
+        r = self.rec
+        yield 0, r.speed, r.angle, r.samples
 
 
-def load_recordings(values: dict):
-    """Load the source's recordings (one per run) from validated parameter ``values``; raises ParamError/ValueError."""
+class DaqFile:
+    """A DAQ export read only when its turn comes (:meth:`read`), so a list of files is never in memory at once."""
+
+    def __init__(self, path: str):
+        self.path = str(path)
+
+    def read(self) -> RecordingRun:
+        """Read the file (:func:`bearing_id.io.daq.read_daq`); raises DaqError/FileNotFoundError with the reason."""
+        return RecordingRun(read_daq(self.path))
+
+
+def load_sources(values: dict) -> list:
+    """
+    Return the source's runs from validated parameter ``values``, none of them computed or read yet.
+
+    ``sim``: a :class:`bearing_id.simulation.rig.SimulatedRun` per run (computed piece by piece as it streams);
+    ``file``: a :class:`DaqFile` per file (read when its turn comes; each must exist).  Raises ParamError.
+    """
     if values['source'] == 'file':
         files = values['files'] or []
         if not files:
             raise ParamError("parameter 'files' must list at least one DAQ export when source is 'file'")
-        return [read_daq(f) for f in files]
+        missing = [f for f in files if not Path(f).is_file()]
+        if missing:
+            raise ParamError(f"parameter 'files': {', '.join(missing)} not found")
+        return [DaqFile(f) for f in files]
     rig = load_rig(values['rig_params'] or None)
     if rig.simulation is None:
         raise ParamError(f"parameter 'rig_params': {values['rig_params'] or 'the packaged rig'} has no simulation "
@@ -77,43 +105,85 @@ def load_recordings(values: dict):
             probes = parse_probes(','.join(values['probes']))
         except ParamError as exc:
             raise ParamError(f"parameter 'probes': {exc}") from None
-    return [rigmod.simulate_run(rig, r, speeds_rpm=values['speeds_rpm'], dwell=values['dwell'],
-                                noise=values['noise'], probes=probes) for r in runs]
+    model = RotorModel.from_params(rig)
+    schedule = rigmod.run_schedule(rig, values['speeds_rpm'], values['dwell'])
+    return [rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model)
+            for r in runs]
 
 
-def block_spans(lengths, sample_rate: float, block_size: int):
-    """Blocks over consecutive runs of ``lengths`` samples: the stream's time runs on across runs."""
-    out = []
-    t_off = 0.0
-    for k, n in enumerate(lengths):
-        for i0 in range(0, n, block_size):
-            out.append(BlockSpan(k, i0, min(n, i0 + block_size), t_off))
-        t_off += n / sample_rate
-    return out
+def opened(source):
+    """Return the source ready to stream: a DaqFile is read now, a Recording wrapped, a SimulatedRun as it is."""
+    if isinstance(source, DaqFile):
+        return source.read()
+    return RecordingRun(source) if isinstance(source, Recording) else source
 
 
-def stream_messages(recordings, block_size: int, t0_ns: int, frame_id: str, types=None):
+def n_blocks(n_samples: int, block_size: int) -> int:
+    """Return how many blocks of ``block_size`` a run of ``n_samples`` is cut into (the last may be shorter)."""
+    return -(-int(n_samples) // int(block_size))
+
+
+def run_blocks(src, block_size: int):
     """
-    Everything the driver publishes for ``recordings``, in order: yields (topic, stamp_ns, msg, end_ns).
+    Cut one opened run into blocks: yields (i0, speed (n,), angle (n,), samples (n, nch)) with i0 = 0, block_size, ...
+
+    Blocks are cut at multiples of ``block_size`` from the run's first sample whatever the pieces it arrives in.
+    """
+    buf = None
+    for _, w, a, y in src.pieces():
+        if buf is not None:
+            w, a, y = (np.concatenate([p, q]) for p, q in zip(buf[1:], (w, a, y)))
+            i0 = buf[0]
+        else:
+            i0 = 0
+        k = 0
+        while w.size - k >= block_size:
+            yield i0 + k, w[k:k + block_size], a[k:k + block_size], y[k:k + block_size]
+            k += block_size
+        buf = (i0 + k, w[k:], a[k:], y[k:]) if k < w.size else None
+    if buf is not None:
+        yield buf
+
+
+def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=None, on_skip=None):
+    """
+    Yield everything the driver publishes for ``sources``, in order, as (topic, stamp_ns, msg, end_ns).
+
+    ``sources``: one run each (Recordings, SimulatedRuns or DaqFiles).
 
     Per block: an Excitation when the run changes (stamped at the run's first block), a RotorSpeed and the
     DisplacementBlock (stamp = time of the first sample; ``end_ns`` = time one sample after its last; the keyphasor
-    angle of every sample in ``sample_angles``; the run in ``run_id``).  ``types``:
-    None for rclpy messages, a rosbags typestore for bag writing.
+    angle of every sample in ``sample_angles``; the run in ``run_id``).  Blocks never span two runs; the stream's time
+    runs on across runs at the first run's sample rate.  Each run is opened (a file read, a simulation started) when
+    its turn comes.  A run that cannot be opened or has another sample rate is skipped: ``on_skip(source, reason)``
+    is called (None: raise).  ``types``: None for rclpy messages, a rosbags typestore for bag writing.
     """
-    fs = recordings[0].sample_rate
-    prev = None
-    for seq, sp in enumerate(block_spans([r.samples.shape[0] for r in recordings], fs, block_size)):
-        rec = recordings[sp.run_index]
-        t_ns = t0_ns + int(round((sp.t_offset + sp.i0 / fs) * 1e9))
-        end_ns = t0_ns + int(round((sp.t_offset + sp.i1 / fs) * 1e9))
-        if sp.run_index != prev:
-            yield (TOPIC_EXCITATION, t_ns, M.excitation_to_msg(rec.run, stamp=t_ns, frame_id=frame_id, types=types),
-                   t_ns)
-            prev = sp.run_index
-        w, a = float(rec.speed[sp.i0]), float(rec.angle[sp.i0])
-        yield TOPIC_SPEED, t_ns, M.speed_to_msg(w, a, stamp=t_ns, frame_id=frame_id, types=types), t_ns
-        yield (TOPIC_DISPLACEMENT, t_ns, M.block_to_msg(rec.samples[sp.i0:sp.i1], seq, fs, w, a, rec.probes,
-                                                        stamp=t_ns, frame_id=frame_id, types=types,
-                                                        sample_angles=rec.angle[sp.i0:sp.i1], run_id=rec.run.id),
-               end_ns)
+    fs = None
+    t_off = 0.0
+    seq = 0
+    for source in sources:
+        try:
+            src = opened(source)
+            if fs is not None and src.sample_rate != fs:
+                raise ValueError(f"sample rate {src.sample_rate:g} Hz differs from the stream's {fs:g} Hz")
+        except (ValueError, OSError) as exc:
+            if on_skip is None:
+                raise
+            on_skip(source, str(exc))
+            continue
+        fs = fs or src.sample_rate
+        first = True
+        for i0, w, a, y in run_blocks(src, block_size):
+            t_ns = t0_ns + int(round((t_off + i0 / fs) * 1e9))
+            end_ns = t0_ns + int(round((t_off + (i0 + w.size) / fs) * 1e9))
+            if first:
+                yield (TOPIC_EXCITATION, t_ns, M.excitation_to_msg(src.run, stamp=t_ns, frame_id=frame_id,
+                                                                   types=types), t_ns)
+                first = False
+            w0, a0 = float(w[0]), float(a[0])
+            yield TOPIC_SPEED, t_ns, M.speed_to_msg(w0, a0, stamp=t_ns, frame_id=frame_id, types=types), t_ns
+            yield (TOPIC_DISPLACEMENT, t_ns, M.block_to_msg(y, seq, fs, w0, a0, src.probes, stamp=t_ns,
+                                                            frame_id=frame_id, types=types, sample_angles=a,
+                                                            run_id=src.run.id), end_ns)
+            seq += 1
+        t_off += src.n_samples / fs

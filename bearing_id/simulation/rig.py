@@ -16,7 +16,12 @@ Truth versus theory
     factors (default x1.25 and x0.8); the nominal params give the theory the estimator starts from.
 
 Noise
-    Gaussian, independent per channel, std = ``noise`` x RMS of that channel's clean signal in that speed segment.
+    Gaussian, independent per channel, std = ``noise`` x RMS of that channel's clean signal in that speed segment
+    (in each piece of :data:`PIECE_SAMPLES` of a longer segment).
+
+Streaming
+    :func:`simulate_stream` computes a run piece by piece as it is consumed (the sensor_driver's sim source: the first
+    block goes out at once and memory stays bounded for any length); :func:`simulate` collects it into a Recording.
 
 Validity
     :func:`check_validity` flags orbits larger than 30 % of the radial clearance at a bearing and speeds at or above
@@ -123,10 +128,46 @@ def steady_state_response(model, speed, coeffs, entries, effects=()):
 
 
 # ------------------------------------------------------------------------------------------------- simulation
-def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
-             bearing_fn=None, effects=(), sample_rate=None, model=None) -> Recording:
+PIECE_SAMPLES = 1 << 16     # samples a simulated run is computed in at most (6.4 s at 10,240 Hz): bounds memory
+TRANSIENT_ROWS = 4096       # samples per evaluation of the transient (rows x 2 ndof complex exponentials in memory)
+
+
+@dataclass
+class SimulatedRun:
     """
-    Simulate one excitation run over a speed ``schedule``.
+    One excitation run over a speed schedule, simulated piece by piece on demand (see :func:`simulate_stream`).
+
+    Known at once (no physics computed): ``sample_rate`` [Hz], ``probes``, ``run``, ``rig_name``, ``n_samples`` and
+    ``segments`` [(i0, i1, speed [rad/s], steady)].  :meth:`pieces` computes the samples in order, at most
+    :data:`PIECE_SAMPLES` at a time; ``truth_coefficients`` {speed: {node: (K, C)}} fills in as segments are computed.
+    """
+
+    sample_rate: float
+    probes: tuple
+    run: Run
+    rig_name: str
+    segments: list
+    description: str
+    effects: tuple
+    _solve: object = dataclasses.field(repr=False, default=None)
+    truth_coefficients: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        return self.segments[-1][1] if self.segments else 0
+
+    def pieces(self):
+        """Yield (i0, speed (n,) [rad/s], angle (n,) [rad], samples (n, nch) [m]) in order; restarts on each call."""
+        return self._solve(self)
+
+
+def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
+                    bearing_fn=None, effects=(), sample_rate=None, model=None) -> SimulatedRun:
+    """
+    Simulate one excitation run over a speed ``schedule``, lazily.
+
+    Returns a :class:`SimulatedRun` whose pieces are computed when iterated, so a stream of any length starts at once
+    in bounded memory.
 
     Parameters
     ----------
@@ -139,7 +180,8 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
     probes
         channels to record (default ``rig.probes``).
     noise
-        std as a fraction of each channel's RMS per segment (default ``rig.simulation.noise``).
+        std as a fraction of each channel's RMS per segment (per piece of a longer segment; default
+        ``rig.simulation.noise``).
     seed
         noise seed (default ``rig.simulation.seed`` combined with the run id).
     bearing_fn
@@ -150,10 +192,6 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
         Hz (default ``rig.simulation.sample_rate``).
     model
         the rig's FE rotor model, if already built (default: built from ``rig``).
-
-    Returns
-    -------
-    Recording with samples (N, nch) in metres.
 
     """
     sim = rig.simulation
@@ -167,82 +205,87 @@ def simulate(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, 
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     if seed is None:
         seed = (sim.seed * 1000003 + sum(map(ord, run.id))) % (2**32)
-    rng = np.random.default_rng(seed)
-    n_nodes = model.n_nodes
     S0 = probe_matrix(model, probes)       # (nch, model.ndof): probes at any angle, with their gain
-
     # sample counts from cumulative segment boundaries, so that short ramp steps lose no time to rounding
     edges = np.round(np.cumsum([0.0] + [s.duration for s in schedule]) * fs).astype(int)
     counts = [max(1, int(c)) for c in np.diff(edges)]
-    N = int(sum(counts))
-    t = np.arange(N) / fs
-    speed = np.empty(N)
-    angle = np.empty(N)
-    clean = np.zeros((N, len(probes)))
-    segments = []
-    truth_coeffs = {}
-    x_prev = None          # state [q; q'] at the first sample of the next segment (continuity)
-    phi0 = 0.0
-    i0 = 0
-    for seg, n in zip(schedule, counts):
-        W = seg.speed
-        coeffs = bearing_fn(W)
-        truth_coeffs.setdefault(float(W), {k: (np.array(v[0]), np.array(v[1])) for k, v in coeffs.items()})
-        M, C, K = system_matrices(model, W, coeffs, effects)
-        nd = M.shape[0]
-        tau = np.arange(n) / fs
-        phi = phi0 + W * tau
-        forces = _segment_forces(run.excitation, effects, W, n_nodes, nd)
-        # particular (steady-state) solution, harmonic by harmonic: state phasor [q; j w q] per ratio
-        xph = {}
-        y = np.zeros((n, len(probes)))
-        for r, f in forces.items():
-            w = r * W
-            q = np.linalg.solve(K - w * w * M + 1j * w * C, f)
-            xph[r] = np.concatenate([q, 1j * w * q])
-            y += np.real(np.outer(np.exp(1j * r * phi), S0 @ q[:S0.shape[1]]))
+    starts = np.cumsum([0] + counts)
+    segments = [(int(a), int(a + n), float(s.speed), bool(s.steady)) for a, n, s in zip(starts, counts, schedule)]
 
-        def particular_state(angle_now):
-            return sum((np.real(X * np.exp(1j * r * angle_now)) for r, X in xph.items()), np.zeros(2 * nd))
+    def solve(out: SimulatedRun):
+        rng = np.random.default_rng(seed)
+        x_prev = None          # state [q; q'] at the first sample of the next segment (continuity)
+        phi0 = 0.0
+        for i0, i1, W, _ in out.segments:
+            n = i1 - i0
+            coeffs = bearing_fn(W)
+            out.truth_coefficients.setdefault(W, {k: (np.array(v[0]), np.array(v[1])) for k, v in coeffs.items()})
+            M, C, K = system_matrices(model, W, coeffs, effects)
+            nd = M.shape[0]
+            forces = _segment_forces(run.excitation, effects, W, model.n_nodes, nd)
+            # particular (steady-state) solution, harmonic by harmonic: state phasor [q; j w q] per ratio
+            xph, yph = {}, {}
+            for r, f in forces.items():
+                w = r * W
+                q = np.linalg.solve(K - w * w * M + 1j * w * C, f)
+                xph[r] = np.concatenate([q, 1j * w * q])
+                yph[r] = S0 @ q[:S0.shape[1]]
 
-        xp0 = particular_state(phi0)
-        # homogeneous part carrying the transient from the previous segment
-        if x_prev is not None:
-            xh0 = x_prev[:2 * nd] if x_prev.size >= 2 * nd else np.pad(x_prev, (0, 2 * nd - x_prev.size))
-            xh0 = xh0 - xp0
-            if np.any(xh0):
-                A = _state_matrix(M, C, K)
-                lam, V = np.linalg.eig(A)
-                c = np.linalg.solve(V, xh0)
-                y += np.real((np.exp(np.outer(tau, lam)) * c) @ (S0 @ V[:S0.shape[1], :]).T)
-                # state at the first sample of the next segment (exact propagation over the whole segment)
-                T = n / fs
-                xh_end = np.real(V @ (np.exp(lam * T) * c))
-            else:
-                xh_end = np.zeros(2 * nd)
-        else:
-            xh_end = np.zeros(2 * nd)
-        phi_end = phi0 + W * n / fs
-        x_prev = particular_state(phi_end) + xh_end
-        sl = slice(i0, i0 + n)
-        clean[sl] = y
-        speed[sl] = W
-        angle[sl] = phi
-        segments.append((i0, i0 + n, float(W), bool(seg.steady)))
-        phi0 = phi_end
-        i0 += n
+            def particular_state(angle_now):
+                return sum((np.real(X * np.exp(1j * r * angle_now)) for r, X in xph.items()), np.zeros(2 * nd))
 
-    samples = clean.copy()
-    for e in effects:
-        if hasattr(e, 'measure'):
-            samples = e.measure(samples, angle, speed, probes)
-    if noise > 0:
-        for a, b, _, _ in segments:
-            rms = np.sqrt(np.mean(samples[a:b] ** 2, axis=0))
-            samples[a:b] += rng.standard_normal((b - a, len(probes))) * (noise * rms)
-    return Recording(sample_rate=fs, t=t, speed=speed, angle=angle, probes=probes, samples=samples, run=run,
-                     segments=segments, truth={'coefficients': truth_coeffs, 'description': desc,
-                                               'effects': [type(e).__name__ for e in effects]},
+            # homogeneous part carrying the transient from the previous segment
+            lam = None
+            if x_prev is not None:
+                xh0 = x_prev[:2 * nd] if x_prev.size >= 2 * nd else np.pad(x_prev, (0, 2 * nd - x_prev.size))
+                xh0 = xh0 - particular_state(phi0)
+                if np.any(xh0):
+                    lam, V = np.linalg.eig(_state_matrix(M, C, K))
+                    c = np.linalg.solve(V, xh0)
+                    yV = S0 @ V[:S0.shape[1], :]
+            for a in range(0, n, PIECE_SAMPLES):
+                tau = np.arange(a, min(n, a + PIECE_SAMPLES)) / fs
+                phi = phi0 + W * tau
+                y = np.zeros((tau.size, len(probes)))
+                for r, yr in yph.items():
+                    y += np.real(np.outer(np.exp(1j * r * phi), yr))
+                for k in range(0, tau.size if lam is not None else 0, TRANSIENT_ROWS):
+                    tk = tau[k:k + TRANSIENT_ROWS]
+                    y[k:k + tk.size] += np.real((np.exp(np.outer(tk, lam)) * c) @ yV.T)
+                speed = np.full(tau.size, W)
+                for e in effects:
+                    if hasattr(e, 'measure'):
+                        y = e.measure(y, phi, speed, probes)
+                if noise > 0:
+                    rms = np.sqrt(np.mean(y ** 2, axis=0))
+                    y = y + rng.standard_normal(y.shape) * (noise * rms)
+                yield i0 + a, speed, phi, y
+            # state at the first sample of the next segment (exact propagation over the whole segment)
+            phi_end = phi0 + W * n / fs
+            xh_end = np.real(V @ (np.exp(lam * (n / fs)) * c)) if lam is not None else np.zeros(2 * nd)
+            x_prev = particular_state(phi_end) + xh_end
+            phi0 = phi_end
+
+    return SimulatedRun(sample_rate=fs, probes=probes, run=run, rig_name=rig.name, segments=segments,
+                        description=desc, effects=tuple(type(e).__name__ for e in effects), _solve=solve)
+
+
+def simulate(rig: RigParams, run: Run, schedule: list[Segment], **kw) -> Recording:
+    """
+    Simulate one excitation run over a speed ``schedule`` into a Recording (samples (N, nch) in metres).
+
+    Keywords as :func:`simulate_stream`, which computes it piece by piece.
+    """
+    s = simulate_stream(rig, run, schedule, **kw)
+    N = s.n_samples
+    speed, angle, samples = np.empty(N), np.empty(N), np.empty((N, len(s.probes)))
+    for i0, w, a, y in s.pieces():
+        sl = slice(i0, i0 + w.size)
+        speed[sl], angle[sl], samples[sl] = w, a, y
+    return Recording(sample_rate=s.sample_rate, t=np.arange(N) / s.sample_rate, speed=speed, angle=angle,
+                     probes=s.probes, samples=samples, run=run, segments=list(s.segments),
+                     truth={'coefficients': s.truth_coefficients, 'description': s.description,
+                            'effects': list(s.effects)},
                      rig_name=rig.name)
 
 
@@ -250,17 +293,20 @@ def _state_matrix(M, C, K):
     return first_order(np.linalg.inv(M), C, K)
 
 
+def run_schedule(rig: RigParams, speeds_rpm=None, dwell=None, ramp=None) -> list[Segment]:
+    """Return the step schedule through ``speeds_rpm``: ``dwell`` s each, ``ramp`` s ramps (default: the rig's)."""
+    sim = rig.simulation
+    return step_schedule(speeds_rpm if speeds_rpm is not None else sim.speeds_rpm,
+                         dwell if dwell is not None else sim.dwell, sim.ramp if ramp is None else ramp)
+
+
 def simulate_run(rig: RigParams, run: Run, speeds_rpm=None, dwell=None, ramp=None, **kw) -> Recording:
     """
     Step through ``speeds_rpm`` (default ``rig.simulation.speeds_rpm``) dwelling ``dwell`` s at each.
 
-    With ``ramp`` s linear speed ramps between dwells (defaults from ``rig.simulation``).
+    With ``ramp`` s linear speed ramps between dwells (defaults from ``rig.simulation``); :func:`run_schedule`.
     """
-    sim = rig.simulation
-    sched = step_schedule(speeds_rpm if speeds_rpm is not None else sim.speeds_rpm,
-                          dwell if dwell is not None else sim.dwell,
-                          sim.ramp if ramp is None else ramp)
-    return simulate(rig, run, sched, **kw)
+    return simulate(rig, run, run_schedule(rig, speeds_rpm, dwell, ramp), **kw)
 
 
 def simulate_plan(rig: RigParams, runs=None, **kw) -> list[Recording]:
