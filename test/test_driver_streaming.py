@@ -1,6 +1,8 @@
 """
-The sensor_driver streams (issue 23 item 5): its first block goes out at once and memory stays bounded for any stream
-length, and DAQ files are read one at a time when their turn comes.
+The sensor_driver streams (issue 23 item 5).
+
+Its first block goes out at once and memory stays bounded for any stream length, and DAQ files are read one at a time
+when their turn comes.
 
 Oracle for the pieces: the whole-run arrays of :func:`bearing_id.simulation.rig.simulate` are not an independent
 physics oracle, so the sim's steady state is checked against the frequency response of the nominal model written

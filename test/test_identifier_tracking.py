@@ -177,8 +177,10 @@ def test_a_dwell_cut_by_a_speed_glitch_is_one_dwell(passes, tmp_path):
 
 def test_a_dwell_after_a_ramp_is_not_taken_for_a_continued_piece():
     """
-    A dwell after a fine ramp starts fresh: its settling transient is trimmed (regression: the ramp's last slice, at
-    0.1 % of the dwell speed and ending where the dwell starts, made the dwell 'continued' and untrimmed).
+    A dwell after a fine ramp starts fresh: its settling transient is trimmed.
+
+    Regression: the ramp's last slice, at 0.1 % of the dwell speed and ending where the dwell starts, made the dwell
+    'continued' and untrimmed.
     """
     rig = load_rig()
     rec = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[1500.0, 1800.0, 2100.0], dwell=1.0, ramp=0.5)
