@@ -68,6 +68,9 @@ def test_the_streamed_blocks_are_the_collected_recording_and_its_steady_state_is
               core.stream_messages([rigmod.simulate_stream(rig, run, sched, noise=0.0)], BLOCK, 0, 'rig')
               if t == TOPIC_DISPLACEMENT]
     assert [b.sequence for b in blocks] == list(range(len(blocks)))
+    # stamps: the time of each block's first sample, in order (pieces end on block boundaries here: 65,536 samples)
+    stamps = np.array([b.stamp_ns for b in blocks])
+    np.testing.assert_allclose(stamps, np.arange(len(blocks)) * BLOCK / rec.sample_rate * 1e9, rtol=0, atol=1)
     streamed = np.concatenate([b.samples for b in blocks])
     scale = np.abs(rec.samples).max()
     # the same arithmetic on the same rows: equal within a few round-offs of the largest sample

@@ -24,10 +24,13 @@ from .diagnostics import diagnostics_msg
 from .machine import label, machine_id
 from .process import run_node
 from .qos import qos_latched, qos_stream
-from .sensor_driver_core import load_sources, n_blocks, NAME, opened, SPECS, stream_messages
+from .sensor_driver_core import load_sources, n_blocks, NAME, opened, Prefetch, SPECS, stream_messages
 from .status import DiagItem, ERROR, OK, WARN
 from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
 from ..io import messages as M
+
+
+PREFETCH_SECONDS = 4.0     # s of stream computed or read ahead of the real-time pacing
 
 
 class SensorDriver(Node):
@@ -39,6 +42,8 @@ class SensorDriver(Node):
         self.values = v
         self.sources = load_sources(v)
         self.sources[0] = opened(self.sources[0])    # a first file that cannot be read: a clear error, exit 2
+        self.sample_rate = self.sources[0].sample_rate
+        self._prefetch = None
         self.machine = machine_id(v['machine_id'], self.get_namespace())
         known = [src for src in self.sources if hasattr(src, 'n_samples')]     # files: known once read
         self.frame_id = v['frame_id'] or label(self.machine, known[0].rig_name if known else 'daq')
@@ -74,8 +79,12 @@ class SensorDriver(Node):
         base_ns = self.get_clock().now().nanoseconds
         rate = v['rate_factor']
         pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc}
-        for topic, t_ns, msg, end_ns in stream_messages(self.sources, v['block_size'], base_ns, self.frame_id,
-                                                        on_skip=self._skip):
+        # computed (sim) or read (files) up to PREFETCH_SECONDS of stream ahead of the real-time pacing (3 messages
+        # per block: speed, displacement, an excitation now and then)
+        ahead = 3 * max(1, int(PREFETCH_SECONDS * self.sample_rate / v['block_size']))
+        self._prefetch = Prefetch(stream_messages(self.sources, v['block_size'], base_ns, self.frame_id,
+                                                  on_skip=self._skip), ahead)
+        for topic, t_ns, msg, end_ns in self._prefetch:
             if self._stop.is_set():
                 return
             if topic == TOPIC_EXCITATION:
@@ -120,6 +129,8 @@ class SensorDriver(Node):
     def close(self):
         self._stop.set()
         self._thread.join(timeout=2.0)
+        if self._prefetch is not None:
+            self._prefetch.close()
 
 
 def main(argv=None) -> int:

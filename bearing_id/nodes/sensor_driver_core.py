@@ -11,6 +11,8 @@ Sources
 from __future__ import annotations
 
 from pathlib import Path
+import queue
+import threading
 
 import numpy as np
 
@@ -130,12 +132,10 @@ def run_blocks(src, block_size: int):
     Blocks are cut at multiples of ``block_size`` from the run's first sample whatever the pieces it arrives in.
     """
     buf = None
-    for _, w, a, y in src.pieces():
+    for i0, w, a, y in src.pieces():
         if buf is not None:
             w, a, y = (np.concatenate([p, q]) for p, q in zip(buf[1:], (w, a, y)))
             i0 = buf[0]
-        else:
-            i0 = 0
         k = 0
         while w.size - k >= block_size:
             yield i0 + k, w[k:k + block_size], a[k:k + block_size], y[k:k + block_size]
@@ -187,3 +187,54 @@ def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=N
                                                             run_id=src.run.id), end_ns)
             seq += 1
         t_off += src.n_samples / fs
+
+
+class Prefetch:
+    """
+    Iterate ``items`` in a background thread, at most ``ahead`` items ahead of the consumer.
+
+    The sensor_driver paces its blocks in real time while the next ones are computed or read (a speed ramp's many
+    short simulated segments, the next file): a burst of work is absorbed as long as the average keeps up, and memory
+    stays bounded by ``ahead`` items.  An exception in the producer is raised in the consumer; :meth:`close` stops the
+    producer.
+    """
+
+    _END = object()
+
+    def __init__(self, items, ahead: int):
+        self._q: queue.Queue = queue.Queue(maxsize=max(1, int(ahead)))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._produce, args=(items,), name='prefetch', daemon=True)
+        self._thread.start()
+
+    def _put(self, item) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._q.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _produce(self, items):
+        try:
+            for item in items:
+                if not self._put(item):
+                    return
+        except Exception as exc:      # handed to the consumer, raised there
+            self._put((self._END, exc))
+            return
+        self._put((self._END, None))
+
+    def __iter__(self):
+        while True:
+            item = self._q.get()
+            if isinstance(item, tuple) and len(item) == 2 and item[0] is self._END:
+                if item[1] is not None:
+                    raise item[1]
+                return
+            yield item
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
