@@ -358,3 +358,39 @@ def test_the_default_method_auto_chooses_by_the_data_and_says_so(tmp_path, bag, 
     assert item.values['method'].startswith(f'{chosen} (auto: the design check on these data')
     ref = identify('auto', RotorModel.from_params(rig), rig, from_bag(path))
     agreement.assert_results_agree(res, ref, f'auto on {bag}')
+
+
+@pytest.mark.parametrize('method', ['direct', 'conventional'])
+def test_a_per_speed_method_solves_only_the_speeds_that_changed(rig, tmp_path, method):
+    """
+    A per-speed method re-solves only new or changed speeds: the cost does not grow with the history.
+
+    Issue 23 item 6; the answers are those of one solve of everything.
+
+    Reference: ``identify(method, ...)`` on all speeds at once.  Directional-force runs and probes at both bearings
+    and midspan (every coefficient determined), 1e-3 relative noise.
+    """
+    probes = tuple(Probe(f'p{n}{d}', n, d) for n in (2, 6, 10) for d in 'xy')
+    runs = R.scenario('force')
+    data = simulate_data(rig, runs, (900, 1500, 2100, 2700), probes=probes)
+    rng = np.random.default_rng(5)
+    std = 1e-3 * np.abs(data.X)
+    X = data.X + std * (rng.standard_normal(data.X.shape) + 1j * rng.standard_normal(data.X.shape))
+    core = IdentifierCore(rig, method, tmp_path, options={'kf': {'Q': 1e-16, 'R': None}})
+    for run in runs:
+        core.add_excitation(run)
+    latest = {}
+    for k, w in enumerate(data.speeds):
+        for r, run in enumerate(runs):
+            core._store(run.id, float(w), X[r, k], std[r, k], probes)
+        out, _ = core.solve(record=False)
+        assert [o.speed for o in out] == [float(w)], (k, [o.speed_rpm for o in out])     # the new speed only
+        latest.update({o.speed: o for o in out})
+    assert core.solve(record=False)[0] == []                                            # nothing changed
+    ref = identify(method, RotorModel.from_params(rig), rig, replace(data, X=X, X_std=std))
+    agreement.assert_results_agree([latest[s] for s in sorted(latest)], ref, method)
+    # a new dwell at 1500 rpm (its vectors change): that speed, and only it, is solved again
+    core._store(runs[0].id, float(data.speeds[1]), X[0, 1] * 1.01, std[0, 1], probes)
+    out, _ = core.solve(record=False)
+    assert [o.speed for o in out] == [float(data.speeds[1])]
+    core.close()

@@ -50,6 +50,7 @@ from ..rotor.assembly import RotorModel
 
 NAME = 'identifier'
 COMPACT_AFTER = 10_000  # record lines (~4 MB, ~3 h of 1 s dwells) after which it is compacted (IdentifierCore.compact)
+PER_SPEED_METHODS = ('paper', 'direct', 'conventional')   # a speed's result depends on that speed's vectors only
 CHANGE_SIGMAS = 3.0     # a determined coefficient that moves more than this many sigma since the last result is named
 
 SPECS = [
@@ -154,6 +155,7 @@ class IdentifierCore:
         self.probe_set = None                  # probe key of the latest measured vector (the set identified)
         self.notes: deque = deque(maxlen=20)
         self.results: dict = {}                # speed -> IdentResult (latest)
+        self._solved: dict = {}                # speed -> signature of the vectors its latest result came from
         self.warm_start = bool(warm_start)
         self._warm = None                      # (parameter names, values [SI]) of the last physical fit
         self._ran = None                       # the method the last solve ran (auto chooses per solve)
@@ -536,9 +538,29 @@ class IdentifierCore:
         return None if data is None else (tuple(r.id for r in data.runs), data.speeds.tobytes(), data.X.tobytes(),
                                           data.X_std.tobytes())
 
+    @staticmethod
+    def _speed_signature(data, i: int) -> tuple:
+        """Return what a per-speed method's result at speed index ``i`` depends on: runs and that speed's vectors."""
+        return (tuple(r.id for r in data.runs), data.X[:, i].tobytes(), data.X_std[:, i].tobytes())
+
+    def _changed_speeds(self, data) -> list[int]:
+        """
+        Return the speed indices to solve: every one for a global fit, for a per-speed method only those new or changed.
+
+        A per-speed method (:data:`PER_SPEED_METHODS`) gives a speed's result from that speed's vectors alone, so a
+        speed whose vectors did not change keeps its result: the cost of a solve does not grow with the history.
+        """
+        idx = range(len(data.speeds))
+        if self.method not in PER_SPEED_METHODS:
+            return list(idx)
+        return [i for i in idx if self._solved.get(float(data.speeds[i])) != self._speed_signature(data, i)]
+
     def solve(self, data=None, record: bool = True):
         """
-        Identify at every complete speed; returns (results, data) or ([], None).
+        Identify at every complete speed that needs it; returns (results, data) or ([], None).
+
+        A global fit (``physical``, ``auto``) solves every speed, warm-started from its last fit; a per-speed method
+        only the speeds whose vectors are new or changed (the others keep their last result, not returned again).
 
         ``data``: an :meth:`assemble` result, default a new one.  ``record``: append the results to the record now
         (False: the caller does it with :meth:`record_results`, e.g. after publishing them).
@@ -554,7 +576,13 @@ class IdentifierCore:
             opts['p0'] = self._warm[1]
         if self.method == 'auto':          # its options are per method; the warm start is the physical fit's
             opts = {'physical': opts} if opts else {}
-        results = identify(self.method, self.model, self.rig, data, options=opts or None)
+        todo = self._changed_speeds(data)
+        if not todo:
+            return [], data
+        results = identify(self.method, self.model, self.rig, data if len(todo) == len(data.speeds) else
+                           data.select(todo), options=opts or None)
+        if self.method in PER_SPEED_METHODS:
+            self._solved.update({float(data.speeds[i]): self._speed_signature(data, i) for i in todo})
         fit = results[0].extra.get('fit') if results else None
         if results and results[0].method == 'physical' and fit is not None and np.all(np.isfinite(fit.values)):
             self._warm = (fit.names, np.array(fit.values))
