@@ -7,10 +7,15 @@ re-encode) and writes each message as it arrives (:class:`bearing_id.io.bags.Bag
 after ``--duration`` seconds, or after ``--idle`` seconds without a message (once something arrived), and then
 finishes the bag (index and ``metadata.yaml``).
 
-Surviving a kill: everything received is made durable at least every ``--flush`` seconds (default 1: the mcap chunk
-is closed, written and fsync'ed; sqlite3 commits), so ``kill -9`` or a power cut loses at most the last second.  Such
-a bag has no ``metadata.yaml``; readers say so, and ``bearing-id record --recover BAG`` salvages every complete
-message into a complete bag in place (the unfinished original is kept as ``BAG.unfinished``).
+Surviving a kill: everything received is made durable at least every ``--flush`` seconds (default 1: the mcap chunk is
+closed and written followed by a footer, sqlite3 commits, and ``metadata.yaml`` is replaced by one describing what is
+now on disk, all fsync'ed), so ``kill -9`` or a power cut loses at most the last second.  The bag a ``kill -9`` leaves
+opens as it is in stock readers (rosbags' ``Reader``, :func:`bearing_id.io.bags.read_bag`): its ``metadata.yaml`` is
+marked unfinished in ``custom_data``, and its mcap file has no summary, so readers scan it.  Only a kill while a flush
+is writing (microseconds for mcap, the milliseconds of a sqlite3 commit) leaves a bag they refuse or whose metadata.yaml
+is one flush behind.  ``bearing-id record --recover BAG`` turns any unfinished bag (also one without ``metadata.yaml``,
+or one a power cut left) into a complete one in place: every complete message, an mcap summary, the metadata of a
+finished bag (the unfinished original is kept as ``BAG.unfinished``).
 
 QoS: each topic's ``offered_qos_profiles`` are the QoS its publishers really offer (``get_publishers_info_by_topic``
 when its first message arrives), as ``ros2 bag record`` stores them, so ``ros2 bag play`` (and ``bearing-id play``)
@@ -55,8 +60,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         'that much)')
     p.add_argument('--overwrite', action='store_true', help='replace an existing bag directory')
     p.add_argument('--recover', action='store_true',
-                   help='do not record: turn the unfinished bag BAG (recorder killed, no metadata.yaml) into a '
-                        'complete one, keeping the original as BAG.unfinished')
+                   help='do not record: turn the unfinished bag BAG (recorder killed) into a complete one, keeping '
+                        'the original as BAG.unfinished')
     return p
 
 

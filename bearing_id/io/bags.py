@@ -10,12 +10,13 @@ bags recorded with ``ros2 bag record`` read here.
 * :func:`write_bag` (path, messages, storage='mcap', qos=None) -- messages as ``(topic, timestamp_ns, msg)`` or
   ``(topic, msgtype, timestamp_ns, msg_or_raw_bytes)``; msg may be a rosbags dataclass or an rclpy message.
 * :class:`BagWriter` -- message-by-message writing, durable every ``flush_period`` s (what ``bearing-id record``
-  uses: a kill -9 loses at most that much).
+  uses: a kill -9 loses at most that much and leaves a bag stock readers open as it is).
 * :func:`read_bag` (path, topics=None, raw=False, salvage=False) -- yields ``(topic, msgtype, timestamp_ns, msg or raw
   bytes)`` in time order.  rclpy's ``Publisher.publish`` accepts the raw bytes, the cleanest way to replay.
 * :func:`bag_topics` (path) -- ``{topic: (msgtype, count)}``; :func:`offered_qos` (path) -- ``{topic: [Qos]}``.
 * :func:`unfinished`, :func:`salvage_bag`, :func:`recover_bag` -- a recording whose writer was killed (no
-  ``metadata.yaml``): what it holds, and a complete bag rebuilt from it (``bearing-id record --recover``).
+  ``metadata.yaml``, or one marked :data:`UNFINISHED_KEY`): what it holds, and a complete bag rebuilt from it
+  (``bearing-id record --recover``).
 
 Offered QoS: every topic is written with its ``offered_qos_profiles`` (given, or :func:`default_qos`, the QoS the
 bearing_id nodes publish with), which rosbag2 Jazzy's metadata version 9 stores as a YAML list of profiles
@@ -38,6 +39,7 @@ import os
 from pathlib import Path
 import shutil
 import sqlite3
+import struct
 import sys
 import tempfile
 import time
@@ -47,14 +49,19 @@ from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import breakup_chunk, StreamReader
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
-from rosbags.rosbag2.metadata import parse_qos
+from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+import yaml
 
 from ..config.params import load_yaml_bounded, ParamError
 
 PACKAGE = 'bearing_id_msgs'
 STORAGES = ('mcap', 'sqlite3')
 BAG_VERSION = 9  # rosbag2 metadata version written by ROS 2 Jazzy
+UNFINISHED_KEY = 'bearing_id.recording'   # custom_data key of the metadata.yaml a BagWriter keeps before close
+# appended to an mcap file at every flush and overwritten by the next chunk: Data End, a Footer without summary (a
+# reader scans the data section) and the closing magic -- rosbags' reader refuses a file without them
+MCAP_TAIL = b'\x0f' + struct.pack('<QI', 4, 0) + b'\x02' + struct.pack('<QQQI', 20, 0, 0, 0) + b'\x89MCAP0\r\n'
 
 
 class BagError(RuntimeError):
@@ -220,11 +227,19 @@ class BagWriter:
     """
     A rosbag2 bag written message by message and made durable every ``flush_period`` seconds.
 
-    mcap: the pending chunk is closed and written (rosbags otherwise keeps up to 1 MiB of messages in memory),
-    the file flushed and fsync'ed; sqlite3: the open transaction is committed.  A process killed with SIGKILL
-    therefore loses at most the last ``flush_period`` seconds; the bag it leaves has no ``metadata.yaml`` (written on
-    :meth:`close`), which :func:`read_bag` reports as an unfinished recording and :func:`recover_bag` (``bearing-id
-    record --recover``) turns into a complete bag.  ``flush_period=None`` never flushes early (batch writing).
+    Each flush leaves a bag that stock readers open as it is (tested with rosbags' ``Reader``; ``ros2 bag`` is not
+    installable here).  mcap: the pending chunk is closed and written (rosbags otherwise keeps up to 1 MiB of messages
+    in memory), followed by :data:`MCAP_TAIL` (Data End, a Footer without summary, the magic; the next chunk overwrites
+    it); sqlite3: the open transaction is committed (with ``cache_spill`` off, so no uncommitted page reaches the file);
+    then ``metadata.yaml`` is replaced by one describing exactly that (written to a temporary file before the storage
+    flush, moved over the old one after it; marked :data:`UNFINISHED_KEY` in ``custom_data``), and the files are
+    fsync'ed.  A live writer (``flush_period`` set) flushes once on creation, and again at once when rosbags closes a
+    full mcap chunk itself.  A process killed with SIGKILL therefore loses at most the last ``flush_period`` seconds and
+    leaves a readable bag, unless it died while a flush was writing (microseconds for mcap: the file then ends
+    mid-chunk, or holds the flush's messages and metadata.yaml not yet; the milliseconds of a sqlite3 commit's fsyncs: a
+    hot journal, metadata.yaml one flush behind): :func:`read_bag` names a bag it cannot open, and :func:`recover_bag`
+    (``bearing-id record --recover``) turns any unfinished bag into a complete one (mcap with its summary).
+    ``flush_period=None`` never flushes early (batch writing: the bag is written on :meth:`close`).
 
     ``add_connection(topic, msgtype, qos=None)`` -- qos: list of rosbags ``Qos`` (see :func:`qos_profile`,
     :func:`qos_from_rclpy`), stored as the topic's ``offered_qos_profiles`` so that ``ros2 bag play`` replays a
@@ -252,8 +267,13 @@ class BagWriter:
         self._conns: dict[str, tuple[str, object]] = {}
         self.counts: dict[str, int] = {}
         self._last_flush = time.monotonic()
-        self._dirty = False
+        self._tail: int | None = None       # mcap: where the last flush's MCAP_TAIL starts (the next write goes there)
+        self._dirty = flush_period is not None  # a live writer's bag is readable from the start
         self.closed = False
+        try:
+            self.flush()
+        except (OSError, sqlite3.Error) as exc:
+            raise BagError(f'{self.path}: cannot create bag: {exc}') from exc
 
     # -- connections and messages
     def add_connection(self, topic: str, msgtype: str, qos=None):
@@ -281,7 +301,9 @@ class BagWriter:
         self._w.write(conn, int(stamp_ns), _serialize(self.types, msg, msgtype))
         self.counts[topic] += 1
         self._dirty = True
-        if self.flush_period is not None and time.monotonic() - self._last_flush >= self.flush_period:
+        if self._tail is not None and not self._w.storage.chunk.bio.tell():
+            self.flush()                 # rosbags wrote a full chunk itself, over the tail: make the file readable
+        elif self.flush_period is not None and time.monotonic() - self._last_flush >= self.flush_period:
             self.flush()
 
     def maybe_flush(self) -> None:
@@ -290,20 +312,57 @@ class BagWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Make everything written so far durable (see the class docstring)."""
+        """Make everything written so far durable and readable as it is (see the class docstring)."""
         st = self._w.storage
         self._last_flush = time.monotonic()
         if st is None or not self._dirty:
             return
-        if hasattr(st, 'close_chunk'):                  # rosbags McapWriter
+        meta = self._w.metapath
+        tmp = meta.with_suffix('.yaml.tmp')
+        with open(tmp, 'w', encoding='utf-8') as fh:
+            fh.write(self._metadata_text())
+            fh.flush()
+            if self.fsync:
+                os.fsync(fh.fileno())
+        if hasattr(st, 'close_chunk'):                  # rosbags McapWriter, positioned at the last tail
             if st.chunk.bio.tell():
                 st.close_chunk()
+            self._tail = st.bio.tell()
+            st.bio.write(MCAP_TAIL)
             st.bio.flush()
-            if self.fsync:
-                os.fsync(st.bio.fileno())
-        elif hasattr(st, 'conn'):                       # rosbags Sqlite3Writer
+            st.bio.seek(self._tail)
+        else:                                           # rosbags Sqlite3Writer
             st.conn.commit()
+            st.conn.execute('PRAGMA cache_spill=OFF')
+        os.replace(tmp, meta)
+        if self.fsync:
+            if hasattr(st, 'bio'):
+                os.fsync(st.bio.fileno())
+            fd = os.open(self.path, os.O_RDONLY)
+            try:
+                os.fsync(fd)                            # the rename
+            finally:
+                os.close(fd)
         self._dirty = False
+
+    def _metadata_text(self) -> str:
+        """Return metadata.yaml for everything written so far: as rosbags' ``Writer.close`` writes it, but marked."""
+        w = self._w
+        span = {'starting_time': {'nanoseconds_since_epoch': w.min_timestamp},
+                'duration': {'nanoseconds': max(0, w.max_timestamp - w.min_timestamp)},
+                'message_count': sum(w.counts.values())}
+        info = {'version': w.version, 'storage_identifier': self.storage, 'relative_file_paths': [w.storage.path.name],
+                **span,
+                'topics_with_message_count': [
+                    {'topic_metadata': {'name': c.topic, 'type': c.msgtype,
+                                        'serialization_format': c.ext.serialization_format,
+                                        'offered_qos_profiles': dump_qos_v9(c.ext.offered_qos_profiles),
+                                        'type_description_hash': c.digest},
+                     'message_count': w.counts[c.id]} for c in w.connections],
+                'compression_format': '', 'compression_mode': '',
+                'files': [{'path': w.storage.path.name, **span}],
+                'custom_data': {UNFINISHED_KEY: 'unfinished'}, 'ros_distro': 'rosbags'}
+        return yaml.safe_dump({'rosbag2_bagfile_information': info}, default_flow_style=False, sort_keys=False)
 
     @property
     def message_count(self) -> int:
@@ -320,7 +379,7 @@ class BagWriter:
         return self.path
 
     def abort(self) -> None:
-        """Stop without finishing (the storage keeps what was flushed)."""
+        """Stop without finishing: flush, and leave the bag as a killed writer would (readable, unfinished)."""
         if not self.closed:
             self.closed = True
             try:
@@ -384,18 +443,26 @@ def unfinished(path) -> Path | None:
     """
     Return the storage file of an unfinished recording, else None.
 
-    An unfinished recording is a bag directory without ``metadata.yaml`` holding one ``.mcap``/``.db3`` file: a recorder
-    killed before it could finish.
+    An unfinished recording is a bag directory holding one ``.mcap``/``.db3`` file and either no ``metadata.yaml`` or
+    the one a :class:`BagWriter` keeps current until it closes (:data:`UNFINISHED_KEY` in its ``custom_data``): a
+    recorder killed before it could finish (or still recording).
     """
     path = Path(path)
-    if not path.is_dir() or (path / 'metadata.yaml').exists():
+    if not path.is_dir():
         return None
+    if (path / 'metadata.yaml').exists():
+        try:
+            custom = _check_metadata(path).get('custom_data')
+        except BagError:
+            return None
+        if not (isinstance(custom, dict) and UNFINISHED_KEY in custom):
+            return None
     files = _storage_files(path)
     return files[0] if len(files) == 1 else None
 
 
-def _check_metadata(path: Path) -> None:
-    """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it."""
+def _check_metadata(path: Path) -> dict:
+    """Bounded pre-read of metadata.yaml (size, nesting, alias expansion) before rosbags parses it; its mapping."""
     try:
         data = load_yaml_bounded(path / 'metadata.yaml', 'metadata.yaml', max_bytes=METADATA_MAX_BYTES, max_depth=32,
                                  max_nodes=1_000_000)
@@ -404,6 +471,11 @@ def _check_metadata(path: Path) -> None:
     info = data.get('rosbag2_bagfile_information') if isinstance(data, dict) else None
     if not isinstance(info, dict):
         raise BagError(f'{path}: metadata.yaml is not rosbag2 metadata (no rosbag2_bagfile_information mapping)')
+    return info
+
+
+def _recover_hint(path: Path, part: Path) -> str:
+    return f'`bearing-id record --recover {path}` salvages the messages written to {part.name} before it stopped'
 
 
 def _open_reader(path: Path):
@@ -416,8 +488,7 @@ def _open_reader(path: Path):
         part = unfinished(path)
         if part is not None:
             raise BagError(f'{path}: metadata.yaml missing: an unfinished recording (the recorder was killed?); '
-                           f'`bearing-id record --recover {path}` salvages the messages written to {part.name} '
-                           f'before it stopped')
+                           f'{_recover_hint(path, part)}')
         files = [p.name for p in path.iterdir()][:5]
         raise BagError(f'{path}: metadata.yaml missing and no single .mcap/.db3 storage file '
                        f"({'empty directory' if not files else 'has ' + ', '.join(files)}): not a rosbag2 bag")
@@ -426,8 +497,10 @@ def _open_reader(path: Path):
         reader = Reader(path)
         reader.open()
     except Exception as exc:  # ReaderError, yaml / sqlite / mcap errors on corrupt files
-        raise BagError(f'{path}: cannot open bag ({type(exc).__name__}: {exc}): its storage file is truncated or '
-                       f'damaged, or its metadata.yaml does not describe it') from exc
+        part = unfinished(path)
+        why = ('an unfinished recording whose writer stopped mid-write; ' + _recover_hint(path, part) if part else
+               'its storage file is truncated or damaged, or its metadata.yaml does not describe it')
+        raise BagError(f'{path}: cannot open bag ({type(exc).__name__}: {exc}): {why}') from exc
     for st in getattr(reader.storage, 'storages', []) or []:
         for ch in getattr(st, 'chunks', []) or []:
             if ch.uncompressed_size > MAX_CHUNK_BYTES or ch.compressed_size > MAX_CHUNK_BYTES:
@@ -527,8 +600,9 @@ def read_bag(path, topics: Iterable[str] | None = None, *, raw: bool = False, ty
     topics : only these topics (each must be in the bag, else ``BagError`` listing the ones present).
     types : typestore (default: a copy-free use of :func:`typestore` for known types; types the bag defines that
         it lacks are registered into a fresh typestore).
-    salvage : read an unfinished recording (no metadata.yaml, see :func:`unfinished`) up to where its storage file
-        ends or breaks, in file order; without it such a bag is a ``BagError`` pointing at ``--recover``.
+    salvage : read an unfinished recording (see :func:`unfinished`) up to where its storage file ends or breaks, in
+        file order; without it such a bag reads as its metadata.yaml describes it (a killed :class:`BagWriter`'s
+        does), and one without metadata.yaml or that does not open is a ``BagError`` pointing at ``--recover``.
 
     A decoded bearing_id message whose arrays disagree (:func:`check_message`) is a ``BagError`` naming it.
     """
