@@ -1,5 +1,5 @@
 """
-Identifier solve cost over a run (issue 23 item 6): does the cost of a new speed grow with the speeds before it?
+Identifier solve cost over a run (issue 23 item 6): does the cost of a new speed grow with the speeds before it.
 
 The live identifier solves when a speed completes.  A per-speed method (``direct``, ``conventional``, ``paper``) now
 solves only the speeds whose vectors are new or changed; before, every solve re-solved every speed (an N-speed run

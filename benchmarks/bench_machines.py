@@ -1,0 +1,125 @@
+"""
+Machines served live by one box (issue 23 item 7).
+
+Each machine is the three nodes (sensor_driver, kf_estimator, identifier with its default method) in its own
+namespace ``/mK`` with default parameters, streaming the packaged rig at 1x real time (10,240 Hz, 2 probes) from
+DAQ files (the sensor_driver's ``file`` source, as a plant's DAQ would feed it; its ``sim`` source would add the
+simulation's own CPU, ~0.12 core, which no plant pays).  For
+``--machines`` M at once it measures, over a window while every driver streams (after ``--settle`` s):
+
+* CPU per machine (the three processes' CPU seconds / wall seconds, from /proc/<pid>/stat) and per node;
+* whether the box kept up (the drivers' late blocks, from /diagnostics);
+* the identifier's latency (last block of a window -> its coefficients published; its /diagnostics values);
+* resident memory per machine (VmRSS of its three processes).
+
+The machines one 2-core box can serve = 2 / (CPU per machine), given the figures stay put as M grows (they are
+printed for each M to show it).
+
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_machines.py [--machines 1,4] [--window 20]
+"""
+import os
+
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+import argparse  # noqa: E402, I100  (after the thread setting above)
+from pathlib import Path  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / 'benchmarks'))
+
+from bearing_id.config.params import load_rig  # noqa: E402, I100
+from bearing_id.demo import Listener, ros_env, stop_processes  # noqa: E402
+from bearing_id.io.recordings import save_npz  # noqa: E402
+from bearing_id.simulation.rig import simulate_run  # noqa: E402
+from bench_streaming import _domain_id, cpu_seconds, memory_mb  # noqa: E402
+
+NODES = ('sensor_driver', 'kf_estimator', 'identifier')
+CORES = 2
+
+
+def start(machine: str, node: str, env: dict, log_dir: Path, params=()) -> subprocess.Popen:
+    """Start one node of ``machine`` in namespace /machine with default parameters (plus ``params``)."""
+    cmd = [sys.executable, '-m', f'bearing_id.nodes.{node}', '--ros-args', '-r', f'__ns:=/{machine}']
+    for p in params:
+        cmd += ['-p', p]
+    log = open(log_dir / f'{machine}_{node}.log', 'w')
+    return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def daq_files(out: Path) -> list[str]:
+    """Simulate the packaged rig's runs once into .npz DAQ files (the drivers' file source)."""
+    rig = load_rig()
+    return [str(save_npz(simulate_run(rig, r), out / f'run_{r.id}.npz')) for r in rig.simulation.runs]
+
+
+def run(m: int, window: float, settle: float, out: Path, files: list[str]) -> dict:
+    """Stream ``m`` machines at once; return the figures measured over ``window`` s."""
+    out.mkdir(parents=True, exist_ok=True)
+    env = ros_env(_domain_id())
+    os.environ.update({k: env[k] for k in env if k.startswith(('ROS_', 'FAST'))})
+    machines = [f'm{k + 1}' for k in range(m)]
+    procs = {}
+    listener = Listener()
+    try:
+        for mc in machines:
+            rec = out / mc / 'record'
+            procs[(mc, 'identifier')] = start(mc, 'identifier', env, out, [f'record_dir:={rec}'])
+            procs[(mc, 'kf_estimator')] = start(mc, 'kf_estimator', env, out)
+            procs[(mc, 'sensor_driver')] = start(mc, 'sensor_driver', env, out, [
+                'wait_for_subscribers:=2', 'source:=file', f"files:=[{','.join(files)}]"])
+        t_end = time.monotonic() + 180
+        while time.monotonic() < t_end:                 # every driver publishing
+            time.sleep(0.1)
+            st = [listener.diag.get(f'{mc}/sensor_driver: source') for mc in machines]
+            if all(s and s[1].startswith('publishing') for s in st):
+                break
+        else:
+            raise RuntimeError(f'not every driver started publishing; logs in {out}')
+        time.sleep(settle)
+        cpu0 = {k: cpu_seconds(p.pid) for k, p in procs.items()}
+        t0 = time.monotonic()
+        time.sleep(window)
+        cpu1 = {k: cpu_seconds(p.pid) for k, p in procs.items()}
+        wall = time.monotonic() - t0
+        rss = {k: memory_mb(p.pid)[0] for k, p in procs.items()}
+        values = dict(listener.diag_values)
+    finally:
+        codes = stop_processes({f'{a}/{b}': p for (a, b), p in procs.items()})
+        listener.close()
+    per_node = {n: sum(cpu1[(mc, n)] - cpu0[(mc, n)] for mc in machines) / wall / m for n in NODES}
+    late = sum(int(values.get(f'{mc}/sensor_driver: source', {}).get('late_blocks', 0)) for mc in machines)
+    lat = [float(v) for mc in machines for k, v in values.get(f'{mc}/identifier: accumulation', {}).items()
+           if k == 'max_latency_s']
+    return {'m': m, 'cpu_machine': sum(per_node.values()), 'per_node': per_node, 'late': late,
+            'max_latency': max(lat) if lat else float('nan'),
+            'rss_machine': sum(rss.values()) / m, 'codes': codes}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--machines', default='1,4', help='comma-separated machine counts to run (default 1,4)')
+    ap.add_argument('--window', type=float, default=20.0, help='measurement window [s] (default 20)')
+    ap.add_argument('--settle', type=float, default=5.0, help='seconds after every driver publishes (default 5)')
+    args = ap.parse_args(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        files = daq_files(Path(tmp))
+        for m in (int(s) for s in args.machines.split(',')):
+            rows.append(run(m, args.window, args.settle, Path(tmp) / f'm{m}', files))
+    print('machines  CPU/machine [core]  sensor_driver  kf_estimator  identifier  late blocks  max latency [s]  '
+          'RSS/machine [MB]  served by 2 cores')
+    for r in rows:
+        n = r['per_node']
+        print(f"{r['m']:8d}  {r['cpu_machine']:18.3f}  {n['sensor_driver']:13.3f}  {n['kf_estimator']:12.3f}  "
+              f"{n['identifier']:10.3f}  {r['late']:11d}  {r['max_latency']:15.2f}  {r['rss_machine']:16.0f}  "
+              f"{CORES / r['cpu_machine']:17.1f}")
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
