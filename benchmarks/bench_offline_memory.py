@@ -117,7 +117,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     ap.add_argument('--minutes', type=float, default=60.0, help='length of each run (default 60)')
     ap.add_argument('--keep', metavar='DIR', help='write the recordings here and keep them (reused when present)')
-    ap.add_argument('--method', default='direct', help='identify --method (default direct)')
+    ap.add_argument('--method', help='identify --method (default: none given, the default of the command)')
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix='bench_offline_') as tmp:
         d = Path(args.keep) if args.keep else Path(tmp)
@@ -131,7 +131,7 @@ def main(argv=None):
                     np.lib.format.read_magic(fh)
                     n = np.lib.format.read_array_header_2_0(fh)[0][0]
         print(f'# peak RSS of `bearing-id identify` on {len(files)} runs of {args.minutes:g} min, {bl.load_note()}')
-        argv = bl.cli('identify', *files, '--method', args.method, '--allow-undetermined')
+        argv = bl.cli('identify', *files, *(('--method', args.method) if args.method else ()))
         wall, cpu, rss, rc = bl.run_process(argv, timeout=7200.0)
         mb = rss * 2**20 / 1e6
         print(bl.table(['samples per run', 'arrays MiB (all files)', 'peak RSS MB', 'wall s', 'exit', 'target',

@@ -133,3 +133,27 @@ def test_memory_is_bounded_by_the_window_and_the_piece(tmp_path, monkeypatch):
         tracemalloc.stop()
     assert len(vecs) == 2
     assert peak <= bound, (peak, bound, whole_bytes)
+
+
+def test_a_long_window_is_fitted_in_row_blocks_to_the_same_numbers(monkeypatch):
+    """The transient-aware fit triangularised QR_BLOCK_ROWS rows at a time equals the one-block fit (rounding)."""
+    from bearing_id.signals import transient
+    from bearing_id.signals.harmonics import harmonic_vectors
+    fs, n = 10240.0, 40000
+    t = np.arange(n) / fs
+    angle = 2 * math.pi * 25.0 * t
+    rng = np.random.default_rng(5)
+    ring = np.exp(-3.0 * t) * np.cos(2 * math.pi * 120.0 * t + 0.4)
+    x = np.stack([2e-6 * np.cos(angle + 0.3) + 5e-7 * ring, 1.5e-6 * np.sin(angle - 0.2) - 3e-7 * ring], axis=1)
+    x += 2e-8 * rng.standard_normal(x.shape)
+    one = harmonic_vectors(x, angle, transients=3, sample_rate=fs)
+    assert one.transient_rates.size >= 1                      # the ringing mode is found and fitted
+    monkeypatch.setattr(transient, 'QR_BLOCK_ROWS', 4096)    # ~10 blocks
+    blocks = harmonic_vectors(x, angle, transients=3, sample_rate=fs)
+    np.testing.assert_allclose(blocks.transient_rates, one.transient_rates, rtol=1e-7)
+    assert np.all(np.abs(blocks.X - one.X) <= 1e-6 * one.std_re)
+    np.testing.assert_allclose(blocks.std_re, one.std_re, rtol=1e-7)
+    A = rng.standard_normal((10000, 7))
+    R1 = np.linalg.qr(A, mode='r')
+    R2 = transient.stacked_r(A.shape[0], lambda i, j: A[i:j])
+    np.testing.assert_allclose(np.abs(R2), np.abs(R1), rtol=1e-9, atol=1e-9 * np.abs(R1).max())

@@ -216,7 +216,7 @@ class RecordingCheck:
                     'or a keyphasor with more than one mark per revolution?')
 
 
-RATIO_SUBSAMPLE = 1 << 18   # values of the speed-channel check kept (beyond: every k-th, k a power of 2)
+RATIO_SUBSAMPLE = 1 << 16   # values of the speed-channel check kept (beyond: every k-th, k a power of 2)
 
 
 class _Subsample:
