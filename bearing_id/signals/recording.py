@@ -125,7 +125,7 @@ class RecordingCheck:
         self.n = 0
         self._bad = {}                  # name -> [count, first index (tuple)] of its NaN/inf values
         self._size = {}                 # name -> values fed
-        self._peak = (-1.0, None)      # (max |x|, (row, channel) of its first occurrence)
+        self._peak = (-1.0, None)      # (max |x|, (row, channel) of its first occurrence when beyond the limit)
         self._slip = _SlipScan(self.fs)
         self._prev = None               # (angle, speed) of the last sample fed (its angle step needs the next)
         self._any_speed = False
@@ -155,8 +155,11 @@ class RecordingCheck:
         if not self._bad:
             pk = max(float(x.max()), -float(x.min()))        # = max |x| (finite), no (n, nch) temporary
             if pk > self._peak[0]:
-                i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
-                self._peak = (pk, (int(i) + self.n, int(j)))
+                where = None                                  # where it is: only needed to refuse it
+                if pk > MAX_PLAUSIBLE_DISPLACEMENT:
+                    i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
+                    where = (int(i) + self.n, int(j))
+                self._peak = (pk, where)
             self._slip.feed(a)
             self._any_speed = self._any_speed or bool(np.any(w != 0))
             if self._prev is None:
@@ -183,8 +186,9 @@ class RecordingCheck:
                 raise RecordingError(f'{where}: {name}: {count} of {self._size[name]} values are NaN/inf (first at '
                                      f'index {idx}); remove or repair those samples')
         limit = MAX_PLAUSIBLE_DISPLACEMENT
-        peak, (i, j) = self._peak if self._peak[1] is not None else (0.0, (0, 0))
+        peak = self._peak[0]
         if peak > limit:
+            i, j = self._peak[1]
             raise RecordingError(f'{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m '
                                  'a shaft displacement can be: not metres (mm or um?) or damaged data')
         for p in self.probes:
@@ -226,14 +230,14 @@ class _Subsample:
         self._parts, self._kept, self.stride, self.count = [], 0, 1, 0
 
     def add(self, v: np.ndarray) -> None:
+        while self._kept + -(-v.size // self.stride) > RATIO_SUBSAMPLE:   # thin first: only what is kept is copied
+            kept = self.values()[::2]                 # the first value kept is the first added: every 2 stride-th
+            self._parts, self._kept, self.stride = [kept], kept.size, self.stride * 2
         first = (-self.count) % self.stride         # index into v of the next value to keep
         part = np.array(v[first::self.stride], dtype=float)
         self.count += v.size
         self._parts.append(part)
         self._kept += part.size
-        if self._kept > RATIO_SUBSAMPLE:
-            kept = np.concatenate(self._parts)[::2]
-            self._parts, self._kept, self.stride = [kept], kept.size, self.stride * 2
 
     def values(self) -> np.ndarray:
         return np.concatenate(self._parts) if self._parts else np.zeros(0)
