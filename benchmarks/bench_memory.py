@@ -73,7 +73,7 @@ from bearing_id.config.params import load_rig
 from bearing_id.rotor.assembly import RotorModel
 out = [rss()]
 rig = load_rig()
-data = load_data({files!r}, rig)
+data = load_data({files!r}, rig, stream={method!r} != 'paper')   # as the command: paper reads whole
 out.append(rss())
 identify({method!r}, RotorModel.from_params(rig), rig, data)
 out.append(rss())

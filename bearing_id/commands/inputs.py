@@ -18,7 +18,7 @@ import sys
 from ..config.params import ParamError
 from ..io.bags import bag_topics, BagError
 from ..io.daq import read_csv
-from ..io.recordings import load_npz, recordings_from_bag
+from ..io.recordings import load_npz, open_npz, recordings_from_bag
 from ..signals.recording import check_recording
 
 BAG_SUFFIXES = ('.mcap', '.db3')
@@ -32,12 +32,17 @@ def is_bag(path: Path) -> bool:
     return path.is_dir() or path.suffix.lower() in BAG_SUFFIXES
 
 
-def load_recording_file(path: Path):
-    """One ``.npz`` or ``.csv`` recording -> a checked Recording; ParamError if unusable."""
+def load_recording_file(path: Path, stream: bool = False):
+    """
+    One ``.npz`` or ``.csv`` recording -> a checked Recording; ParamError if unusable.
+
+    ``stream``: an .npz is opened to be read piece by piece (:func:`bearing_id.io.recordings.open_npz`: its description
+    checked now, its values as its pieces are read); a CSV is read whole either way.
+    """
     suffix = path.suffix.lower()
     try:
         if suffix == '.npz':
-            return load_npz(path)
+            return open_npz(path) if stream else load_npz(path)
         if suffix in ('.csv', '.txt'):
             return check_recording(read_csv(path), str(path))
     except ValueError as exc:           # rig / daq errors (DaqError, UnicodeDecodeError are ValueErrors)
@@ -77,11 +82,13 @@ def load_bag_recordings(path: Path) -> list:
         raise InputError(f'{path}: too large to read into memory') from None
 
 
-def load_recordings(inputs, *, one_bag_only: bool = False) -> list:
+def load_recordings(inputs, *, one_bag_only: bool = False, stream: bool = False) -> list:
     """
     Load the recordings from files and bags, in the order given (a bag contributes one per excitation run).
 
     one_bag_only : a bag must be the only input (``identify``: .npz/.csv files are one run each, a bag holds all).
+    stream : .npz files are opened to be read piece by piece (:func:`load_recording_file`); their values are checked
+    as they are read, which raises a :class:`bearing_id.signals.recording.RecordingError` naming the file then.
     """
     paths = [Path(s) for s in inputs]
     if not paths:
@@ -97,7 +104,7 @@ def load_recordings(inputs, *, one_bag_only: bool = False) -> list:
         if is_bag(p):
             precheck_bag(p)
         else:
-            loaded[i] = [load_recording_file(p)]
+            loaded[i] = [load_recording_file(p, stream)]
     for i, p in enumerate(paths):
         if i not in loaded:
             loaded[i] = load_bag_recordings(p)

@@ -393,20 +393,28 @@ def combine_vectors(a: WindowVector, b: WindowVector) -> WindowVector:
     return WindowVector(float((a.speed + b.speed) / 2), X, 1.0 / np.sqrt(wa + wb), a.i0, b.i1, a.window, plain)
 
 
+def iter_windows(rec, *, tol_rel=defaults.SPEED_TOLERANCE, max_window: float = defaults.MAX_WINDOW):
+    """
+    Yield the steady windows of one recording as they close: its pieces fed in order to a :class:`RunStream`.
+
+    ``rec.pieces()`` gives (samples, angle, contiguous): an in-memory Recording its arrays between its ``gaps``
+    (views), a recording read from disk (:class:`bearing_id.io.recordings.NpzRecording`) pieces of it, so that at most
+    one window (``max_window`` [s]; the next one is then marked ``continued``) and one piece are held.
+    """
+    stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel, max_duration=max_window)
+    for x, a, contiguous in rec.pieces():
+        yield from stream.feed(x, a, contiguous=contiguous)
+    yield from stream.close()
+
+
 def recording_windows(rec, *, tol_rel=defaults.SPEED_TOLERANCE, max_window: float = defaults.MAX_WINDOW
                       ) -> list[ClosedWindow]:
     """
-    Return the steady windows of one recording: fed whole to a :class:`RunStream`, split at its ``gaps``.
+    Return the steady windows of one recording (:func:`iter_windows`): fed to a :class:`RunStream`, split at its gaps.
 
     A window is closed at the ``max_window`` [s] length limit too (the next one is then marked ``continued``).
     """
-    stream = RunStream(rec.run, rec.probes, rec.sample_rate, tol_rel=tol_rel, max_duration=max_window)
-    cuts = [0] + sorted(int(g) for g in getattr(rec, 'gaps', ()) if 0 < g < rec.samples.shape[0]) + \
-        [rec.samples.shape[0]]
-    wins = []
-    for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
-        wins += stream.feed(rec.samples[a:b], rec.angle[a:b], contiguous=k == 0)
-    return wins + stream.close()
+    return list(iter_windows(rec, tol_rel=tol_rel, max_window=max_window))
 
 
 def window_vectors(wins, vectors, tol_rel: float = defaults.SPEED_TOLERANCE) -> list[WindowVector]:
@@ -435,11 +443,21 @@ def recording_vectors(rec, *, tol_rel=defaults.SPEED_TOLERANCE, settle=defaults.
     """
     Return the 1X vectors of every steady window of one recording.
 
-    Its windows (:func:`recording_windows`), each one's :func:`window_vector`, assembled by :func:`window_vectors`.
+    Its windows (:func:`iter_windows`), each one's :func:`window_vector` as it closes, assembled by
+    :func:`window_vectors`.  A window's arrays are dropped once fitted (the vectors keep its description,
+    :func:`bare_window`): a recording is held one window at a time, never whole.
     """
-    wins = recording_windows(rec, tol_rel=tol_rel, max_window=max_window)
-    return window_vectors(wins, [window_vector(w, settle=settle, min_duration=min_duration, transients=transients)
-                                 for w in wins], tol_rel)
+    wins, vecs = [], []
+    for w in iter_windows(rec, tol_rel=tol_rel, max_window=max_window):
+        v = window_vector(w, settle=settle, min_duration=min_duration, transients=transients)
+        wins.append(bare_window(w))
+        vecs.append(None if v is None else replace(v, window=wins[-1]))
+    return window_vectors(wins, vecs, tol_rel)
+
+
+def bare_window(win: ClosedWindow) -> ClosedWindow:
+    """Return ``win`` without its samples, angle and speed (empty arrays of their kind: no view keeps them alive)."""
+    return replace(win, samples=np.zeros((0, win.samples.shape[1])), angle=np.zeros(0), speed=np.zeros(0))
 
 
 def common_speeds(per_run, tol_rel: float = defaults.SPEED_TOLERANCE) -> tuple[list, list]:
@@ -519,6 +537,6 @@ def stack_vectors(recordings, per_run, tol_rel=defaults.SPEED_TOLERANCE) -> Harm
 
 
 __all__ = ['HarmonicData', 'PlainFit', 'ClosedWindow', 'WindowVector', 'RunStream', 'window_vector',
-           'stationarity_excess', 'combine_vectors', 'recording_windows', 'window_vectors',
-           'recording_vectors', 'common_speeds', 'stack_vectors',
+           'stationarity_excess', 'combine_vectors', 'iter_windows', 'recording_windows', 'bare_window',
+           'window_vectors', 'recording_vectors', 'common_speeds', 'stack_vectors',
            'from_recordings']

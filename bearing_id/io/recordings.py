@@ -8,6 +8,9 @@ Hostile files are refused before anything large is read (see :func:`load_npz`).
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+from dataclasses import dataclass, field
 import math
 import os
 from pathlib import Path
@@ -21,7 +24,7 @@ from .messages import block_from_msg, excitation_from_msg
 from ..config.params import ExcitationEntry, Probe, Run
 from ..identify.harmonics import from_recordings, HarmonicData
 from ..signals.keyphasor import continued_angle
-from ..signals.recording import check_recording, Recording
+from ..signals.recording import check_recording, Recording, RecordingCheck, RecordingError, split_rows
 from ..signals.windows import speed_from_angle
 
 
@@ -113,14 +116,14 @@ def _npz_memory_budget() -> int:
         return 8 << 30
 
 
-def _npz_headers(zf, path: Path, small: dict | None = None) -> dict:
+def _npz_headers(zf, path: Path, small: dict | None = None, streamed=()) -> dict:
     """
     Return {key: (ZipInfo, shape, dtype)} from the .npy headers of every member.
 
     Nothing else is decompressed, except, with a dict ``small``, the known members (:data:`NPZ_KNOWN`) whose header
     declares at most :data:`NPZ_SMALL_BYTES` of data that agree with the member's size: those are read whole
     (``np.lib.format.read_array``, after rewinding the open member) into ``small[key]``, so that each member is
-    opened once.
+    opened once.  The members named in ``streamed`` (read piece by piece) do not count against the memory budget.
     """
     fmt = np.lib.format
     out = {}
@@ -164,7 +167,7 @@ def _npz_headers(zf, path: Path, small: dict | None = None) -> dict:
         if nbytes > NPZ_BOMB_MIN_BYTES and info.file_size > NPZ_BOMB_RATIO * max(info.compress_size, 1):
             raise ValueError(f'{path}: {key} would expand {info.compress_size} compressed bytes to {nbytes} '
                              f'(ratio > {NPZ_BOMB_RATIO}: a zip bomb, refused unread)')
-        total += nbytes
+        total += 0 if key in streamed else nbytes
         out[key] = (info, tuple(int(s) for s in shape), dtype)
     budget = _npz_memory_budget()
     if total > budget:
@@ -232,6 +235,63 @@ def _npz_check_layout(h: dict, path: Path) -> None:
         raise ValueError(f"{path}: gaps must be 1-D, has shape {shape('gaps')}")
 
 
+def _npz_open(path: Path):
+    """Open ``path`` as a zip archive; ValueError when it is none."""
+    try:
+        return zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise ValueError(f'{path}: not a readable .npz recording (not a zip archive: {exc})') from None
+
+
+def _npz_getter(zf, h: dict, small: dict, path: Path):
+    """Return get(key): a member's array, read whole (once: a small one was read with its header)."""
+    def get(key):
+        if key in small:            # read with its header (small known members); each member is read once
+            return small.pop(key)
+        info = h[key][0]
+        try:
+            with zf.open(info) as fh:
+                return np.lib.format.read_array(fh, allow_pickle=False)
+        except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, ValueError on a damaged member
+            raise ValueError(f'{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})') from None
+    return get
+
+
+def _npz_meta(h: dict, get, path: Path, n: int) -> dict:
+    """Return the recording's description (everything but its per-sample arrays) from the members, checked."""
+    def text(key, default):
+        return str(get(key).reshape(-1)[0]) if key in h else default
+
+    fs = float(get('sample_rate').reshape(-1)[0])
+    nodes = get('nodes')
+    if not np.all(np.isfinite(nodes)) or np.any(nodes != np.round(nodes)) or np.any(nodes < 1):
+        raise ValueError(f'{path}: nodes must be 1-based whole numbers, got {nodes.tolist()[:8]}')
+    probes = tuple(Probe(str(c), int(nd), str(r)) for c, nd, r in zip(get('channels'), nodes, get('directions')))
+    ex = []
+    if 'ex_kind' in h:
+        cols = [get(k) for k in NPZ_EXCITATION]
+        if not np.all(np.isfinite(cols[1])):
+            raise ValueError(f'{path}: ex_node must be node numbers')
+        for k, nd, m, p, r, f in zip(*cols):
+            ex.append(ExcitationEntry(str(k), int(nd), float(m), float(p), str(r), float(f)))
+    truth = {}
+    if 'truth_speeds' in h and h['truth_speeds'][1][0]:
+        ts, tn, tK, tC = (get(k) for k in ('truth_speeds', 'truth_nodes', 'truth_K', 'truth_C'))
+        truth['coefficients'] = {float(s): {int(nd): (tK[i, j], tC[i, j]) for j, nd in enumerate(tn)}
+                                 for i, s in enumerate(ts)}
+    segs = []
+    if 'segments' in h:
+        for a, b, s, st in get('segments'):
+            if not (math.isfinite(a) and math.isfinite(b) and 0 <= a <= b <= n):
+                raise ValueError(f'{path}: segment ({a}, {b}) is outside the {n} samples')
+            segs.append((int(a), int(b), float(s), bool(st)))
+    gaps = get('gaps') if 'gaps' in h else np.zeros(0)
+    if not np.all(np.isfinite(gaps)) or np.any((gaps < 0) | (gaps > n)):
+        raise ValueError(f'{path}: gaps must be sample indices in [0, {n}]')
+    return {'sample_rate': fs, 'probes': probes, 'run': Run(text('run_id', '?'), tuple(ex)), 'segments': segs,
+            'truth': truth, 'rig_name': text('rig_name', 'rig'), 'gaps': tuple(int(i) for i in gaps)}
+
+
 def load_npz(path: str | Path) -> Recording:
     """
     Read a recording written by :func:`save_npz`; raises ValueError naming what is wrong.
@@ -239,65 +299,164 @@ def load_npz(path: str | Path) -> Recording:
     Hostile files are refused before anything large is read: the zip directory and every member's .npy header are
     checked first (declared size = the member's size, no zip bomb, total within memory, no pickled objects), then the
     shapes against each other (samples rows = angle = speed = t, channel metadata = sample columns, excitation and
-    truth arrays consistent), then the values (:func:`check_recording`).
+    truth arrays consistent), then the values (:func:`check_recording`).  :func:`open_npz` reads it piece by piece.
     """
     path = Path(path)
-    try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise ValueError(f'{path}: not a readable .npz recording (not a zip archive: {exc})') from None
-    with zf:
+    with _npz_open(path) as zf:
         small = {}
         h = _npz_headers(zf, path, small)
         _npz_check_layout(h, path)
-
-        def get(key):
-            if key in small:            # read with its header (small known members); each member is read once
-                return small.pop(key)
-            info = h[key][0]
-            try:
-                with zf.open(info) as fh:
-                    return np.lib.format.read_array(fh, allow_pickle=False)
-            except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, ValueError on a damaged member
-                raise ValueError(f'{path}: member {info.filename} is corrupt ({type(exc).__name__}: {exc})') from None
-
-        def text(key, default):
-            return str(get(key).reshape(-1)[0]) if key in h else default
-
+        get = _npz_getter(zf, h, small, path)
         samples = np.asarray(get('samples'), dtype=float)
         n = samples.shape[0]
-        fs = float(get('sample_rate').reshape(-1)[0])
-        nodes = get('nodes')
-        if not np.all(np.isfinite(nodes)) or np.any(nodes != np.round(nodes)) or np.any(nodes < 1):
-            raise ValueError(f'{path}: nodes must be 1-based whole numbers, got {nodes.tolist()[:8]}')
-        probes = tuple(Probe(str(c), int(nd), str(r)) for c, nd, r in zip(get('channels'), nodes, get('directions')))
-        ex = []
-        if 'ex_kind' in h:
-            cols = [get(k) for k in NPZ_EXCITATION]
-            if not np.all(np.isfinite(cols[1])):
-                raise ValueError(f'{path}: ex_node must be node numbers')
-            for k, nd, m, p, r, f in zip(*cols):
-                ex.append(ExcitationEntry(str(k), int(nd), float(m), float(p), str(r), float(f)))
-        truth = {}
-        if 'truth_speeds' in h and h['truth_speeds'][1][0]:
-            ts, tn, tK, tC = (get(k) for k in ('truth_speeds', 'truth_nodes', 'truth_K', 'truth_C'))
-            truth['coefficients'] = {float(s): {int(nd): (tK[i, j], tC[i, j]) for j, nd in enumerate(tn)}
-                                     for i, s in enumerate(ts)}
-        segs = []
-        if 'segments' in h:
-            for a, b, s, st in get('segments'):
-                if not (math.isfinite(a) and math.isfinite(b) and 0 <= a <= b <= n):
-                    raise ValueError(f'{path}: segment ({a}, {b}) is outside the {n} samples')
-                segs.append((int(a), int(b), float(s), bool(st)))
-        gaps = get('gaps') if 'gaps' in h else np.zeros(0)
-        if not np.all(np.isfinite(gaps)) or np.any((gaps < 0) | (gaps > n)):
-            raise ValueError(f'{path}: gaps must be sample indices in [0, {n}]')
-        rec = Recording(sample_rate=fs, t=np.asarray(get('t'), dtype=float) if 't' in h else np.arange(n) / fs,
+        meta = _npz_meta(h, get, path, n)
+        rec = Recording(t=np.asarray(get('t'), dtype=float) if 't' in h else np.arange(n) / meta['sample_rate'],
                         speed=np.asarray(get('speed'), dtype=float), angle=np.asarray(get('angle'), dtype=float),
-                        probes=probes, samples=samples, run=Run(text('run_id', '?'), tuple(ex)),
-                        segments=segs, truth=truth, rig_name=text('rig_name', 'rig'),
-                        gaps=tuple(int(i) for i in gaps))
+                        samples=samples, **meta)
     return check_recording(rec, str(path))
+
+
+NPZ_STREAMED = ('samples', 'angle', 'speed', 't')   # the per-sample members, read piece by piece by open_npz
+NPZ_PIECE_BYTES = 4 << 20                          # bytes of samples per piece read (~2 s of 2 channels at 10 kHz)
+
+
+def open_npz(path: str | Path) -> 'NpzRecording':
+    """
+    Open a recording written by :func:`save_npz` to be read piece by piece (:meth:`NpzRecording.pieces`).
+
+    The checks of :func:`load_npz` before anything large is read are made here (zip directory, every .npy header,
+    the shapes against each other, the description's values); the per-sample arrays' values are checked as they are
+    read (:class:`bearing_id.signals.recording.RecordingCheck`).  They do not count against the memory budget
+    (``BEARING_ID_NPZ_MAX_BYTES``): they are never held whole.
+    """
+    path = Path(path)
+    with _npz_open(path) as zf:
+        small = {}
+        h = _npz_headers(zf, path, small, streamed=NPZ_STREAMED)
+        _npz_check_layout(h, path)
+        n = h['samples'][1][0]
+        meta = _npz_meta(h, _npz_getter(zf, h, small, path), path, n)
+    fs = meta['sample_rate']
+    if not (math.isfinite(fs) and fs > 0):
+        raise RecordingError(f'{path}: sample_rate must be a number > 0 Hz, got {fs!r}')
+    return NpzRecording(path=path, n_samples=n, members={k: h[k] for k in NPZ_STREAMED if k in h},
+                        small={k: small[k] for k in NPZ_STREAMED if k in small}, **meta)
+
+
+@dataclass
+class NpzRecording:
+    """
+    A .npz recording opened by :func:`open_npz`: its description at once, its samples piece by piece.
+
+    Carries what a :class:`Recording` carries but the per-sample arrays: ``sample_rate``, ``probes``, ``run``,
+    ``segments``, ``truth``, ``rig_name``, ``gaps`` and ``n_samples``.  :meth:`pieces` reads the samples and the
+    angle in pieces of :data:`NPZ_PIECE_BYTES` (the route :func:`bearing_id.identify.harmonics.from_recordings`
+    takes for every recording), checking every value on the way.  ``samples``, ``angle``, ``speed`` and ``t`` read
+    the whole recording (:func:`load_npz`) the first time one is asked for: what needs the time series whole (the
+    paper method's filter, ``--report``) holds it, nothing else does.
+    """
+
+    path: Path
+    sample_rate: float
+    probes: tuple
+    run: Run
+    n_samples: int
+    members: dict = field(repr=False)
+    small: dict = field(repr=False)
+    segments: list = field(default_factory=list)
+    truth: dict = field(default_factory=dict, repr=False)
+    rig_name: str = 'rig'
+    gaps: tuple = ()
+    _whole: Recording | None = field(default=None, init=False, repr=False, compare=False)
+
+    @property
+    def channels(self) -> list[str]:
+        return [p.name for p in self.probes]
+
+    def whole(self) -> Recording:
+        """Return the recording with its arrays, read once by :func:`load_npz` (with this one's excitation)."""
+        if self._whole is None:
+            self._whole = dataclasses.replace(load_npz(self.path), run=self.run)
+        return self._whole
+
+    samples = property(lambda self: self.whole().samples)
+    angle = property(lambda self: self.whole().angle)
+    speed = property(lambda self: self.whole().speed)
+    t = property(lambda self: self.whole().t)
+
+    def pieces(self):
+        """
+        Yield (samples (n, nch), angle (n,), contiguous) in order, split at ``gaps`` (``contiguous`` False there).
+
+        Every value is checked as it is read; a RecordingError (a ValueError) naming the file is raised after the
+        last piece when any is unusable (the message :func:`load_npz` gives), or at once for a corrupt member.
+        """
+        where = str(self.path)
+        check = RecordingCheck(self, where)
+        nch = len(self.probes)
+        rows = max(1, NPZ_PIECE_BYTES // (8 * nch))
+        with _npz_open(self.path) as zf, contextlib.ExitStack() as stack:
+            readers = {k: _MemberRows(zf, self.members[k], self.small.get(k), self.path, stack)
+                       for k in self.members}
+            for a, b, contiguous in split_rows(self.n_samples, self.gaps, rows):
+                got = {k: r.read(b - a) for k, r in readers.items()}
+                check.feed(got['samples'], got['angle'], got['speed'], got.get('t'))
+                if not check.failed:
+                    yield got['samples'], got['angle'], contiguous
+            for r in readers.values():
+                r.end()
+        check.finish()
+
+
+class _MemberRows:
+    """Rows of one .npy member of an open zip, read in order (or of its array, when read with the headers)."""
+
+    def __init__(self, zf, member, array, path: Path, stack):
+        self.path, self.info = path, member[0]
+        self.shape, self.dtype = member[1], member[2]
+        self.array, self.pos, self.fh = array, 0, None
+        self.row_bytes = self.dtype.itemsize * math.prod(self.shape[1:])
+        if array is not None:
+            return
+        fmt = np.lib.format
+        try:
+            fh = stack.enter_context(zf.open(self.info))
+            version = fmt.read_magic(fh)
+            _, fortran, _ = fmt.read_array_header_1_0(fh) if version == (1, 0) else fmt.read_array_header_2_0(fh)
+            if fortran and len(self.shape) > 1:     # its columns one after another: read whole
+                fh.seek(0)
+                self.array = fmt.read_array(fh, allow_pickle=False)
+            else:
+                self.fh = fh
+        except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError, a damaged header
+            raise self._corrupt(exc) from None
+
+    def _corrupt(self, exc):
+        return RecordingError(f'{self.path}: member {self.info.filename} is corrupt ({type(exc).__name__}: {exc})')
+
+    def read(self, n: int) -> np.ndarray:
+        i0 = self.pos
+        self.pos += n
+        if self.array is not None:
+            return np.asarray(self.array[i0:i0 + n], dtype=float)
+        try:
+            buf = self.fh.read(n * self.row_bytes)
+        except Exception as exc:  # BadZipFile (CRC), zlib.error, EOFError
+            raise self._corrupt(exc) from None
+        if len(buf) != n * self.row_bytes:
+            raise self._corrupt(EOFError(f'{len(buf)} bytes where {n * self.row_bytes} were declared'))
+        return np.frombuffer(buf, dtype=self.dtype).reshape((n,) + tuple(self.shape[1:])).astype(float, copy=False)
+
+    def end(self) -> None:
+        """Read what follows the declared rows: nothing may (reading to the member's last byte checks its CRC)."""
+        if self.fh is None:
+            return
+        try:
+            rest = self.fh.read(1)
+        except Exception as exc:
+            raise self._corrupt(exc) from None
+        if rest:
+            raise self._corrupt(ValueError('data beyond the declared array'))
 
 
 def from_npz(paths, **kw) -> HarmonicData:

@@ -252,6 +252,7 @@ def harmonic_vectors(samples, angle, orders=(1,), *, subsync=None, whole_revs: b
     D[:, 0] = 1.0
     D[:, 1::2] = np.cos(ph)
     D[:, 2::2] = np.sin(ph)
+    del ph                                         # (N, nr): not held through the fits below
     coef, *_ = np.linalg.lstsq(D, x, rcond=None)        # (npar, nch)
     resid = x - D @ coef
     dof = x.shape[0] - npar

@@ -92,6 +92,24 @@ def _rates(p) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------ variable projection
+QR_BLOCK_ROWS = 1 << 17     # rows triangularised at a time (12.8 s at 10,240 Hz): bounds a long window's memory
+
+
+def stacked_r(n: int, fill) -> np.ndarray:
+    """
+    Return R of the QR of an (n, k) matrix (n >= k) given by blocks of rows: ``fill(i, j)`` returns its rows i:j.
+
+    At most :data:`QR_BLOCK_ROWS` rows are held at a time: R of the rows so far is stacked on the next block and
+    triangularised again (R is the same up to the signs of its rows, which no use of it here depends on).  A matrix
+    of at most that many rows is one ``np.linalg.qr`` (the same numbers as before blocks existed).
+    """
+    R = None
+    for i in range(0, n, QR_BLOCK_ROWS):
+        A = fill(i, min(n, i + QR_BLOCK_ROWS))
+        R = np.linalg.qr(A if R is None else np.vstack((R, A)), mode='r')
+    return R
+
+
 class VariableProjection:
     """
     Least squares x = D0 b + E(p) c + noise over p = [s_1, w_1, ...] with b, c eliminated (variable projection).
@@ -111,29 +129,37 @@ class VariableProjection:
         self.Q0, _ = np.linalg.qr(D0)
         self.xp = xw - self.Q0 @ (self.Q0.T @ xw)     # data outside span(D0)
         self._key = None
-        self._buf = None             # (N, k) Fortran-ordered work array, reused by every evaluation
+        self._buf = None             # (rows, k) Fortran-ordered work array, reused by every evaluation
 
     def evaluate(self, p, jac: bool = True):
         """Return (reduced residual (nch (2m + nch),), Jacobian (nch (2m + nch), 2m) or None, c (2m, nch))."""
         key = p.tobytes()
         if key != self._key:
-            E = exp_outer(self.tt, _rates(p), self.dt).view(float)            # (N, 2m) [Re z, Im z]
-            if not np.isfinite(E).all():           # a growth rate the window's length overflows
-                raise ValueError('the decay-rate search left the range the window can represent')
-            n, m2 = E.shape
+            lam = _rates(p)
+            n, m2 = self.tt.size, 2 * lam.size
             L0, nch = self.D0.shape[1], self.xw.shape[1]
             L = L0 + m2
-            if self._buf is None or self._buf.shape[1] < L + m2 + nch:
-                self._buf = np.empty((n, L + m2 + nch), order='F')
-            A = self._buf[:, :L + m2 + nch]
-            A[:, :L0] = self.D0
-            A[:, L0:L] = E
-            np.multiply(E, self.tt[:, None], out=A[:, L:L + m2])
-            A[:, L + m2:] = self.xw
-            R = np.linalg.qr(A, mode='r')
+            k = L + m2 + nch
+            rows = min(n, QR_BLOCK_ROWS)
+            if self._buf is None or self._buf.shape[1] < k:
+                self._buf = np.empty((rows, k), order='F')
+
+            def fill(i, j):
+                A = self._buf[:j - i, :k]
+                E = exp_outer(self.tt[i:j], lam, self.dt).view(float)      # (j - i, 2m) [Re z, Im z]
+                if not np.isfinite(E).all():           # a growth rate the window's length overflows
+                    raise ValueError('the decay-rate search left the range the window can represent')
+                A[:, :L0] = self.D0[i:j]
+                A[:, L0:L] = E
+                np.multiply(E, self.tt[i:j, None], out=A[:, L:L + m2])
+                A[:, L + m2:] = self.xw[i:j]
+                return A
+
+            R = stacked_r(n, fill)
             try:
                 c1 = np.linalg.solve(R[:L, :L], R[:L, L + m2:])[L0:]        # (2m, nch) on [Re z, Im z]
             except np.linalg.LinAlgError:
+                E = exp_outer(self.tt, lam, self.dt).view(float)
                 c1 = np.linalg.lstsq(E - self.Q0 @ (self.Q0.T @ E), self.xp, rcond=None)[0]
             if not np.isfinite(c1).all():          # components numerically collinear: this p describes nothing
                 raise ValueError('the decaying components are collinear at this point of the search')
@@ -298,20 +324,32 @@ def _joint_fit(x, D, tt, p, dt=None):
     """
     N, nch = x.shape
     L0 = D.shape[1]
-    z = exp_outer(tt, _rates(p), dt)
-    m = z.shape[1]
+    lam = _rates(p)
+    m = lam.size
     m2 = 2 * m
     L = L0 + m2
-    A = np.empty((N, L + m2 + nch), order='F')
-    A[:, :L0] = D
-    A[:, L0:L:2] = z.real
-    A[:, L0 + 1:L:2] = z.imag
-    A[:, L:L + m2] = A[:, L0:L] * tt[:, None]
-    A[:, L + m2:] = x
-    R = np.linalg.qr(A, mode='r')
+    buf = np.empty((min(N, QR_BLOCK_ROWS), L + m2 + nch), order='F')
+
+    def fill(i, j):
+        A = buf[:j - i]
+        z = exp_outer(tt[i:j], lam, dt)
+        A[:, :L0] = D[i:j]
+        A[:, L0:L:2] = z.real
+        A[:, L0 + 1:L:2] = z.imag
+        A[:, L:L + m2] = A[:, L0:L] * tt[i:j, None]
+        A[:, L + m2:] = x[i:j]
+        return A
+
+    R = stacked_r(N, fill)
     Rf = R[:L, :L]
     coef = np.linalg.solve(Rf, R[:L, L + m2:])                      # (L, nch)
-    resid = x - A[:, :L] @ coef
+    if N <= buf.shape[0]:
+        resid = x - buf[:, :L] @ coef                                # the one block is still in the buffer
+    else:
+        resid = np.empty_like(x)
+        for i in range(0, N, buf.shape[0]):
+            j = min(N, i + buf.shape[0])
+            resid[i:j] = x[i:j] - fill(i, j)[:, :L] @ coef
     dof = N - L - m2 / nch
     sigma2 = np.sum(resid ** 2, axis=0) / dof                        # (nch,)
     # d model_c / dp_j = T v_jc: v for d/ds_m = -(a_mc, b_mc), for d/dw_m = (b_mc, -a_mc) on (Re tz_m, Im tz_m)
@@ -350,6 +388,7 @@ def fit_decaying_modes(x, D, tt, speed_hz, ratios, max_n, coef0=None) -> dict:
         coef0, *_ = np.linalg.lstsq(D, x, rcond=None)
     r0 = x - D @ coef0
     sig0 = np.sqrt(np.sum(r0 ** 2, axis=0) / (N - L0))
+    del r0                                                   # (N, nch): not held through the search
     if not np.all(sig0 > 0):
         return out                                           # exact fit: nothing to explain
     w = 1.0 / sig0
