@@ -103,7 +103,8 @@ class KFEstimator(Node):
             self.coeff_skipped += 1          # not determined: the model keeps what it has there
             return
         try:
-            self.core.set_coefficients(d['speed'], d['coeffs'])
+            stds = {n: (d['K_std'][i], d['C_std'][i]) for i, n in enumerate(d['nodes'])}
+            self.core.set_coefficients(d['speed'], d['coeffs'], stds)
         except ValueError as exc:
             self._problem(f'BearingCoefficients not used: {exc}')
             return
@@ -218,7 +219,7 @@ class KFEstimator(Node):
             proc.level, proc.message = WARN, self.problems[-1]
             proc.values['problems'] = ' | '.join(list(self.problems)[-5:])
             self.problems.clear()
-        items += [proc, self.core.nis_status(), self.core.health_status(),
+        items += [proc, self.core.nis_status(), self.core.health_status(), self.core.motion_status(),
                   self.core.validity_status(self.last_block_speed)]
         stamp = self.get_clock().now().to_msg()
         self.pub_diag.publish(diagnostics_msg(items, stamp, label(self.machine, self.rig.name), self.machine))

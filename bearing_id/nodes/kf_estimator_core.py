@@ -31,10 +31,11 @@ from ..config import defaults
 from ..config.params import Probe
 from ..conventions import rad_s_to_rpm
 from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
+from ..estimation.uncertainty import coefficient_sigma, filter_std
 from ..excitation import harmonic_forces
 from ..identify.plausibility import ORBIT_LIMIT
 from ..rotor import stability, supports
-from ..rotor.assembly import RotorModel
+from ..rotor.assembly import probe_matrix, RotorModel
 from ..signals.harmonics import harmonic_vectors
 
 NAME = 'kf_estimator'
@@ -115,12 +116,13 @@ class IdentifiedBearings:
     """
     The bearing coefficients the filter's model uses: the identifier's latest fully determined ones, else the theory.
 
-    ``add(speed, coeffs)`` takes a result ({node: (K (2, 2), C (2, 2))} [N/m, N s/m] at ``speed`` [rad/s]); a result
-    within ``tol_rel`` of a known speed replaces it.  Called with a speed, it returns the coefficients there: inside the
-    range of identified speeds linearly interpolated between the two nearest (a single identified speed: within
-    ``tol_rel`` of it), outside it the theory's (``theory_fn``).  ``generation`` counts the changes (the model cache is
-    keyed by it).  With one probe station the bearing-node motion is the model's extrapolation: theory bearings 25 %
-    off put it ~80 % off, identified ones within their accuracy (issue 23).
+    ``add(speed, coeffs, stds)`` takes a result ({node: (K (2, 2), C (2, 2))} [N/m, N s/m] at ``speed`` [rad/s], and
+    their 1-sigma in the same form); a result within ``tol_rel`` of a known speed replaces it.  Called with a speed, it
+    returns the coefficients there: inside the range of identified speeds linearly interpolated between the two
+    nearest (a single identified speed: within ``tol_rel`` of it), outside it the theory's (``theory_fn``).
+    ``generation`` counts the changes (the model cache is keyed by it).  With one probe station the bearing-node motion
+    is the model's extrapolation: theory bearings 25 % off put it ~80 % off, identified ones within their accuracy
+    (issue 23).
     """
 
     def __init__(self, theory_fn, tol_rel: float):
@@ -128,21 +130,23 @@ class IdentifiedBearings:
         self.tol_rel = float(tol_rel)
         self.speeds: list = []
         self.coeffs: list = []
+        self.stds: list = []
         self.generation = 0
         self.lock = threading.Lock()
 
-    def add(self, speed: float, coeffs: dict) -> None:
+    def add(self, speed: float, coeffs: dict, stds: dict | None = None) -> None:
         with self.lock:
             for i, w in enumerate(self.speeds):
                 if abs(w - speed) <= self.tol_rel * speed:
-                    self.speeds[i], self.coeffs[i] = float(speed), coeffs
+                    self.speeds[i], self.coeffs[i], self.stds[i] = float(speed), coeffs, stds
                     break
             else:
                 self.speeds.append(float(speed))
                 self.coeffs.append(coeffs)
+                self.stds.append(stds)
             order = np.argsort(self.speeds)
-            self.speeds = [self.speeds[k] for k in order]
-            self.coeffs = [self.coeffs[k] for k in order]
+            self.speeds, self.coeffs, self.stds = ([x[k] for k in order]
+                                                   for x in (self.speeds, self.coeffs, self.stds))
             self.generation += 1
 
     def source(self, speed: float) -> str:
@@ -166,10 +170,20 @@ class IdentifiedBearings:
             br = self._bracket(speed)
             if br is None:
                 return self.theory_fn(speed)
-            a, b, t = br
-            ca, cb = self.coeffs[a], self.coeffs[b]
-            return {n: ((1 - t) * np.asarray(ca[n][0]) + t * np.asarray(cb[n][0]),
-                        (1 - t) * np.asarray(ca[n][1]) + t * np.asarray(cb[n][1])) for n in ca}
+            return _blend(self.coeffs, *br)
+
+    def uncertainty(self, speed: float) -> dict | None:
+        """
+        Return the 1-sigma {node: (K_std, C_std)} of the coefficients used at ``speed`` [rad/s], or None (theory).
+
+        Between two identified speeds the 1-sigma are interpolated as the values are (the interpolated values' error
+        is at most the larger of the two ends' for a coefficient that is linear between them).
+        """
+        with self.lock:
+            br = self._bracket(speed)
+            if br is None or any(s is None for s in (self.stds[br[0]], self.stds[br[1]])):
+                return None
+            return _blend(self.stds, *br)
 
     def describe(self) -> str:
         """Return, for people, which bearings the models use (identified where, theory where)."""
@@ -179,6 +193,13 @@ class IdentifiedBearings:
             lo, hi = rad_s_to_rpm(self.speeds[0]), rad_s_to_rpm(self.speeds[-1])
             return (f'identified bearings at {len(self.speeds)} speed(s), {lo:.0f}-{hi:.0f} rpm (interpolated '
                     f'between them); theory outside')
+
+
+def _blend(items: list, a: int, b: int, t: float) -> dict:
+    """Return (1 - t) items[a] + t items[b] for {node: (K, C)} dicts."""
+    ca, cb = items[a], items[b]
+    return {n: ((1 - t) * np.asarray(ca[n][0]) + t * np.asarray(cb[n][0]),
+                (1 - t) * np.asarray(ca[n][1]) + t * np.asarray(cb[n][1])) for n in ca}
 
 
 # ------------------------------------------------------------------------------------------------ pure part
@@ -244,6 +265,8 @@ class EstimatorCore:
         self.n_meas = None
         self.threshold = None        # stability threshold [rad/s] (computed by the worker)
         self.last_orbit: dict = {}
+        self._last_motion = None      # (model key, speed, run, estimates (n, k), angle (n,), Kalman model): last block
+        self._coef_sigma: dict = {}   # (model key, run id) -> 1X 1-sigma radius (k,) from the coefficients
         self.resets = 0               # filter restarts from a steady state (new run, lost data)
         self.switches = 0             # model changes the state carried over (speed band, bearings, noise)
         self._dc: deque = deque(maxlen=NOISE_BLOCKS)
@@ -294,9 +317,11 @@ class EstimatorCore:
         return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs),
                 self.bearings.generation)
 
-    def set_coefficients(self, speed: float, coeffs: dict) -> None:
+    def set_coefficients(self, speed: float, coeffs: dict, stds: dict | None = None) -> None:
         """
         Use identified coefficients {node: (K, C)} at ``speed`` [rad/s] from now on (see :class:`IdentifiedBearings`).
+
+        ``stds``: their 1-sigma in the same form (the bearing motion's uncertainty, :meth:`motion_status`).
 
         The models are rebuilt for the new bearings as blocks ask for them; the filter goes on from its state on the
         new model.  Blocks already queued keep the model they were queued for.
@@ -304,7 +329,7 @@ class EstimatorCore:
         if set(coeffs) != set(self.rotor.bearing_nodes):
             raise ValueError(f'coefficients for bearing nodes {sorted(coeffs)}, the model has '
                              f'{sorted(self.rotor.bearing_nodes)}')
-        self.bearings.add(float(speed), coeffs)
+        self.bearings.add(float(speed), coeffs, stds)
         queued = {p[4] for p in self._pending}
         with self._lock:                     # older models no queued block needs are never asked for again
             self._models = {k: v for k, v in self._models.items()
@@ -369,6 +394,7 @@ class EstimatorCore:
             for j, b in enumerate(self.rig.bearings):
                 r = np.sqrt(est[:, 2 * j] ** 2 + est[:, 2 * j + 1] ** 2)
                 self.last_orbit[b.name] = (float(np.max(r)), speed)
+            self._last_motion = (act[0], speed, run, est, angle, kf.km)
             out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id, dc))
         return out
 
@@ -428,6 +454,54 @@ class EstimatorCore:
         return DiagItem(name, WARN, f"model mismatch: {100 * h['fraction'][order]:.0f} % of the innovation power is "
                         f"coherent with {order}X (lag-1 correlation {h['lag1']:.2f}); the model mispredicts the "
                         f'{order}X response -- locate and explain it with `bearing-id diagnose` on a recording', vals)
+
+    def motion_status(self) -> DiagItem:
+        """
+        Report the estimated bearing-node motion with its uncertainty and the bearing orbits against their clearance.
+
+        Per output channel (``<bearing>_<x|y>``): the last block's 1X amplitude [um] and phase [deg], its 1-sigma
+        radius from the 1-sigma of the identified coefficients the model uses (:func:`bearing_id.estimation.
+        uncertainty.coefficient_sigma`), and the filter's per-sample posterior 1-sigma from the noise
+        (:func:`~bearing_id.estimation.uncertainty.filter_std`); per bearing the largest orbit radius over the block as
+        a fraction of the radial clearance.  On theory bearings the coefficients' uncertainty is not known and the
+        estimate is the theory's extrapolation (tens of percent off on the packaged rig): WARN.
+        """
+        name = f'{NAME}: bearing motion'
+        if self._last_motion is None:
+            return DiagItem(name, OK, 'no filtered data yet', {})
+        key, speed, run, est, angle, km = self._last_motion
+        vals = {'speed_rpm': rad_s_to_rpm(speed)}
+        try:
+            X = harmonic_vectors(est, angle, (1,), whole_revs=False).X[0]
+        except ValueError:
+            X = np.full(est.shape[1], np.nan + 0j)
+        stds = self.bearings.uncertainty(speed)
+        sig = None
+        if stds is not None:
+            ck = (key, run.id)
+            sig = self._coef_sigma.get(ck)
+            if sig is None:
+                F = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof).get(1.0)
+                rows = probe_matrix(self.rotor, self.outputs_probes)
+                sig = (np.zeros(len(rows)) if F is None else
+                       coefficient_sigma(self.rotor, speed, self.bearings(speed), stds, F, rows))
+                self._coef_sigma = {ck: sig}
+        noise = filter_std(km)
+        for k, p in enumerate(self.outputs_probes):
+            vals[f'{p.name}_1x_um'] = abs(X[k]) * 1e6
+            vals[f'{p.name}_1x_deg'] = math.degrees(float(np.angle(X[k])))
+            vals[f'{p.name}_1x_std_coefficients_um'] = 'not known (theory bearings)' if sig is None else sig[k] * 1e6
+            vals[f'{p.name}_std_filter_um'] = noise[k] * 1e6
+        for j, b in enumerate(self.rig.bearings):
+            vals[f'{b.name}_orbit_of_clearance'] = float(np.max(np.hypot(est[:, 2 * j], est[:, 2 * j + 1]))
+                                                         / b.clearance)
+        if sig is None:
+            return DiagItem(name, WARN, f'theory bearings at {rad_s_to_rpm(speed):.0f} rpm: the bearing-node motion is '
+                            "the theory's extrapolation, its uncertainty not known (identified coefficients there "
+                            'make it trustworthy)', vals)
+        worst = max(sig[k] / max(abs(X[k]), 1e-300) for k in range(len(sig)))
+        return DiagItem(name, OK, f'identified bearings at {rad_s_to_rpm(speed):.0f} rpm: 1X at the bearing nodes '
+                        f'within {100 * worst:.2g} % (1-sigma from the coefficients)', vals)
 
     def validity_status(self, speed: float | None) -> DiagItem:
         name = f'{NAME}: model validity'
