@@ -59,3 +59,38 @@ def test_a_speed_channel_that_contradicts_the_angle_is_named(recs, tmp_path, fac
     r = identify(save(bad, tmp_path, 'speed'), tmp_path)
     assert r.returncode == 2, r.stdout + r.stderr
     assert f'is x{factor:.3g} the speed of the keyphasor angle' in r.stderr, r.stderr
+
+
+def _with_channel(rec, j, values):
+    x = rec.samples.copy()
+    x[:, j] = values
+    return replace(rec, samples=x)
+
+
+@pytest.mark.parametrize('fault', ['zeros', 'constant'])
+def test_a_dead_channel_is_named_before_any_physics(recs, tmp_path, fault):
+    """All-zero samples (issue 24: diagnosed as a probe turned with gains x 0.000) or a stuck value: exit 2, named."""
+    value = 0.0 if fault == 'zeros' else 3.2e-5
+    bad = [_with_channel(recs[0], 1, value), recs[1]]
+    for cmd in ('identify', 'diagnose'):
+        r = subprocess.run([sys.executable, '-m', 'bearing_id.cli', cmd, *map(str, save(bad, tmp_path, fault))],
+                           capture_output=True, text=True, timeout=300, cwd=tmp_path)
+        assert r.returncode == 2, (cmd, r.stdout + r.stderr)
+        assert f"channel '{recs[0].probes[1].name}' is dead" in r.stderr, (cmd, r.stderr)
+
+
+def test_a_clipped_channel_is_named_and_a_finely_quantised_one_passes(recs):
+    """
+    A probe beyond its range: the channel's top 10 % of values flattened at one value -> refused, named.
+
+    A 16-bit DAQ (the signal spanning ~1000 codes: ~0.6 % of the samples on the peak code, under CLIP_FRACTION)
+    passes, as does a coarse 100-code one (~2 %).
+    """
+    x = recs[0].samples[:, 0]
+    top = np.quantile(x, 0.9)
+    with pytest.raises(ValueError, match=rf"channel '{recs[0].probes[0].name}' is clipped: .* at its largest value"):
+        check_recording(_with_channel(recs[0], 0, np.minimum(x, top)))
+    span = x.max() - x.min()
+    for codes in (1000, 100):
+        q = span / codes
+        check_recording(replace(recs[0], samples=np.round(recs[0].samples / q) * q))

@@ -17,6 +17,10 @@ from ..conventions import parse_probe_direction
 
 #: |displacement| above this [m] is not a plausible shaft vibration in metres (mm or µm sent by mistake?)
 MAX_PLAUSIBLE_DISPLACEMENT = 1e-2
+# a channel with this share of its samples at exactly its largest (or smallest) value is clipped: a probe or DAQ input
+# beyond its range (flat tops), or a resolution so coarse the peaks span a few codes.  A sampled sinusoid with noise
+# reaches its extreme once; quantised to 100 codes of amplitude it sits on its peak code ~2 % of the time.
+CLIP_FRACTION = 0.05
 
 
 @dataclass
@@ -81,7 +85,9 @@ def check_recording(rec: 'Recording', where: str = 'recording') -> 'Recording':
     Refuse a Recording the offline pipeline cannot use (ValueError naming what); returns ``rec``.
 
     Refused: sizes that disagree, a sample rate that is not > 0, NaN/inf in samples/angle/speed/t, a displacement beyond
-    :data:`MAX_PLAUSIBLE_DISPLACEMENT` (not metres, or damaged data), probe nodes < 1 or
+    :data:`MAX_PLAUSIBLE_DISPLACEMENT` (not metres, or damaged data), a dead channel (one value throughout: a probe
+    not connected, a channel not recorded) or a clipped one (:data:`CLIP_FRACTION` of its samples at its extreme
+    value), instrument faults named before any physics is fitted, probe nodes < 1 or
     directions other than x/y/'<angle>deg', excitation entries of unknown kind.  The values are checked by
     :class:`RecordingCheck` (the whole arrays as one piece; a recording streamed from disk is checked piece by piece
     by the same code).
@@ -126,6 +132,7 @@ class RecordingCheck:
         self._bad = {}                  # name -> [count, first index (tuple)] of its NaN/inf values
         self._size = {}                 # name -> values fed
         self._peak = (-1.0, None)      # (max |x|, (row, channel) of its first occurrence when beyond the limit)
+        self._hi = self._lo = None      # per channel: [extreme value (nch,), samples at it (nch,)]
         self._slip = _SlipScan(self.fs)
         self._prev = None               # (angle, speed) of the last sample fed (its angle step needs the next)
         self._any_speed = False
@@ -160,6 +167,7 @@ class RecordingCheck:
                     i, j = np.unravel_index(int(np.argmax(np.abs(x))), x.shape)
                     where = (int(i) + self.n, int(j))
                 self._peak = (pk, where)
+            self._extremes(x)
             self._slip.feed(a)
             self._any_speed = self._any_speed or bool(np.any(w != 0))
             if self._prev is None:
@@ -177,6 +185,40 @@ class RecordingCheck:
             self._prev = (float(a[-1]), float(w[-1]))
         self.n += a.size
 
+    def _extremes(self, x) -> None:
+        """Track each channel's largest and smallest value and how many samples sit exactly at it."""
+        x = x.reshape(x.shape[0], -1)
+        if not x.shape[0]:
+            return
+        for attr, ext in (('_hi', np.max), ('_lo', np.min)):
+            v = ext(x, axis=0)
+            c = np.sum(x == v, axis=0)
+            cur = getattr(self, attr)
+            if cur is None:
+                setattr(self, attr, [v, c])
+                continue
+            beyond = v > cur[0] if attr == '_hi' else v < cur[0]
+            cur[1] = np.where(beyond, c, np.where(v == cur[0], cur[1] + c, cur[1]))
+            cur[0] = np.where(beyond, v, cur[0])
+
+    def _instrument_faults(self, where: str) -> None:
+        """Refuse a dead or a clipped channel (see :func:`check_recording`)."""
+        if self._hi is None or self.n < 2:
+            return
+        (hi, n_hi), (lo, n_lo) = self._hi, self._lo
+        for j, p in enumerate(self.probes):
+            if hi[j] == lo[j]:
+                raise RecordingError(f'{where}: channel {p.name!r} is dead: all {self.n} samples are {hi[j]:.6g} m (a '
+                                     'probe not connected or a channel not recorded); remove that channel from the '
+                                     'export, the others are used')
+            for side, value, count in (('largest', hi[j], n_hi[j]), ('smallest', lo[j], n_lo[j])):
+                if count >= CLIP_FRACTION * self.n:
+                    share = 100 * count / self.n
+                    raise RecordingError(
+                        f'{where}: channel {p.name!r} is clipped: {count} of {self.n} samples ({share:.1f} %) sit '
+                        f'at its {side} value {value:.6g} m (a probe or DAQ input beyond its range, or a '
+                        'resolution too coarse for the signal); fix the range, or remove that channel from the export')
+
     def finish(self) -> None:
         """Raise the first problem of the recording fed (in the order of :func:`check_recording`'s checks)."""
         where = self.where
@@ -191,6 +233,7 @@ class RecordingCheck:
             i, j = self._peak[1]
             raise RecordingError(f'{where}: samples reach {peak:.3g} m (row {i}, channel {j}), beyond the {limit:g} m '
                                  'a shaft displacement can be: not metres (mm or um?) or damaged data')
+        self._instrument_faults(where)
         for p in self.probes:
             try:
                 parse_probe_direction(p.direction)
