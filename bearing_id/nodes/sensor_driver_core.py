@@ -44,6 +44,14 @@ SPECS = [
               '-', lo=0.0, hi=1.0, type_='float'),
     ParamSpec('probes', None, "sim source: probe channels NODE+x|y, e.g. [6x, 6y] (unset: the rig's probes)",
               type_='str[]'),
+    ParamSpec('passes', 1, 'sim source: times the whole plan (every run at every speed) is streamed, each pass with '
+              'its own noise', '', lo=1, hi=100000),
+    ParamSpec('truth_change_after', None, 'sim source: stream time from which the simulated machine changes (unset: '
+              'never; e.g. wear after the first hour)', 's', lo=0.0, hi=1e8, type_='float'),
+    ParamSpec('truth_change_clearance', 1.0, 'sim source: the true bearing clearances times this after '
+              'truth_change_after (wear: > 1)', '-', lo=0.1, hi=10.0),
+    ParamSpec('truth_change_viscosity', 1.0, 'sim source: the true oil viscosity times this after truth_change_after '
+              '(oil temperature)', '-', lo=0.1, hi=10.0),
     ParamSpec('block_size', 1024, 'samples per DisplacementBlock', 'samples', lo=16, hi=1 << 20),
     ParamSpec('rate_factor', 1.0, 'playback speed relative to real time', '-', lo=0.01, hi=1000.0),
     ParamSpec('wait_for_subscribers', 1, 'start once this many subscribers listen to /rotor/displacement '
@@ -85,7 +93,8 @@ def load_sources(values: dict) -> list:
     """
     Return the source's runs from validated parameter ``values``, none of them computed or read yet.
 
-    ``sim``: a :class:`bearing_id.simulation.rig.SimulatedRun` per run (computed piece by piece as it streams);
+    ``sim``: a :class:`bearing_id.simulation.rig.SimulatedRun` per run and pass (computed piece by piece as it
+    streams; the truth changed from ``truth_change_after`` on);
     ``file``: a :class:`DaqFile` per file (read when its turn comes; each must exist).  Raises ParamError.
     """
     if values['source'] == 'file':
@@ -109,8 +118,18 @@ def load_sources(values: dict) -> list:
             raise ParamError(f"parameter 'probes': {exc}") from None
     model = RotorModel.from_params(rig)
     schedule = rigmod.run_schedule(rig, values['speeds_rpm'], values['dwell'])
-    return [rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model)
-            for r in runs]
+    changes = ()
+    if values['truth_change_after'] is not None:
+        changed = rigmod.changed_truth(rig, values['truth_change_clearance'], values['truth_change_viscosity'])
+        changes = ((values['truth_change_after'], changed),)
+    out, t_off = [], 0.0
+    for k in range(values['passes']):
+        for r in runs:
+            seed = None if k == 0 else (rig.simulation.seed * 1000003 + sum(map(ord, r.id)) + 104729 * k) % 2**32
+            out.append(rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model,
+                                              seed=seed, t0=t_off, truth_changes=changes))
+            t_off += out[-1].n_samples / out[-1].sample_rate
+    return out
 
 
 def opened(source):

@@ -162,7 +162,8 @@ class SimulatedRun:
 
 
 def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
-                    bearing_fn=None, effects=(), sample_rate=None, model=None) -> SimulatedRun:
+                    bearing_fn=None, effects=(), sample_rate=None, model=None, t0: float = 0.0,
+                    truth_changes=()) -> SimulatedRun:
     """
     Simulate one excitation run over a speed ``schedule``, lazily.
 
@@ -192,6 +193,12 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
         Hz (default ``rig.simulation.sample_rate``).
     model
         the rig's FE rotor model, if already built (default: built from ``rig``).
+    t0
+        [s] the run's first sample in the time of a longer stream (for ``truth_changes``).
+    truth_changes
+        [(t [s], bearing_fn)] the machine changing while it runs (wear, oil temperature): from the first segment that
+        starts at or after stream time t, the bearings are that ``bearing_fn``'s (:func:`changed_truth`); the state
+        carries over as at any segment boundary.
 
     """
     sim = rig.simulation
@@ -206,6 +213,7 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
     if seed is None:
         seed = (sim.seed * 1000003 + sum(map(ord, run.id))) % (2**32)
     S0 = probe_matrix(model, probes)       # (nch, model.ndof): probes at any angle, with their gain
+    changes = sorted(((float(t), fn) for t, fn in truth_changes), key=lambda c: c[0])
     # sample counts from cumulative segment boundaries, so that short ramp steps lose no time to rounding
     edges = np.round(np.cumsum([0.0] + [s.duration for s in schedule]) * fs).astype(int)
     counts = [max(1, int(c)) for c in np.diff(edges)]
@@ -218,7 +226,11 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
         phi0 = 0.0
         for i0, i1, W, _ in out.segments:
             n = i1 - i0
-            coeffs = bearing_fn(W)
+            fn = bearing_fn
+            for t_change, changed in changes:
+                if t0 + i0 / fs >= t_change:
+                    fn = changed
+            coeffs = fn(W)
             out.truth_coefficients.setdefault(W, {k: (np.array(v[0]), np.array(v[1])) for k, v in coeffs.items()})
             M, C, K = system_matrices(model, W, coeffs, effects)
             nd = M.shape[0]
@@ -382,6 +394,23 @@ def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=N
                                      f'{W * 60 / (2 * math.pi):.0f} rpm is at or above the stability threshold '
                                      f'{threshold * 60 / (2 * math.pi):.0f} rpm (oil whip)'))
     return out
+
+
+def changed_truth(rig: RigParams, clearance: float = 1.0, viscosity: float = 1.0):
+    """
+    Return the bearing_fn of ``rig``'s truth bearings with clearance and viscosity multiplied (every bearing).
+
+    The machine after a change: wear opens the clearance, the oil temperature moves the viscosity (for
+    :func:`simulate_stream`'s ``truth_changes``).
+    """
+    t = rig.simulation.truth
+    n = len(rig.bearings)
+
+    def scaled(factors, by):
+        base = factors if isinstance(factors, (tuple, list)) else (1.0 if factors is None else factors,) * n
+        return tuple(float(f) * by for f in base)
+    return truth_bearing_fn(with_truth(rig, clearance_factor=scaled(t.clearance_factor, clearance),
+                                       viscosity_factor=scaled(t.viscosity_factor, viscosity)))
 
 
 def with_truth(rig: RigParams, **kw) -> RigParams:
