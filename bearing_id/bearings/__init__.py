@@ -42,6 +42,7 @@ from ..conventions import load_rotation
 MODELS = ('short', 'finite')
 KINDS = ('short', 'finite', 'table')
 MODELS_ALL = MODELS + ('finite_direct',)     # 'finite_direct': the direct Reynolds solver (slow, for checks)
+CAVITATION = {'short': (None,), 'finite': ('swift_stieber', 'gumbel')}   # the film conditions each model offers
 
 
 def solution(bearing, speed: float, load: float, *, viscosity: float | None = None, clearance: float | None = None,

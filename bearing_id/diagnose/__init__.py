@@ -21,7 +21,7 @@ missing effect; a factor beyond two prior sigmas or at the bound is reported as 
 physics.  Pass ``nuisance=False`` to trust the nominal bearings as they are.
 
 Bearing model form: a default candidate (``bearing_model_form``: the short bearing, the finite-length Reynolds
-bearing, each bearing under its own cavitation condition).  It competes with the other effects at the model
+bearing under each cavitation condition the physics core offers: Swift-Stieber and Gumbel, each from its table).  It competes with the other effects at the model
 tolerance, and it is tried at the noise floor whenever identify's MODEL MISFIT test trips on the diagnosis' model
 (:mod:`.floor`), so that ``bearing-id identify`` and ``bearing-id diagnose`` never contradict each other.
 

@@ -24,7 +24,7 @@ import types
 import numpy as np
 
 from .effect import Effect
-from .predict import form_label, forward_force, model_forms
+from .predict import bearing_form, form_label, forward_force, model_forms
 from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
@@ -661,7 +661,7 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
     if 'bearing_model_form' in names:
-        nominal = {(b.model, None) for b in rig.bearings}
+        nominal = {bearing_form(b) for b in rig.bearings}
         nom = next(iter(nominal)) if len(nominal) == 1 else None
         for form in model_forms():
             if form in nominal and prob.nuisance:

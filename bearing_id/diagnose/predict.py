@@ -21,6 +21,7 @@ Bearing uncertainty (nuisance)
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 
@@ -34,14 +35,31 @@ from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_
 
 
 # ------------------------------------------------------------------------------------------------ bearing model forms
-def model_forms() -> list[tuple[str, None]]:
+def model_forms() -> list[tuple[str, str | None]]:
     """
     Return every bearing model form the physics core offers, as (model, cavitation) pairs.
 
-    The short (Ocvirk, pi film) and the finite-length Reynolds bearing (:data:`bearing_id.bearings.MODELS`); the
-    cavitation entry is None: each bearing keeps its own condition (``params.Bearing.cavitation``).
+    The short bearing (Ocvirk, pi film: no cavitation choice, None) and the finite-length Reynolds bearing under each
+    cavitation condition it offers (Swift-Stieber / Reynolds, Gumbel / half-Sommerfeld; :data:`bearing_id.bearings.
+    CAVITATION`), each from its precomputed table.
     """
-    return [(m, None) for m in bearings_mod.MODELS]
+    return [(m, cav) for m in bearings_mod.MODELS for cav in bearings_mod.CAVITATION[m]]
+
+
+def bearing_form(bearing) -> tuple[str, str | None]:
+    """Return a bearing's own (model, cavitation) form (None for a table or a short bearing's cavitation)."""
+    model = getattr(bearing, 'model', None)
+    if model not in bearings_mod.CAVITATION:
+        return (model, None)
+    cav = getattr(bearing, 'cavitation', None) or 'swift_stieber'
+    return (model, cav if cav in bearings_mod.CAVITATION[model] else None)
+
+
+def with_form(bearing, form):
+    """Return ``bearing`` under (model, cavitation) ``form`` (None: as it is): the model's cavitation set on it."""
+    if form is None or form[1] is None or getattr(bearing, 'cavitation', None) == form[1]:
+        return bearing
+    return dataclasses.replace(bearing, cavitation=form[1])
 
 
 def form_label(form) -> str:
@@ -50,7 +68,8 @@ def form_label(form) -> str:
     if model == 'short':
         return 'short bearing (Ocvirk, pi film)'
     if model == 'finite':
-        return 'finite-length bearing (Reynolds equation, ' + (f'{cav} cavitation)' if cav else 'Reynolds cavitation)')
+        words = {'swift_stieber': 'Swift-Stieber (Reynolds) cavitation', 'gumbel': 'Gumbel (half-Sommerfeld) film'}
+        return f"finite-length bearing (Reynolds equation, {words.get(cav, 'each bearing its own cavitation')})"
     return f'{model} bearing' + (f' ({cav} cavitation)' if cav else '')
 
 
@@ -192,7 +211,7 @@ class Problem:
                 bkeys = [(i, float(lf[i]), float(lf[self.nb + i]), W, form) for W in todo]
                 miss = [k for k in bkeys if k not in self._bearing_cache]
                 if miss:
-                    K, C = bearings_mod.coefficients_at(b, [k[3] for k in miss], self._loads[b.node],
+                    K, C = bearings_mod.coefficients_at(with_form(b, form), [k[3] for k in miss], self._loads[b.node],
                                                         viscosity=b.viscosity * vf[i], clearance=b.clearance * cf[i],
                                                         model=form[0] if form is not None else b.model)
                     for k, Kk, Ck in zip(miss, K, C):

@@ -50,7 +50,8 @@ def augmented_rig(diag, rig):
         effs += [_plain(v) for v in (x if isinstance(x, list) else [x])]
         form = getattr(e, 'bearing_form', None)
         if form is not None:          # the bearing model form found: the augmented params use it
-            bearings = tuple(dataclasses.replace(b, model=form[0]) for b in bearings)
+            bearings = tuple(dataclasses.replace(b, model=form[0], **({'cavitation': form[1]} if form[1] else {}))
+                             for b in bearings)
     extra = dict(rig.extra or {})
     extra['effects'] = effs
     extra['diagnose_bearing_factors'] = _plain(diag.bearing_factors)
