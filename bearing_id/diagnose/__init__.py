@@ -21,9 +21,10 @@ missing effect; a factor beyond two prior sigmas or at the bound is reported as 
 physics.  Pass ``nuisance=False`` to trust the nominal bearings as they are.
 
 Bearing model form: a default candidate (``bearing_model_form``: the short bearing, the finite-length Reynolds
-bearing under each cavitation condition the physics core offers: Swift-Stieber and Gumbel, each from its table).  It competes with the other effects at the model
-tolerance, and it is tried at the noise floor whenever identify's MODEL MISFIT test trips on the diagnosis' model
-(:mod:`.floor`), so that ``bearing-id identify`` and ``bearing-id diagnose`` never contradict each other.
+bearing under each cavitation condition the physics core offers: Swift-Stieber and Gumbel, each from its table).
+It competes with the other effects at the model tolerance, and it is tried at the noise floor whenever identify's
+MODEL MISFIT test trips on the diagnosis' model (:mod:`.floor`), so that ``bearing-id identify`` and ``bearing-id
+diagnose`` never contradict each other.
 
 Honest numbers: a parameter is given as a number only when its 1-sigma is within 7.5 % (2 sigma within 15 %);
 otherwise it is reported undetermined with what the data do fix (for a pedestal, the dynamic stiffness k - m w^2 at
