@@ -62,7 +62,7 @@ class Identifier(Node):
         self.skipped = {'no_speed': 0, 'no_angles': 0}
         self._gap = False                       # the next measured block follows rejected data
         self.published = 0
-        self.last_results = []
+        self.last_results = []                  # the latest result at every speed (for /diagnostics)
         self.solve_time = None
         self.latency = deque(maxlen=50)         # s, last block of a window -> coefficients published
         self._jobs: queue.Queue = queue.Queue()
@@ -191,7 +191,8 @@ class Identifier(Node):
                 t_req = None
                 continue
             self.solve_time = time.perf_counter() - t0
-            self.last_results = results
+            # the latest result at every speed (a per-speed method returns only the speeds it solved again)
+            self.last_results = sorted(self.core.results.values(), key=lambda r: r.speed)
             sent = 0
             for r in results:
                 if r.fully_determined or self.values['publish_undetermined']:
