@@ -95,3 +95,47 @@ def test_a_missing_params_file_exits_2_in_one_line(tmp_path):
     r = rosutil.run([rosutil.script('identifier'), '--ros-args', '--params-file', str(tmp_path / 'nope.yaml')],
                     timeout=60)
     assert r.returncode == 2 and 'nope.yaml' in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+BEST_EFFORT_PEER = """
+import sys, time
+import rclpy
+from rclpy.qos import qos_profile_sensor_data
+from diagnostic_msgs.msg import DiagnosticArray
+from bearing_id_msgs.msg import DisplacementBlock
+rclpy.init()
+node = rclpy.create_node('daq_sensor_qos')
+node.create_publisher(DisplacementBlock, '/rotor/displacement', qos_profile_sensor_data)   # a SensorDataQoS DAQ
+seen = {}
+def on_diag(msg):
+    for st in msg.status:
+        if st.name == 'identifier: input /rotor/displacement':
+            seen['message'] = st.message
+node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+t_end = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < t_end and 'input_reliability' not in seen.get('message', ''):
+    rclpy.spin_once(node, timeout_sec=0.1)
+print('STATUS:', seen.get('message', '(none)'), flush=True)
+"""
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('reliability', ['reliable', 'best_effort'])
+def test_a_best_effort_publisher_that_cannot_connect_is_explained(tmp_path, reliability):
+    """A SensorDataQoS (best-effort) DAQ publisher and a reliable input: /diagnostics names it and the parameter."""
+    env = rosutil.ros_env()
+    ident = rosutil.RosProcess([rosutil.script('identifier'), '--ros-args', '-p', f'record_dir:={tmp_path}',
+                                '-p', 'diagnostics_period:=0.3', '-p', f'input_reliability:={reliability}'],
+                               env=env, hard_timeout=90)
+    try:
+        r = rosutil.run_python(BEST_EFFORT_PEER, timeout=60, args=(20 if reliability == 'reliable' else 6,), env=env)
+        assert r.returncode == 0, r.stdout + r.stderr
+        status = r.stdout.split('STATUS:', 1)[1]
+        if reliability == 'reliable':
+            assert '1 best-effort publisher(s) on /rotor/displacement' in status, status
+            assert 'input_reliability: best_effort' in status, status
+        else:
+            assert 'best-effort' not in status, status           # it connects: nothing to explain
+    finally:
+        ident.interrupt()
+        ident.close()

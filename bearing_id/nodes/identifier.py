@@ -20,7 +20,7 @@ import numpy as np
 from rclpy.node import Node
 
 from .declare import declare_parameters
-from .diagnostics import diagnostics_msg, flag_publishers
+from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
 from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
 from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
@@ -210,8 +210,8 @@ class Identifier(Node):
                 self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
 
     def diagnostics(self):
-        items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
-                     f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])),
+        disp = self.monitor.status(f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])
+        items = [flag_best_effort(self, TOPIC_DISPLACEMENT, flag_publishers(self, TOPIC_DISPLACEMENT, disp)),
                  self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
         if items[1].level == STALE:
             items[1].level = OK

@@ -18,7 +18,7 @@ import numpy as np
 from rclpy.node import Node
 
 from .declare import declare_parameters
-from .diagnostics import diagnostics_msg, flag_publishers
+from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
 from .kf_estimator_core import block_speed, EstimatorCore, NAME, SPECS
 from .machine import label, machine_id
 from .monitor import StreamMonitor
@@ -190,8 +190,8 @@ class KFEstimator(Node):
                 probes=b.probes, stamp=stamp, frame_id=b.frame_id, sample_angles=ang, run_id=o.run_id))
 
     def diagnostics(self):
-        items = [flag_publishers(self, TOPIC_DISPLACEMENT, self.monitor.status(
-            f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after']))]
+        disp = self.monitor.status(f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])
+        items = [flag_best_effort(self, TOPIC_DISPLACEMENT, flag_publishers(self, TOPIC_DISPLACEMENT, disp))]
         sp_item = DiagItem(f'{NAME}: input {TOPIC_SPEED}', OK, 'receiving', {'messages': self.speed_msgs})
         if self.last_speed is None:
             sp_item.level, sp_item.message = STALE, f'no data received on {TOPIC_SPEED}'
