@@ -123,12 +123,13 @@ def coefficients(bearing, speed: float, load: float, *, viscosity: float | None 
 
 
 def coefficients_at(bearing, speeds, load: float, *, viscosity: float | None = None, clearance: float | None = None,
-                    model: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    model: str | None = None, k_scale: float = 1.0,
+                    c_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """
     Return :func:`coefficients` at every speed of ``speeds`` (n,) [rad/s]: K [N/m], C [N s/m] (n, 2, 2).
 
     A short bearing loaded along -y in one :func:`.short.ocvirk_batch` (the same computation as :func:`.short.ocvirk`,
-    without a call per speed), any other one speed by speed.
+    without a call per speed), any other one speed by speed; ``k_scale``, ``c_scale`` scale a table bearing.
     """
     speeds = np.asarray(speeds, dtype=float).reshape(-1)
     if (model or bearing.model) == 'short' and bearing.model != 'table' and _load_along_y(bearing):
@@ -138,7 +139,8 @@ def coefficients_at(bearing, speeds, load: float, *, viscosity: float | None = N
             raise ValueError(f'bearing coefficients need speed > 0 rad/s (no hydrodynamic film at zero speed), '
                              f'got {speeds!r} for {bearing.name}')
         return ocvirk_batch(float(bearing.diameter), float(bearing.length), c, mu, float(load), speeds)
-    pairs = [coefficients(bearing, w, load, viscosity=viscosity, clearance=clearance, model=model) for w in speeds]
+    pairs = [coefficients(bearing, w, load, viscosity=viscosity, clearance=clearance, model=model, k_scale=k_scale,
+                          c_scale=c_scale) for w in speeds]
     return np.array([k for k, _ in pairs]).reshape(-1, 2, 2), np.array([c for _, c in pairs]).reshape(-1, 2, 2)
 
 

@@ -127,7 +127,7 @@ def _nuisance_words(prob, theta) -> list:
     th = np.asarray(theta, float)
     out = []
     for i, v in enumerate(th):
-        what = ('viscosity' if i < prob.nb else 'clearance') + f' of bearing {i % prob.nb + 1}'
+        what = f'{prob.factor_words(i % prob.nb)[i // prob.nb]} of bearing {i % prob.nb + 1}'
         if abs(v) >= NUIS_BOUND - 1e-6:
             out.append(f'the {what} was refitted to x{np.exp(v):.2f}, the bound of the nuisance range '
                        f'(x{np.exp(-NUIS_BOUND):.2f} .. x{np.exp(NUIS_BOUND):.2f}): it is standing in for physics the '
@@ -347,8 +347,11 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                          f"{v.get('required_reduction', 0.2):.0%} was needed)" if red is not None else
                          f"tested but not validated on held-out data: {e.name} at {e.where} ({v.get('reason', '')})")
     if nuisance:
-        sentences.append('bearing theory refitted as nuisance: viscosity x' + ', x'.join(f'{v:.2f}' for v in vf)
-                         + '; clearance x' + ', x'.join(f'{v:.2f}' for v in cf))
+        words = [prob.factor_words(i) for i in range(prob.nb)]
+        sentences.append('bearing theory refitted as nuisance: ' + '; '.join(
+            f'bearing {i + 1} {w[0]} x{vf[i]:.2f}, {w[1]} x{cf[i]:.2f}' for i, w in enumerate(words))
+            + ' (nuisance values, held near nominal by their prior where the data do not fix them: `bearing-id '
+              'identify` gives the bearings with their 1-sigma)')
         sentences += _nuisance_words(prob, final.theta)
     # the located mismatch: entries significant (>= 3 sigma) against "none"; their RMS before and after [m]
     rb, sg = _entry_residuals(prob, base)

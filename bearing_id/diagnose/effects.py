@@ -660,7 +660,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
         out += [Misalignment(n) for n in ends]
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
-    if 'bearing_model_form' in names:
+    if 'bearing_model_form' in names and not any(b.model == 'table' for b in rig.bearings):
+        # (a table has no form to swap: its coefficients are scaled by the nuisance)
         nominal = {bearing_form(b) for b in rig.bearings}
         nom = next(iter(nominal)) if len(nominal) == 1 else None
         for form in model_forms():

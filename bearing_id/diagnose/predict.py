@@ -16,7 +16,9 @@ Bearing uncertainty (nuisance)
     The nominal bearing theory is itself uncertain (the default rig's truth differs from theory by ~25 %).  Every
     hypothesis, "none" included, refits a viscosity factor and a clearance factor per bearing (log-parametrised,
     Gaussian prior of ``prior_sigma`` in log units around the nominal), so that a wrong bearing theory is not
-    mistaken for a missing effect.  ``nuisance=False`` keeps the nominal bearings fixed.
+    mistaken for a missing effect; a table bearing (no viscosity, no clearance) has its damping C and stiffness K
+    scaled by the pair instead (:meth:`Problem.factor_words`), so that it can move too.  ``nuisance=False`` keeps the
+    nominal bearings fixed.
 """
 from __future__ import annotations
 
@@ -166,6 +168,15 @@ class Problem:
             self._Z0[key] = Z
         return Z
 
+    def factor_words(self, i: int) -> tuple[str, str]:
+        """
+        Return what bearing ``i``'s nuisance pair scales: ('viscosity', 'clearance') or ('damping C', 'stiffness K').
+
+        A table bearing has no viscosity and no clearance: the pair scales its C and K (the table's scales,
+        :func:`bearing_id.bearings.solution`).
+        """
+        return ('damping C', 'stiffness K') if self.rig.bearings[i].model == 'table' else ('viscosity', 'clearance')
+
     def nuisance_factors(self, theta) -> tuple[tuple, tuple]:
         """(viscosity factors, clearance factors) per bearing from the log nuisance vector ``theta``."""
         if not self.n_nuis:
@@ -211,9 +222,13 @@ class Problem:
                 bkeys = [(i, float(lf[i]), float(lf[self.nb + i]), W, form) for W in todo]
                 miss = [k for k in bkeys if k not in self._bearing_cache]
                 if miss:
+                    if b.model == 'table':      # a table: its C and K scaled (the nuisance pair's meaning there)
+                        scaled = {'c_scale': vf[i], 'k_scale': cf[i]}
+                    else:
+                        scaled = {'viscosity': b.viscosity * vf[i], 'clearance': b.clearance * cf[i],
+                                  'model': form[0] if form is not None else b.model}
                     K, C = bearings_mod.coefficients_at(with_form(b, form), [k[3] for k in miss], self._loads[b.node],
-                                                        viscosity=b.viscosity * vf[i], clearance=b.clearance * cf[i],
-                                                        model=form[0] if form is not None else b.model)
+                                                        **scaled)
                     for k, Kk, Ck in zip(miss, K, C):
                         self._bearing_cache[k] = (Kk, Ck)
                 per_bearing.append([self._bearing_cache[k] for k in bkeys])
