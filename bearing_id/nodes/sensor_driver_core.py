@@ -125,9 +125,9 @@ def load_sources(values: dict) -> list:
     out, t_off = [], 0.0
     for k in range(values['passes']):
         for r in runs:
-            seed = None if k == 0 else (rig.simulation.seed * 1000003 + sum(map(ord, r.id)) + 104729 * k) % 2**32
             out.append(rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model,
-                                              seed=seed, t0=t_off, truth_changes=changes))
+                                              seed=rigmod.run_seed(rig.simulation.seed, r.id, k), t0=t_off,
+                                              truth_changes=changes))
             t_off += out[-1].n_samples / out[-1].sample_rate
     return out
 

@@ -161,6 +161,11 @@ class SimulatedRun:
         return self._solve(self)
 
 
+def run_seed(seed: int, run_id: str, pass_index: int = 0) -> int:
+    """Return the noise seed of run ``run_id`` (pass ``pass_index`` of a repeated plan) from the rig's ``seed``."""
+    return (seed * 1000003 + sum(map(ord, run_id)) + 104729 * pass_index) % (2**32)
+
+
 def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
                     bearing_fn=None, effects=(), sample_rate=None, model=None, t0: float = 0.0,
                     truth_changes=()) -> SimulatedRun:
@@ -184,7 +189,7 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
         std as a fraction of each channel's RMS per segment (per piece of a longer segment; default
         ``rig.simulation.noise``).
     seed
-        noise seed (default ``rig.simulation.seed`` combined with the run id).
+        noise seed (default :func:`run_seed` of ``rig.simulation.seed`` and the run id).
     bearing_fn
         speed -> {node: (K, C)} of the real bearings (default :func:`truth_bearing_fn`).
     effects
@@ -211,7 +216,7 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
                                  f'clearance x{sim.truth.clearance_factor}')
     bearing_fn = bearing_fn or truth_bearing_fn(rig)
     if seed is None:
-        seed = (sim.seed * 1000003 + sum(map(ord, run.id))) % (2**32)
+        seed = run_seed(sim.seed, run.id)
     S0 = probe_matrix(model, probes)       # (nch, model.ndof): probes at any angle, with their gain
     changes = sorted(((float(t), fn) for t, fn in truth_changes), key=lambda c: c[0])
     # sample counts from cumulative segment boundaries, so that short ramp steps lose no time to rounding
