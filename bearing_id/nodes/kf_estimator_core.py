@@ -266,7 +266,7 @@ class EstimatorCore:
         self.threshold = None        # stability threshold [rad/s] (computed by the worker)
         self.last_orbit: dict = {}
         self._last_motion = None      # (model key, speed, run, estimates (n, k), angle (n,), Kalman model): last block
-        self._coef_sigma: dict = {}   # (model key, run id) -> 1X 1-sigma radius (k,) from the coefficients
+        self._coef_sigma = None       # ((model key, run id), 1X 1-sigma radius (k,) from the coefficients): the last
         self.resets = 0               # filter restarts from a steady state (new run, lost data)
         self.switches = 0             # model changes the state carried over (speed band, bearings, noise)
         self._dc: deque = deque(maxlen=NOISE_BLOCKS)
@@ -479,22 +479,20 @@ class EstimatorCore:
         sig = None
         if stds is not None:
             ck = (key, run.id)
-            sig = self._coef_sigma.get(ck)
-            if sig is None:
+            if self._coef_sigma is None or self._coef_sigma[0] != ck:
                 F = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof).get(1.0)
                 rows = probe_matrix(self.rotor, self.outputs_probes)
-                sig = (np.zeros(len(rows)) if F is None else
-                       coefficient_sigma(self.rotor, speed, self.bearings(speed), stds, F, rows))
-                self._coef_sigma = {ck: sig}
+                self._coef_sigma = (ck, np.zeros(len(rows)) if F is None else
+                                    coefficient_sigma(self.rotor, speed, self.bearings(speed), stds, F, rows))
+            sig = self._coef_sigma[1]
         noise = filter_std(km)
         for k, p in enumerate(self.outputs_probes):
             vals[f'{p.name}_1x_um'] = abs(X[k]) * 1e6
             vals[f'{p.name}_1x_deg'] = math.degrees(float(np.angle(X[k])))
             vals[f'{p.name}_1x_std_coefficients_um'] = 'not known (theory bearings)' if sig is None else sig[k] * 1e6
             vals[f'{p.name}_std_filter_um'] = noise[k] * 1e6
-        for j, b in enumerate(self.rig.bearings):
-            vals[f'{b.name}_orbit_of_clearance'] = float(np.max(np.hypot(est[:, 2 * j], est[:, 2 * j + 1]))
-                                                         / b.clearance)
+        for b in self.rig.bearings:              # the block's largest orbit radius, as drain() keeps it
+            vals[f'{b.name}_orbit_of_clearance'] = self.last_orbit[b.name][0] / b.clearance
         if sig is None:
             return DiagItem(name, WARN, f'theory bearings at {rad_s_to_rpm(speed):.0f} rpm: the bearing-node motion is '
                             "the theory's extrapolation, its uncertainty not known (identified coefficients there "
