@@ -19,6 +19,7 @@ import time
 from bearing_id.config.params import load_rig, Probe
 from bearing_id.identify import harmonics, identify
 from bearing_id.io.messages import Block
+from bearing_id.nodes import kf_estimator_core
 from bearing_id.nodes.kf_estimator_core import EstimatorCore, IdentifiedBearings
 from bearing_id.nodes.status import OK, WARN
 from bearing_id.rotor.assembly import RotorModel
@@ -169,3 +170,46 @@ def test_blocks_queued_before_new_coefficients_are_still_filtered(case):
         time.sleep(0.01)
     core.close()
     assert [o.seq for o in out] == [0, 1, 2, 3] and core.resets == 1 and core.switches == 1
+
+
+def test_a_result_within_a_quarter_sigma_keeps_the_models():
+    """The identifier tracking a steady machine resends results that move within their sigma: no model is rebuilt."""
+    ib = IdentifiedBearings(lambda w: {}, 0.01)
+    K, C = 1e8 * np.eye(2), 1e4 * np.eye(2)
+    sig = {2: (1e6 * np.ones((2, 2)), 1e2 * np.ones((2, 2)))}
+    assert ib.add(100.0, {2: (K, C)}, sig)
+    g = ib.generation
+    assert not ib.add(100.0, {2: (K + 0.2e6, C - 20.0)}, sig)             # 0.2 sigma: the models stay
+    assert ib.generation == g and np.array_equal(ib(100.0)[2][0], K)
+    assert ib.add(100.0, {2: (K + 0.3e6, C)}, sig) and ib.generation == g + 1   # 0.3 sigma: rebuilt
+    assert ib.add(100.0, {2: (K, C)}, None)                               # no sigma given: always taken
+
+
+def test_the_reduced_filter_estimates_as_the_full_model(case):
+    """
+    The node's default Craig-Bampton model (every mode below Nyquist) against the full FE model, at 3000 rpm.
+
+    Same data, same identified bearings: the bearing-node 1X of the two filters agree within 0.05 of the 1X's stated
+    1-sigma (from the identified coefficients' 1-sigma, estimation.uncertainty.coefficient_sigma, which
+    /diagnostics publishes), on fewer states.
+    """
+    rig, _, _ = case
+    rpm = 3000.0
+    recs = [R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=1.0, ramp=0.0) for run in rig.simulation.runs]
+    (r,) = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
+    assert r.fully_determined
+    coeffs = {n: (r.K[i], r.C[i]) for i, n in enumerate(r.nodes)}
+    stds = {n: (r.K_std[i], r.C_std[i]) for i, n in enumerate(r.nodes)}
+    x1, sigma = [], None
+    for cutoff in (0.0, kf_estimator_core.MODEL_CUTOFF):
+        core = EstimatorCore(rig, 1e-16, 0.0, 0.01, cutoff=cutoff)
+        core.set_coefficients(r.speed, coeffs, stds)
+        est = filtered(core, recs[0], recs[0].run)
+        steady = slice(est.shape[0] // 4, None)
+        x1.append(one_x(est[steady], recs[0].angle[steady]))
+        core.motion_status()
+        sigma = core._coef_sigma[1]
+        states = core.kf_rotor(recs[0].sample_rate)
+        core.close()
+    assert 2 * states.nr < 2 * RotorModel.from_params(rig).ndof
+    assert np.all(np.abs(x1[1] - x1[0]) <= 0.05 * sigma), (np.abs(x1[1] - x1[0]) / sigma)

@@ -323,7 +323,7 @@ def test_estimator_core_builds_models_off_the_data_path_and_matches_the_batch_fi
         time.sleep(0.01)
     core.close()
     assert [o.seq for o in out] == [0, 1, 2, 3]
-    km = rotor_kalman_model(core.rotor, w, core.bearing_fn(w), rec.probes, fs, Q=1e-16, R=1e-14,
+    km = rotor_kalman_model(core.kf_rotor(fs), w, core.bearing_fn(w), rec.probes, fs, Q=1e-16, R=1e-14,
                             forces=harmonic_forces(rec.run.excitation, w, core.rotor.n_nodes),
                             outputs=[(p.node, p.direction) for p in core.outputs_probes])
     dc = np.concatenate([np.broadcast_to(o.offset, o.innovations.shape) for o in out])   # each block's DC removed

@@ -44,8 +44,12 @@ class KFEstimator(Node):
         self.rig = rig
         self.machine = machine_id(v['machine_id'], self.get_namespace())
         channels = v['channels'] or [p.name for p in rig.probes]
+        # blocks waiting for a model are drained when the builder thread has it (a guard condition wakes the
+        # executor), not by polling: an idle node costs no CPU
+        self._model_ready = self.create_guard_condition(self.drain)
         self.core = EstimatorCore(rig, v['process_noise'], v['measurement_noise'], v['speed_band'],
-                                  v['max_pending_blocks'], v['nis_window'])
+                                  v['max_pending_blocks'], v['nis_window'], on_ready=self._model_ready.trigger,
+                                  cutoff=v['model_cutoff'])
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.resolver = RunResolver(v['max_pending_blocks'])
         self.last_speed = None            # (speed, wall time)
@@ -75,7 +79,6 @@ class KFEstimator(Node):
             subscribe_latched(self, M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), self.on_coefficients)
         self.create_subscription(M.RotorSpeed, relative(TOPIC_SPEED), self.on_speed, qos_input(self, 50))
         self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
-        self.create_timer(0.02, self.drain)
         self.create_timer(v['diagnostics_period'], self.diagnostics)
         noise = f"({v['measurement_noise']:g} m)^2" if v['measurement_noise'] else 'per channel from the data'
         self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, R {noise}; "

@@ -6,17 +6,19 @@ chi-square band; model health: 1X/2X-coherent or correlated innovations; model v
 ``ORBIT_LIMIT`` of the clearance, speed against the stability threshold).
 
 Model cache
-    The discretised FE model (:func:`bearing_id.estimation.kalman.rotor_kalman_model`; its bearings are the
-    identifier's latest fully determined coefficients where they cover the speed, else the theory's:
-    :class:`IdentifiedBearings`) is cached per speed band (relative width ``speed_band``) and bearing generation, and
-    built by a worker thread.  A block whose band has no model yet waits in an ordered queue (at most
-    ``max_pending_blocks``) while the callback returns at once: rebuilds never stall the data path.  Expected speeds
-    (``prebuild_speeds_rpm``) are built at start-up.  The filter restarts from the model's steady state
-    (kalman.StreamingKF) after a gap, a band change, a run change or new bearing coefficients.
+    The discretised FE model (:func:`bearing_id.estimation.kalman.rotor_kalman_model`, on the Craig-Bampton reduced
+    rotor that keeps every mode below ``model_cutoff`` times the sample rate; its bearings are the identifier's latest
+    fully determined coefficients where they cover the speed, else the theory's: :class:`IdentifiedBearings`) is
+    cached per speed band (relative width ``speed_band``) and bearing generation, at most ``MAX_MODELS`` of them, and
+    built by a worker thread with the latest noise.  A block whose model is not built yet waits in an ordered queue (at
+    most ``max_pending_blocks``) while the callback returns at once.  Expected speeds (``prebuild_speeds_rpm``) are
+    built at start-up.  When a channel's noise moves by more than ``NOISE_STEP`` from the model's, its gain is re-solved
+    (and cached).  The filter starts from the model's steady state (kalman.StreamingKF) at a new run or after lost data;
+    when only the model changes (speed band, bearings, noise) the state carries over (``continue_from``).
 """
 from __future__ import annotations
 
-from collections import deque
+from collections import deque, OrderedDict
 from dataclasses import dataclass
 import math
 import queue
@@ -36,9 +38,15 @@ from ..excitation import harmonic_forces
 from ..identify.plausibility import ORBIT_LIMIT
 from ..rotor import stability, supports
 from ..rotor.assembly import probe_matrix, RotorModel
+from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
 from ..signals.harmonics import harmonic_vectors
 
 NAME = 'kf_estimator'
+# the default reduction: modes above the Nyquist frequency are left out (88 -> 52 states on the packaged rig at
+# 10,240 Hz, the bearing-node estimates as the full model's within 0.01 % at 3000 rpm).  A lower cutoff is not
+# free: the process noise on the modes between it and Nyquist shapes the gain (at 1000 Hz the 3000 rpm estimates
+# move by 2.4 %), so it is a parameter, not a tuning knob
+MODEL_CUTOFF = 0.5
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
@@ -50,6 +58,10 @@ SPECS = [
     ParamSpec('measurement_noise', 0.0, 'probe noise standard deviation (R = value^2 times identity); 0: per '
               'channel from the data (the residual of a DC + 1X + 2X fit, median over the last 8 blocks)', 'm',
               lo=0.0, hi=1e-3),
+    ParamSpec('model_cutoff', MODEL_CUTOFF, "the filter's FE model is Craig-Bampton reduced: the probe and bearing "
+              'DOFs kept, and the rotor modes (bearings fixed) below this fraction of the sample rate (0.5: every '
+              'mode below the Nyquist frequency, all the data can see); its 1X receptance error is on /diagnostics; '
+              '0: the full FE model', '-', lo=0.0, hi=1e3),
     ParamSpec('speed_band', 0.01, 'relative width of the speed bands a model is cached and reused for', '-',
               lo=1e-5, hi=0.2),
     ParamSpec('min_speed_rpm', 60.0, 'below this speed no oil-film model is run (blocks are skipped)', 'rpm',
@@ -74,12 +86,13 @@ NOISE_BLOCKS = 8         # blocks whose median DC and noise the filter uses
 NOISE_STEP = 1.25       # a channel's noise std moving by more than this factor re-solves the filter's gain
 NOISE_FLOOR = 1e-12     # m: the smallest noise std used (a noise-free signal still needs R > 0)
 DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
+MODEL_MOVE = 0.25       # an identified coefficient moving less than this times its 1-sigma keeps the models
+MAX_MODELS = 64         # models kept in the cache (the least recently used goes first)
+REDUCTION_WARN = 1e-3   # a reduced model's relative 1X receptance error above this is a WARN (raise the cutoff)
 
 
 def _noise_moved(R, R_used) -> bool:
     """Whether the per-channel noise variance ``R`` moved by more than NOISE_STEP (in std) from ``R_used``."""
-    if R_used is None:
-        return True
     return bool(np.any(np.abs(np.log(R / R_used)) > 2 * math.log(NOISE_STEP)))
 
 
@@ -120,9 +133,11 @@ class IdentifiedBearings:
     their 1-sigma in the same form); a result within ``tol_rel`` of a known speed replaces it.  Called with a speed, it
     returns the coefficients there: inside the range of identified speeds linearly interpolated between the two
     nearest (a single identified speed: within ``tol_rel`` of it), outside it the theory's (``theory_fn``).
-    ``generation`` counts the changes (the model cache is keyed by it).  With one probe station the bearing-node motion
-    is the model's extrapolation: theory bearings 25 % off put it ~80 % off, identified ones within their accuracy
-    (issue 23).
+    ``generation`` counts the changes (the model cache is keyed by it).  A result at a known speed whose every
+    coefficient is within ``MODEL_MOVE`` of its 1-sigma of the values in use is no change: the identifier tracking a
+    steady machine sends a new result at every window, and re-solving every model for a move its own sigma disowns
+    would cost the filter's whole budget.  With one probe station the bearing-node motion is the model's
+    extrapolation: theory bearings 25 % off put it ~80 % off, identified ones within their accuracy (issue 23).
     """
 
     def __init__(self, theory_fn, tol_rel: float):
@@ -134,10 +149,14 @@ class IdentifiedBearings:
         self.generation = 0
         self.lock = threading.Lock()
 
-    def add(self, speed: float, coeffs: dict, stds: dict | None = None) -> None:
+    def add(self, speed: float, coeffs: dict, stds: dict | None = None) -> bool:
+        """Take a result; return whether the coefficients in use changed (False: within MODEL_MOVE sigma)."""
         with self.lock:
             for i, w in enumerate(self.speeds):
                 if abs(w - speed) <= self.tol_rel * speed:
+                    if _within(self.coeffs[i], coeffs, stds):
+                        self.stds[i] = stds
+                        return False
                     self.speeds[i], self.coeffs[i], self.stds[i] = float(speed), coeffs, stds
                     break
             else:
@@ -148,6 +167,7 @@ class IdentifiedBearings:
             self.speeds, self.coeffs, self.stds = ([x[k] for k in order]
                                                    for x in (self.speeds, self.coeffs, self.stds))
             self.generation += 1
+            return True
 
     def source(self, speed: float) -> str:
         """Return what the model at ``speed`` [rad/s] uses: 'identified' or 'theory'."""
@@ -193,6 +213,14 @@ class IdentifiedBearings:
             lo, hi = rad_s_to_rpm(self.speeds[0]), rad_s_to_rpm(self.speeds[-1])
             return (f'identified bearings at {len(self.speeds)} speed(s), {lo:.0f}-{hi:.0f} rpm (interpolated '
                     f'between them); theory outside')
+
+
+def _within(used: dict, new: dict, stds: dict | None) -> bool:
+    """Whether every coefficient of ``new`` is within MODEL_MOVE of its 1-sigma (``stds``) of ``used``."""
+    if stds is None or set(used) != set(new):
+        return False
+    return all(np.all(np.abs(np.asarray(new[n][j]) - np.asarray(used[n][j])) <= MODEL_MOVE * np.asarray(stds[n][j]))
+               for n in new for j in (0, 1))
 
 
 def _blend(items: list, a: int, b: int, t: float) -> dict:
@@ -241,18 +269,27 @@ class EstimatorCore:
     channel).  ``speed`` [rad/s] selects the model (its speed band) and the forcing frequency.
     """
 
-    def __init__(self, rig, Q: float, R_std: float, band: float, max_pending: int = 400, nis_window: int = 50):
+    def __init__(self, rig, Q: float, R_std: float, band: float, max_pending: int = 400, nis_window: int = 50,
+                 on_ready=None, cutoff: float = MODEL_CUTOFF):
         self.rig = rig
+        self.on_ready = on_ready      # called (from the builder thread) after each model is built or failed
         self.rotor = RotorModel.from_params(rig)
+        # the filter's model: Craig-Bampton reduced (cutoff > 0, one basis per sample rate) or the full rotor.  The
+        # basis is speed and bearing independent, so the state carries over between the models of all speeds and
+        # bearings
+        self.cutoff = float(cutoff)
+        self._kf_rotors: dict = {}     # sample rate [Hz] -> the rotor its models are built on
+        self.reduction_error = 0.0     # largest relative 1X receptance error of the reduced models built
         self.bearing_fn = supports.bearing_fn(rig)
         self.bearings = IdentifiedBearings(self.bearing_fn, band)     # what the filter's models use
         self.Q = float(Q)
         self.R_fixed = float(R_std) > 0                 # else R per channel from the data (_clean)
-        self.R = float(R_std) ** 2 if self.R_fixed else DEFAULT_R_STD ** 2     # the cached models' (replaced)
+        # R [m^2] new models are built with: fixed, or the latest per-channel noise the data gave (_clean)
+        self.R = float(R_std) ** 2 if self.R_fixed else DEFAULT_R_STD ** 2
         self.band = float(band)
         self.max_pending = int(max_pending)
         self.outputs_probes = tuple(Probe(f'{b.name}_{d}', b.node, d) for b in rig.bearings for d in ('x', 'y'))
-        self._models: dict = {}
+        self._models: OrderedDict = OrderedDict()      # key -> KalmanModel or the build's exception (LRU)
         self._building: set = set()
         self._lock = threading.Lock()
         self._jobs: queue.Queue = queue.Queue()
@@ -287,8 +324,12 @@ class EstimatorCore:
                 if key == 'threshold':
                     self.threshold = float(stability.threshold_speed(self.rotor, self.bearing_fn, speed))
                     continue
-                km = rotor_kalman_model(self.rotor, speed, self.bearings(speed), probes, fs, Q=self.Q, R=self.R,
+                coeffs = self.bearings(speed)
+                rotor = self.kf_rotor(fs)
+                km = rotor_kalman_model(rotor, speed, coeffs, probes, fs, Q=self.Q, R=self.R,
                                         outputs=[(p.node, p.direction) for p in self.outputs_probes])
+                if rotor is not self.rotor:
+                    self.reduction_error = max(self.reduction_error, receptance_error(rotor, speed, coeffs))
                 StreamingKF(km)          # builds and caches the steady-state gain and the chunked operator
                 with self._lock:
                     self._models[key] = km
@@ -300,6 +341,21 @@ class EstimatorCore:
             finally:
                 with self._lock:
                     self._building.discard(key)
+                if self.on_ready is not None and key != 'threshold':
+                    try:
+                        self.on_ready()
+                    except Exception:     # the node is shutting down (its wake-up handle is gone): nothing to wake
+                        pass
+
+    def kf_rotor(self, fs: float):
+        """Return the rotor the models at sample rate ``fs`` [Hz] are built on (the reduced one, once per rate)."""
+        if self.cutoff <= 0:
+            return self.rotor
+        red = self._kf_rotors.get(fs)
+        if red is None:
+            kept = kf_kept_dofs(self.rotor, [(p.node, p.direction) for p in self.rig.probes])
+            red = self._kf_rotors[fs] = craig_bampton(self.rotor, kept, cutoff_hz=self.cutoff * float(fs))
+        return red
 
     def request(self, speed: float, probes, fs: float):
         key = self.key(speed, probes, fs)
@@ -314,6 +370,7 @@ class EstimatorCore:
         self._jobs.put(('threshold', speed_max, (), 0.0))
 
     def key(self, speed, probes, fs):
+        """Return a model's cache key: (speed band, probes, sample rate, bearing generation)."""
         return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs),
                 self.bearings.generation)
 
@@ -329,11 +386,12 @@ class EstimatorCore:
         if set(coeffs) != set(self.rotor.bearing_nodes):
             raise ValueError(f'coefficients for bearing nodes {sorted(coeffs)}, the model has '
                              f'{sorted(self.rotor.bearing_nodes)}')
-        self.bearings.add(float(speed), coeffs, stds)
+        if not self.bearings.add(float(speed), coeffs, stds):
+            return
         queued = {p[4] for p in self._pending}
         with self._lock:                     # older models no queued block needs are never asked for again
-            self._models = {k: v for k, v in self._models.items()
-                            if k[3] == self.bearings.generation or k in queued}
+            self._models = OrderedDict((k, v) for k, v in self._models.items()
+                                       if k[3] == self.bearings.generation or k in queued)
 
     def ready(self, key) -> bool:
         with self._lock:
@@ -362,6 +420,8 @@ class EstimatorCore:
             block, run, speed, contiguous, key = self._pending[0]
             with self._lock:
                 km = self._models.get(key)
+                if km is not None:
+                    self._models.move_to_end(key)
             if km is None:
                 break
             self._pending.popleft()
@@ -374,18 +434,25 @@ class EstimatorCore:
             if not same_stream:
                 self._dc.clear()
                 self._noise.clear()
-            z, R, dc = self._clean(block.samples, angle)
-            if not same_stream or act[0] != key or (R is not None and _noise_moved(R, act[3])):
+            z, dc = self._clean(block.samples, angle)
+            R = None if self.R_fixed else np.broadcast_to(self.R, (block.samples.shape[1],))
+            if not same_stream or act[0] != key or (R is not None and _noise_moved(R, np.diag(act[2].km.R))):
+                if R is not None and _noise_moved(R, np.diag(km.R)):
+                    km = km.with_noise(R=R)         # the cached model's noise is not the data's: its gain re-solved,
+                    km.steady_state()               # and cached for the next visit of this band
+                    with self._lock:
+                        if key in self._models:
+                            self._models[key] = km
                 forces = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof)
                 kmf = km.with_forces(forces, speed)
-                kf = StreamingKF(kmf if R is None else kmf.with_noise(R=R), band_tol_rel=self.band)
+                kf = StreamingKF(kmf, band_tol_rel=self.band)
                 if same_stream and act[2].km.n == kf.km.n:
                     kf.continue_from(act[2], angle[0])   # the model follows the speed (or bearings, noise): no restart
                     self.switches += 1
                 else:
                     self.resets += 1
                     self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
-                self._active = act = (key, run.id, kf, R)
+                self._active = act = (key, run.id, kf)
             kf = act[2]
             est, nu, nis = kf.step_block(z, angle, speed)
             self.nis_hist.append((float(np.sum(nis)), n))
@@ -396,16 +463,27 @@ class EstimatorCore:
                 self.last_orbit[b.name] = (float(np.max(r)), speed)
             self._last_motion = (act[0], speed, run, est, angle, kf.km)
             out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id, dc))
+        self._evict()
         return out
+
+    def _evict(self):
+        """Keep at most MAX_MODELS models: the least recently used go first, never one a queued block needs."""
+        with self._lock:
+            if len(self._models) <= MAX_MODELS:
+                return
+            needed = {p[4] for p in self._pending} | ({self._active[0]} if self._active else set())
+            for k in [k for k in self._models if k not in needed][:len(self._models) - MAX_MODELS]:
+                del self._models[k]
 
     def _clean(self, samples, angle):
         """
-        Return (samples with their DC removed, R [m^2] per channel or None, the DC removed (m,) [m]) for the filter.
+        Return (samples with their DC removed, the DC removed (m,) [m]) for the filter; update the noise ``R``.
 
         Each block's DC and noise are those of a DC + 1X + 2X least-squares fit
         (:func:`bearing_id.signals.harmonics.harmonic_vectors`; noise = its residual RMS); the values used are the
-        medians over the last ``NOISE_BLOCKS`` blocks of the stream (a probe gap offset never reaches the filter, R
-        follows the real noise of each channel).  R is None with a fixed ``measurement_noise``.
+        medians over the last ``NOISE_BLOCKS`` blocks of the stream (a probe gap offset never reaches the filter).
+        Unless ``measurement_noise`` is fixed, ``R`` [m^2] per channel becomes that noise: the filter's gain is
+        re-solved when it moves by more than ``NOISE_STEP`` (in std), so R follows the real noise of each channel.
         """
         try:
             fit = harmonic_vectors(samples, angle, (1, 2), whole_revs=False)
@@ -416,10 +494,9 @@ class EstimatorCore:
             self._noise.append(np.asarray(fit.residual_rms, float))
         dc = np.median(np.array(self._dc), axis=0) if self._dc else 0.0
         z = np.asarray(samples, float) - dc
-        if self.R_fixed or not self._noise:
-            return z, None, dc
-        sd = np.median(np.array(self._noise), axis=0)
-        return z, np.maximum(sd, NOISE_FLOOR) ** 2, dc
+        if not self.R_fixed and self._noise:
+            self.R = np.maximum(np.median(np.array(self._noise), axis=0), NOISE_FLOOR) ** 2
+        return z, dc
 
     # ---- health
     def nis_status(self) -> DiagItem:
@@ -525,6 +602,12 @@ class EstimatorCore:
         vals['bearing_models'] = self.bearings.describe()
         with self._lock:          # the builder thread adds models while the diagnostics timer reads
             vals['models_cached'] = sum(1 for v in self._models.values() if not isinstance(v, Exception))
+        if self._kf_rotors:
+            vals['model_states'] = ' '.join(str(2 * r.nr) for r in self._kf_rotors.values())
+            vals['reduction_error_1x'] = self.reduction_error
+            if self.reduction_error > REDUCTION_WARN:
+                issues.append(f'the reduced model misses {100 * self.reduction_error:.2g} % of the 1X receptance: '
+                              f'raise model_cutoff')
         vals['pending_blocks'] = self.pending
         vals['dropped_blocks'] = self.dropped_pending
         if self.build_times:

@@ -116,7 +116,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
         failures = 0
         while not stop.event.is_set() and rclpy.ok() and not getattr(node, 'finished', False):
             try:
-                ex.spin_once(timeout_sec=0.05)
+                ex.spin_once(timeout_sec=0.25)
             except Exception as exc:        # a failing callback is a bug: reported in full, the node goes on
                 failures += 1
                 node.get_logger().error(callback_failure_text(exc, failures))

@@ -44,8 +44,8 @@ SPECS = [
               '-', lo=0.0, hi=1.0, type_='float'),
     ParamSpec('probes', None, "sim source: probe channels NODE+x|y, e.g. [6x, 6y] (unset: the rig's probes)",
               type_='str[]'),
-    ParamSpec('passes', 1, 'sim source: times the whole plan (every run at every speed) is streamed, each pass with '
-              'its own noise', '', lo=1, hi=100000),
+    ParamSpec('passes', 1, 'times the whole plan (sim: every run at every speed, each pass with its own noise) or the '
+              'file list (file: read again each pass) is streamed', '', lo=1, hi=100000),
     ParamSpec('truth_change_after', None, 'sim source: stream time from which the simulated machine changes (unset: '
               'never; e.g. wear after the first hour)', 's', lo=0.0, hi=1e8, type_='float'),
     ParamSpec('truth_change_clearance', 1.0, 'sim source: the true bearing clearances times this after '
@@ -95,7 +95,7 @@ def load_sources(values: dict) -> list:
 
     ``sim``: a :class:`bearing_id.simulation.rig.SimulatedRun` per run and pass (computed piece by piece as it
     streams; the truth changed from ``truth_change_after`` on);
-    ``file``: a :class:`DaqFile` per file (read when its turn comes; each must exist).  Raises ParamError.
+    ``file``: a :class:`DaqFile` per file and pass (read when its turn comes; each must exist).  Raises ParamError.
     """
     if values['source'] == 'file':
         files = values['files'] or []
@@ -104,7 +104,7 @@ def load_sources(values: dict) -> list:
         missing = [f for f in files if not Path(f).is_file()]
         if missing:
             raise ParamError(f"parameter 'files': {', '.join(missing)} not found")
-        return [DaqFile(f) for f in files]
+        return [DaqFile(f) for _ in range(values['passes']) for f in files]
     rig = load_rig(values['rig_params'] or None)
     if rig.simulation is None:
         raise ParamError(f"parameter 'rig_params': {values['rig_params'] or 'the packaged rig'} has no simulation "
