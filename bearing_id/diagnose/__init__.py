@@ -5,14 +5,15 @@ Library call::
 
     from bearing_id.diagnose import diagnose
     d = diagnose(recordings, rig)          # recordings: rig.Recording-like objects, rig: nominal RigParams
-    d.verdict                              # 'none' | NAME | [NAME, NAME]
+    d.verdict                              # 'none' | 'unexplained' | NAME | [NAME, NAME]
     d.sentences                            # plain words
     d.as_json()                            # the JSON report (``bearing-id diagnose --json``)
 
 Pipeline: :mod:`.locate` (harmonic vectors, residuals, significance) -> :mod:`.predict` (model prediction with the
 bearing nuisance) -> :mod:`.effects` (candidate physics) -> :mod:`.selection` (fit, BIC, held-out validation, greedy
 selection) -> :mod:`.floor` (identify's noise-floor misfit test on the result; the bearing model form tried there)
--> :mod:`.report` (JSON, augmented params YAML, plots).
+-> :mod:`.signature` (where an unexplained residual lives, what it resembles, what to measure next) -> :mod:`.report`
+(JSON, augmented params YAML, plots).
 
 Bearing uncertainty: the nominal bearing theory is not trusted blindly.  Every hypothesis, "none" included, refits a
 viscosity and a clearance factor per bearing (a Gaussian prior of 0.3 in log units around nominal, bounded to
@@ -41,6 +42,7 @@ from .floor import adopt, chi2_dof, floor_problem, form_row, noise_floor_check, 
 from .locate import locate_mismatch, Mismatch, Observations, observe
 from .predict import Problem
 from .selection import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
+from .signature import residual_signature
 
 
 @dataclass
@@ -48,7 +50,8 @@ class Diagnosis:
     """
     Result of :func:`diagnose`.
 
-    verdict : 'none', an effect name, or a list of names.   effects : selected effects with their parameters
+    verdict : 'none', 'unexplained' (no candidate explains a located mismatch or the noise-floor misfit), an effect
+    name, or a list of names.   effects : selected effects with their parameters
     (final joint fit): list of dicts {effect, where, parameters, std, sentence}.   mismatch : located mismatches
     (against the nominal model with refitted bearing factors).   hypotheses : ranked candidate rows (as in the JSON).
     sentences : plain-words verdict.   residual_before / residual_after : RMS normalised residual (units of the
@@ -59,6 +62,9 @@ class Diagnosis:
     as a dict: chi2_dof before / chi2_dof_after, threshold, misfit, the forms tried, the one adopted).
     harmonic_data : the :class:`bearing_id.identify.harmonics.HarmonicData` of the recordings that the noise-floor
     check built (identify's route), or None: ``--report`` and ``--identify`` reuse it instead of refitting.
+    signature : where the unexplained residual lives, what it resembles and what to measure next
+    (:meth:`bearing_id.diagnose.signature.Signature.as_dict`), when the verdict is 'unexplained' or the final model
+    still misfits; else None.
     """
 
     verdict: object
@@ -77,6 +83,7 @@ class Diagnosis:
     notes: list = field(default_factory=list)
     noise_floor: dict | None = None
     harmonic_data: object = field(default=None, repr=False)
+    signature: dict | None = None
 
     @property
     def explained_fraction(self) -> float:
@@ -90,7 +97,8 @@ class Diagnosis:
                 'sentences': self.sentences, 'residual_before': self.residual_before,
                 'residual_after': self.residual_after, 'residual_before_m': self.residual_before_m,
                 'residual_after_m': self.residual_after_m, 'explained_fraction': self.explained_fraction,
-                'bearing_factors': self.bearing_factors, 'notes': self.notes, 'noise_floor': self.noise_floor}
+                'bearing_factors': self.bearing_factors, 'notes': self.notes, 'noise_floor': self.noise_floor,
+                'signature': self.signature}
 
 
 def _hyp_row(before, f, v, step):
@@ -281,12 +289,24 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                        'undetermined': e.undetermined(final.phys[i], final.std[i]),
                        'alternatives': [{'where': w, 'delta_bic': d} for w, d in alts]})
     names = [e.name for e in final.effects]
-    verdict = 'none' if not names else (names[0] if len(names) == 1 else names)
     vf, cf = prob.nuisance_factors(final.theta)
     sentences = []
     misfit_after = fc is not None and np.isfinite(fc.chi2_dof_after) and fc.chi2_dof_after > fc.threshold
+    # no candidate explains a located mismatch or the noise-floor misfit: "unexplained", with where it lives
+    unexplained = not names and (bool(mism) or (fc is not None and fc.misfit))
+    sig = None
+    if unexplained or misfit_after:
+        sig = residual_signature(prob, final, threshold=3.0)
+        if not sig.significant and fprob is not None:       # below the model tolerance: at the noise floor
+            sig = residual_signature(fprob, fit(fprob, list(final.effects), uncertainty=False), threshold=3.0)
+    verdict = ('unexplained' if unexplained else 'none') if not names else (names[0] if len(names) == 1 else names)
     if not names:
-        if fc is not None and fc.misfit:
+        if unexplained and not (fc is not None and fc.misfit):
+            top = mism[0]
+            sentences.append(f'none of the candidate effects explains the located mismatch ({top.order} at '
+                             f'{top.where}, {top.significance:.0f} sigma, {len(mism)} group(s) beyond '
+                             f'{threshold:g} sigma): it is not physics this diagnosis models')
+        elif fc is not None and fc.misfit:
             best = min(fc.forms, key=lambda r: r['chi2_dof'], default=None)
             sentences.append(
                 f'none of the candidate effects explains a mismatch above the {rel_tol:.0%} model tolerance '
@@ -302,6 +322,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                      f'and ' if fc is not None and np.isfinite(fc.chi2_dof) else 'the noise floor and ')
             sentences.append(f'none: the nominal model explains the recordings within {floor}'
                              f'the {rel_tol:.0%} model tolerance (residual {base.rms:.2f} sigma)')
+        if sig is not None:
+            sentences += sig.sentences()
     else:
         frac = 1.0 - final.chi2 / max(base.chi2, 1e-300)
         for c in chosen:
@@ -322,6 +344,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                                  f"{fc.chi2_dof_after:.3g} > {fc.threshold:.3g} (identify's MODEL MISFIT test): "
                                  f'physics below the {rel_tol:.0%} model tolerance remains unexplained, and the '
                                  f'parameters above carry a bias their 1-sigma does not cover')
+                if sig is not None:
+                    sentences += sig.sentences('what remains unexplained')
             else:
                 sentences.append(f"at the noise floor the final model reproduces identify's 1X vectors: chi2/dof "
                                  f'{fc.chi2_dof_after:.3g} <= {fc.threshold:.3g}')
@@ -367,6 +391,7 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                      bearing_factors={'viscosity_factor': list(vf), 'clearance_factor': list(cf)},
                      problem=prob, selection=s, notes=notes,
                      noise_floor=None if fc is None else fc.as_dict(),
+                     signature=None if sig is None else sig.as_dict(),
                      harmonic_data=getattr(fprob.obs, 'harmonic_data', None) if fprob is not None else None)
 
 
