@@ -7,7 +7,8 @@ run A twice: on the theory bearings, and on the identifier's result at that spee
 both runs, as the node receives it on bearing_id/coefficients).  Reference: the same simulation's noise-free motion at
 the bearing nodes.  1X of both by a DFT over whole revolutions of the last 3/4 of the dwell.  Printed per speed: the
 largest amplitude error [%] and phase error [deg] over the four bearing channels, the filter's NIS and innovation
-health.
+health, and (identified) the largest |1X error| in units of the 1X's stated 1-sigma (from the identified coefficients'
+1-sigma, as /diagnostics publishes it in ``kf_estimator: bearing motion``).
 
 Run:  python benchmarks/bench_kf_bearing_motion.py [--speeds 600,900,...] [--dwell 2.0]
 """
@@ -49,13 +50,17 @@ def run_filter(core, rec):
 
 
 def errors(core, rec, truth):
+    """(amp err %, phase err deg, NIS, innovations, largest |1X error| / its stated 1-sigma or NaN) of the channels."""
     est = run_filter(core, rec)
     s = slice(est.shape[0] // 4, None)
     got, ref = one_x(est[s], rec.angle[s]), one_x(truth.samples[s], truth.angle[s])
-    nis, health = core.nis_status(), core.health_status()
+    nis, health, motion = core.nis_status(), core.health_status(), core.motion_status()
     core.close()
+    std = [motion.values.get(f'{p.name}_1x_std_coefficients_um') for p in core.outputs_probes]
+    z = (np.max(np.abs(got - ref) / (1e-6 * np.array(std, float))) if all(isinstance(v, float) for v in std)
+         else math.nan)
     return (100 * np.max(np.abs(np.abs(got) / np.abs(ref) - 1)), np.max(np.abs(np.degrees(np.angle(got / ref)))),
-            nis.values.get('mean_nis', math.nan), 'white' if 'white' in health.message else 'MISMATCH')
+            nis.values.get('mean_nis', math.nan), 'white' if 'white' in health.message else 'MISMATCH', z)
 
 
 def main(argv=None) -> int:
@@ -67,7 +72,7 @@ def main(argv=None) -> int:
     at = tuple(Probe(f'b{b.node}{d}', b.node, d) for b in rig.bearings for d in 'xy')
     print(f"command: python benchmarks/bench_kf_bearing_motion.py {' '.join(argv or sys.argv[1:])}\n")
     print('| rpm | theory: amp err % | phase err deg | NIS | innovations | identified: amp err % | phase err deg | NIS '
-          '| innovations |\n|---|---|---|---|---|---|---|---|---|')
+          '| innovations | |1X error| / stated 1-sigma |\n|---|---|---|---|---|---|---|---|---|---|')
     for rpm in (float(v) for v in args.speeds.split(',')):
         recs = [R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=args.dwell, ramp=0.0) for run in rig.simulation.runs]
         truth = R.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[rpm], dwell=args.dwell, ramp=0.0, probes=at,
@@ -75,10 +80,11 @@ def main(argv=None) -> int:
         theory = errors(EstimatorCore(rig, 1e-16, 0.0, 0.01), recs[0], truth)
         (r,) = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
         core = EstimatorCore(rig, 1e-16, 0.0, 0.01)
-        core.set_coefficients(r.speed, {n: (r.K[i], r.C[i]) for i, n in enumerate(r.nodes)})
+        core.set_coefficients(r.speed, {n: (r.K[i], r.C[i]) for i, n in enumerate(r.nodes)},
+                              {n: (r.K_std[i], r.C_std[i]) for i, n in enumerate(r.nodes)})
         ident = errors(core, recs[0], truth)
         cells = [f'{theory[0]:.3g}', f'{theory[1]:.2f}', f'{theory[2]:.3g}', theory[3],
-                 f'{ident[0]:.3g}', f'{ident[1]:.2f}', f'{ident[2]:.3g}', ident[3]]
+                 f'{ident[0]:.3g}', f'{ident[1]:.2f}', f'{ident[2]:.3g}', ident[3], f'{ident[4]:.2f}']
         print(f"| {rpm:.0f} | {' | '.join(cells)} |", flush=True)
     return 0
 

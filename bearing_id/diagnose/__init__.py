@@ -294,8 +294,13 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     misfit_after = fc is not None and np.isfinite(fc.chi2_dof_after) and fc.chi2_dof_after > fc.threshold
     # no candidate explains a located mismatch or the noise-floor misfit: "unexplained", with where it lives
     unexplained = not names and (bool(mism) or (fc is not None and fc.misfit))
+    remaining = []        # located mismatch the selected effects leave (against the final model)
+    if names:
+        pred_final = prob.prediction_by_window(final.theta, final.effects, final.nls, final.lin)
+        sub_final = [final.sub_pred.get(k) for k in range(len(obs.windows))] if prob.has_sub else None
+        remaining = locate_mismatch(obs, pred_final, sub_final, rel_tol=rel_tol, threshold=threshold)
     sig = None
-    if unexplained or misfit_after:
+    if unexplained or misfit_after or remaining:
         sig = residual_signature(prob, final, threshold=3.0)
         if not sig.significant and fprob is not None:       # below the model tolerance: at the noise floor
             sig = residual_signature(fprob, fit(fprob, list(final.effects), uncertainty=False), threshold=3.0)
@@ -355,6 +360,12 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
             elif fc.refined == 'model tolerance':
                 sentences.append('the parameters above are fitted with the model tolerance (the model misfits too '
                                  'much at the noise floor for a fit there)')
+        if remaining and not misfit_after and sig is not None:
+            top = remaining[0]
+            sentences.append(f'the selected effects leave a located mismatch ({top.order} at {top.where}, '
+                             f'{top.significance:.0f} sigma): the names above may be part of a source they do not '
+                             f'model')
+            sentences += sig.sentences('what remains unexplained')
     # significant hypotheses that did not validate: say so (a whirl seen at one speed, a fit to noise)
     sel_labels = {e.label for e in final.effects}
     failed = [(f, v) for _, rows in s.rounds for f, v in rows
