@@ -150,7 +150,8 @@ class Observations:
         return out
 
 
-def _xy_pair(probes):
+def xy_pair(probes):
+    """Return (i, j), the channel indices of the first x and y probes at one node, or None."""
     for i, p in enumerate(probes):
         for j, q in enumerate(probes):
             if p.node == q.node and p.direction == 'x' and q.direction == 'y':
@@ -190,7 +191,7 @@ def observe(recordings, *, orders=DEFAULT_ORDERS, settle: float = 0.2, min_durat
     for r, rec in enumerate(recordings):
         fs = float(rec.sample_rate)
         t = np.asarray(rec.t) if getattr(rec, 't', None) is not None else np.arange(len(rec.speed)) / fs
-        pair = _xy_pair(rec.probes)
+        pair = xy_pair(rec.probes)
         for a, b in steady_windows(t, rec.speed, tol_rel=tol_rel, min_duration=min_duration):
             skip = min(int(round((settle + 0.2 * (b - a) / fs) * fs)), (b - a) // 2)
             a2 = a + skip
@@ -320,4 +321,4 @@ def locate_mismatch(obs: Observations, pred_X: list, pred_sub: list | None = Non
     return out
 
 
-__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate_mismatch', 'DEFAULT_ORDERS']
+__all__ = ['Window', 'Observations', 'observe', 'sigma', 'Mismatch', 'locate_mismatch', 'xy_pair', 'DEFAULT_ORDERS']

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .locate import _xy_pair
+from .locate import xy_pair
 
 SLOW_ROLL_RPM = 400.0
 PEAK_SHARE = 0.25       # a speed holds the residual when its significance reaches this share of the largest
@@ -46,7 +46,7 @@ class Signature:
     Where a residual lives (see the module docstring).  Shares are fractions of the residual's chi-square.
 
     orders {label: share}; probes {name: share}; speeds_rpm: speeds with an entry beyond the threshold; speed_local;
-    speed_exponent: p of |r| ~ speed^p for the dominant order (None: too few speeds); runs: 'same in every run',
+    speed_exponent: p of |r| ~ speed^p for the dominant order (None: too few speeds); runs: 'the same in every run',
     'changes with the run' or None (one run, or no speed in two runs); forward_share (None: no x/y pair);
     slow_roll: True / False / None (not recorded); n_stations: probe stations (nodes); significant: entries beyond
     the threshold; resembles, measure_next: sentences.
@@ -208,11 +208,11 @@ def residual_signature(prob, f, *, threshold: float = 3.0, slow_roll_rpm: float 
                  and (sp[-1] - sp[0]) <= 0.5 * (all_rpm[-1] - all_rpm[0]))
     runs = _run_relation(prob, res, o, threshold) if len({w.rec for w in obs.windows}) > 1 else None
     fwd = None
-    pair = _xy_pair(obs.probes(obs.windows[0].rec)) if obs.windows else None
+    pair = xy_pair(obs.probes(obs.windows[0].rec)) if obs.windows else None
     if pair is not None:
         pf = pb = 0.0
         for k, w in enumerate(obs.windows):
-            if _xy_pair(obs.probes(w.rec)) != pair:
+            if xy_pair(obs.probes(w.rec)) != pair:
                 continue
             rx, ry = res[k][0][o, pair[0]], res[k][0][o, pair[1]]
             pf += abs(rx + 1j * ry) ** 2
