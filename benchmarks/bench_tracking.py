@@ -9,6 +9,8 @@ original and against the worn one, and whether it was a misfit (nothing determin
 summary: before the change every determined result should be within ~3 sigma of the original, after it within
 ~3 sigma of the worn machine, and results whose data straddle the change are misfits (not determined).
 
+The record is read every 20 s while the stream runs, so results a long run's compaction drops are still counted.
+
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_tracking.py [--passes 6] [--speeds 1500,2400] [--dwell 2]
       [--rate 2] [--clearance 1.1]          (2 hours: --passes 164 with the packaged speeds and --rate 1)
 """
@@ -17,6 +19,7 @@ import os
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 import argparse  # noqa: E402, I100  (after the thread setting above)
+import json  # noqa: E402
 from pathlib import Path  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -31,7 +34,7 @@ sys.path.insert(0, str(REPO / 'benchmarks'))
 
 from bearing_id.config.params import load_rig  # noqa: E402, I100
 from bearing_id.demo import ros_env, stop_processes  # noqa: E402
-from bearing_id.io.record import Record  # noqa: E402
+from bearing_id.io.record import decode, RECORD_NAME  # noqa: E402
 from bearing_id.nodes import sensor_driver_core  # noqa: E402
 from bearing_id.simulation import rig as R  # noqa: E402
 from bench_streaming import _domain_id  # noqa: E402
@@ -41,6 +44,27 @@ def start(name: str, args: list, env: dict, out: Path) -> subprocess.Popen:
     """Start ``bearing_id.nodes.<name>`` with ``--ros-args`` ``args``, its log in ``out``."""
     return subprocess.Popen([sys.executable, '-m', f'bearing_id.nodes.{name}', '--ros-args', *args], env=env,
                             stdout=open(out / f'{name}.log', 'w'), stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def collect(record_dir: Path, seen: dict) -> None:
+    """
+    Add the record's results to ``seen`` (keyed by speed, data span and values): compaction drops old ones later.
+
+    Read-only while the identifier writes (a ``Record`` would repair a line being written): a line that does not
+    parse (the one being written) is skipped and read on the next pass.
+    """
+    path = record_dir / RECORD_NAME
+    if not path.exists():
+        return
+    with open(path, encoding='utf-8', errors='replace') as fh:
+        for line in fh:
+            try:
+                d = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(d, dict) and d.get('type') == 'result':
+                r = decode(d)['result']      # a global fit re-solves a speed on the same data: each result kept
+                seen.setdefault((r['speed_rpm'], tuple(r['data_span']), json.dumps(r['bearings'], sort_keys=True)), r)
 
 
 def max_z(result: dict, truth) -> float:
@@ -83,13 +107,18 @@ def main(argv=None) -> int:
                      '-p', f'rate_factor:={args.rate}', '-p', 'wait_for_subscribers:=2',
                      '-p', 'exit_when_done:=true'], env, out)}
         t0 = time.monotonic()
+        seen: dict = {}          # every result the record held at some time (the identifier compacts it on long runs)
         try:
-            procs['sensor_driver'].wait(timeout=120 + 2 * total / args.rate)
+            t_end = t0 + 120 + 2 * total / args.rate
+            while procs['sensor_driver'].poll() is None and time.monotonic() < t_end:
+                time.sleep(20.0)
+                collect(out / 'record', seen)
             time.sleep(8.0)                     # the identifier's last solves
         finally:
             codes = stop_processes(procs)
         wall = time.monotonic() - t0
-        results = [e['result'] for e in Record(out / 'record', fsync=False).entries('result')]
+        collect(out / 'record', seen)
+        results = sorted(seen.values(), key=lambda r: (r['data_span'][1], r['speed_rpm']))
     old, worn = R.truth_bearing_fn(rig), R.changed_truth(rig, clearance=args.clearance)
     t_start = min(r['data_span'][0] for r in results) if results else 0.0
     print(f'{total:.1f} s of stream in {wall:.1f} s; the clearance x{args.clearance:g} from {change:.1f} s of stream; '
