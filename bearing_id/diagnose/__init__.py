@@ -295,13 +295,14 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     # no candidate explains a located mismatch or the noise-floor misfit: "unexplained", with where it lives
     unexplained = not names and (bool(mism) or (fc is not None and fc.misfit))
     remaining = []        # located mismatch the selected effects leave (against the final model)
+    pred_final = (pred_base if final is base else
+                  prob.prediction_by_window(final.theta, final.effects, final.nls, final.lin))
     if names:
-        pred_final = prob.prediction_by_window(final.theta, final.effects, final.nls, final.lin)
         sub_final = [final.sub_pred.get(k) for k in range(len(obs.windows))] if prob.has_sub else None
         remaining = locate_mismatch(obs, pred_final, sub_final, rel_tol=rel_tol, threshold=threshold)
     sig = None
     if unexplained or misfit_after or remaining:
-        sig = residual_signature(prob, final, threshold=3.0)
+        sig = residual_signature(prob, final, threshold=3.0, pred=pred_final)
         if not sig.significant and fprob is not None:       # below the model tolerance: at the noise floor
             sig = residual_signature(fprob, fit(fprob, list(final.effects), uncertainty=False), threshold=3.0)
     verdict = ('unexplained' if unexplained else 'none') if not names else (names[0] if len(names) == 1 else names)

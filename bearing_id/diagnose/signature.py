@@ -111,9 +111,14 @@ class Signature:
                 'significant': self.significant, 'resembles': self.resembles, 'measure_next': self.measure_next}
 
 
-def _residuals(prob, f):
-    """Return per window: (residual (n_orders, nch), sigma (n_orders, nch), sub residual (nch,) or None, its sigma)."""
-    pred = prob.prediction_by_window(f.theta, f.effects, f.nls, f.lin)
+def _residuals(prob, f, pred=None):
+    """
+    Return per window: (residual (n_orders, nch), sigma (n_orders, nch), sub residual (nch,) or None, its sigma).
+
+    ``pred``: fit ``f``'s prediction by window if the caller has it (``Problem.prediction_by_window``).
+    """
+    if pred is None:
+        pred = prob.prediction_by_window(f.theta, f.effects, f.nls, f.lin)
     out = []
     for k, w in enumerate(prob.obs.windows):
         S = prob.sig[prob.slices[k]].reshape(w.X.shape)
@@ -155,10 +160,15 @@ def _run_relation(prob, res, o: int, threshold: float) -> str | None:
     return 'the same in every run' if same >= diff else 'changes with the run'
 
 
-def residual_signature(prob, f, *, threshold: float = 3.0, slow_roll_rpm: float = SLOW_ROLL_RPM) -> Signature:
-    """Return the :class:`Signature` of fit ``f``'s residual on problem ``prob`` (see the module docstring)."""
+def residual_signature(prob, f, *, threshold: float = 3.0, slow_roll_rpm: float = SLOW_ROLL_RPM,
+                       pred=None) -> Signature:
+    """
+    Return the :class:`Signature` of fit ``f``'s residual on problem ``prob`` (see the module docstring).
+
+    ``pred``: ``f``'s prediction by window when the caller has computed it (else it is computed here).
+    """
     obs = prob.obs
-    res = _residuals(prob, f)
+    res = _residuals(prob, f, pred)
     labels = [f'{o:g}X' for o in obs.orders]
     orders = dict.fromkeys(labels, 0.0)
     probes: dict = {}
