@@ -161,7 +161,8 @@ ROSS_NOTES = [
     'non-synchronous line at 1.2-1.5X with combination tones); at steps of 1/32768 s a line even locked to 1.25X, '
     'which finer steps do not show',
     'MisalignmentFlex (parallel): equal and opposite forces on the two nodes of the element; per node a mean force '
-    '(0.6 N per axis here) and a 2X force (1.7 N) for 10 um misalignment and 40 kN/m radial stiffness; '
+    '(0.2 N per axis here) and a backward 2X force (0.566 N; README.json truth) for 10 um misalignment and 40 kN/m '
+    'radial stiffness; '
     "run_misalignment integrates with scipy lsim unless method='newmark' is given",
     "The fault objects keep every step's force (ndof x steps floats: 66 x 1e6 for 15 s at 1/65536 s)",
     "ROSS's unbalance convention (unbalance_force_over_time) equals the project's: me w^2 [cos(angle + phase), "
@@ -713,6 +714,7 @@ def fault_job(set_name, name, out, plain=True, do_ladder=True):
     if name == 'rub':
         entry['contact_speeds_rpm'] = {rid: [r['rpm'] for r in rows if r['run'] == rid and r['contact_fraction'] > 0]
                                        for rid in recs}
+    entry['truth'] = fault_truth(setup, name)
     entry['per_speed'] = rows
     if do_ladder:
         entry['ladder'] = ladder(setup, name, log=log)
@@ -721,6 +723,35 @@ def fault_job(set_name, name, out, plain=True, do_ladder=True):
     entry['seconds'] = time.time() - t0
     log(f'{set_name} {name}: done in {entry["seconds"]:.0f} s')
     return set_name, name, entry
+
+
+def fault_truth(setup, name):
+    """
+    Return what ROSS's own fault object says about the fault's size, for the tests to compare diagnose with.
+
+    misalignment: the 2X reaction force of ``MisalignmentFlex._parallel`` on each node of its element, over one
+    revolution, split into forward and backward parts [N] (x = Re{X e^(j 2 angle)}, forward: Y = -j X); crack: the
+    cracked element (1-based nodes) and ROSS's depth (its depth is not what diagnose reports: it gives the crack's
+    compliance); rub: the contact node, clearance [m], contact stiffness [N/m] and friction coefficient.
+    """
+    p = setup.params(name)
+    if name == 'misalignment':
+        f = make_fault(setup.rotor_at(100.0), name, p)
+        ang = np.linspace(0.0, 2.0 * math.pi, 512, endpoint=False)
+        F = f._parallel(ang)
+        out = {}
+        for label, (ix, iy) in (('node_a', (f.dofs[0], f.dofs[1])), ('node_b', (f.dofs[6], f.dofs[7]))):
+            X = 2.0 * np.mean(F[ix] * np.exp(-2j * ang))
+            Y = 2.0 * np.mean(F[iy] * np.exp(-2j * ang))
+            out[label] = {'forward_N': float(abs(X + 1j * Y) / 2), 'backward_N': float(abs(X - 1j * Y) / 2)}
+        return {'element_nodes': [p['element'] + 1, p['element'] + 2], 'force_2x': out}
+    if name == 'crack':
+        return {'element_nodes': [p['element'] + 1, p['element'] + 2], 'depth_ratio': p['depth_ratio'],
+                'crack_model': p['crack_model']}
+    if name == 'rub':
+        return {'node': p['element'] + 1, 'clearance_m': p['distance'], 'contact_stiffness': p['contact_stiffness'],
+                'friction': p['friction_coeff']}
+    raise ValueError(name)
 
 
 def _rounded(v, digits=7):
@@ -767,11 +798,20 @@ def main(argv=None):
     ap.add_argument('--jobs', type=int, default=1, help='(set, fault) jobs simulated in parallel processes')
     ap.add_argument('--no-plain', action='store_true', help='skip the check against ROSS run_* from rest')
     ap.add_argument('--no-ladder', action='store_true', help='skip the step-halving ladder')
+    ap.add_argument('--truth-only', action='store_true',
+                    help="only (re)write each fault's 'truth' (what ROSS's fault object says) into README.json")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     meta_path = out / 'README.json'
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    if args.truth_only:
+        for s, entry in meta.get('sets', {}).items():
+            for name, fault in entry.get('faults', {}).items():
+                fault['truth'] = fault_truth(Setup(s), name)
+        meta_path.write_text(json.dumps(_rounded(meta), indent=1) + '\n')
+        print(f'wrote the truth of every fault into {meta_path}')
+        return
     meta = dict(readme_header(), sets=meta.get('sets', {}))
     meta.setdefault('sets', {})
     jobs = [(s, f, str(out), SETS[s]['plain'] or f in SETS[s].get('plain_faults', []),

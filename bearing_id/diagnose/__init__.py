@@ -378,6 +378,9 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
             continue
         shown.add(e.name)
         red = v.get('heldout_reduction')
+        if v.get('signature_missing'):
+            sentences.append(f"fits but not accepted: {e.name} at {e.where} -- {v['signature_missing']}")
+            continue
         sentences.append(f'tested but not validated on held-out data: {e.name} at {e.where} (in-sample it lowers the '
                          f'BIC, held-out chi2 change {-red:+.0%} where a drop of at least '
                          f"{v.get('required_reduction', 0.2):.0%} was needed)" if red is not None else

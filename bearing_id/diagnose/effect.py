@@ -7,6 +7,23 @@ from __future__ import annotations
 
 import numpy as np
 
+DETERMINED_REL = 0.075    # a parameter is reported as a number when its 1-sigma is <= 7.5 % (2 sigma <= 15 %)
+
+
+def determined(value: float, std) -> bool:
+    """Return True when ``value`` is determined: finite 1-sigma at most ``DETERMINED_REL`` of |value|."""
+    return std is not None and bool(np.isfinite(std)) and abs(std) <= DETERMINED_REL * abs(value) and value != 0
+
+
+def pm(value, std) -> str:
+    """Return ' ± p %' for ``value`` with 1-sigma ``std`` ('' without one; a note when it is not finite)."""
+    if std is None or value == 0:
+        return ''
+    if not np.isfinite(std):
+        return ' (1σ not determined)'
+    pct = abs(std / value) * 100
+    return f' ± {pct:.0f} %' if pct >= 9.5 else f' ± {pct:.2g} %'
+
 
 class Effect:
     """Base: a no-op augmentation.  Subclasses set ``name``, ``where`` and override the hooks they need."""
@@ -57,6 +74,14 @@ class Effect:
     def conflicts(self, other) -> bool:
         """Return True when this variant cannot be fitted together with ``other`` (besides being the same variant)."""
         return False
+
+    def missing_signature(self, phys: dict, std: dict) -> str | None:
+        """
+        Return why this effect's own signature is absent from its fit (None: present, the default).
+
+        An effect that validates but lacks its signature (a crack without its 3X, ...) is not accepted.
+        """
+        return None
 
     def undetermined(self, phys: dict, std: dict) -> list:
         """Names of the physical parameters the data do not determine (reported as such, not as numbers)."""

@@ -23,7 +23,8 @@ import types
 
 import numpy as np
 
-from .effect import Effect
+from .crack import BreathingCrack, crack_elements
+from .effect import determined, DETERMINED_REL, Effect, pm as _pm
 from .predict import bearing_form, form_label, forward_force, model_forms
 from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
@@ -33,28 +34,11 @@ from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel
 SLOW_ROLL_RPM = 400.0     # windows below this speed are slow roll (as locate.locate)
 
 EFFECT_NAMES = ('support_flexibility', 'residual_unbalance', 'shaft_bow', 'probe_runout', 'misalignment',
-                'oil_whirl', 'probe_orientation', 'disc_mass_error', 'bearing_model_form')
+                'oil_whirl', 'probe_orientation', 'disc_mass_error', 'bearing_model_form', 'breathing_crack')
 
 
 def _dir_word(d: str) -> str:
     return 'horizontal (x)' if d == 'x' else 'vertical (y)'
-
-
-DETERMINED_REL = 0.075    # a parameter is reported as a number when its 1-sigma is <= 7.5 % (2 sigma <= 15 %)
-
-
-def determined(value: float, std) -> bool:
-    """Return True when ``value`` is determined: finite 1-sigma at most ``DETERMINED_REL`` of |value|."""
-    return std is not None and bool(np.isfinite(std)) and abs(std) <= DETERMINED_REL * abs(value) and value != 0
-
-
-def _pm(value, std) -> str:
-    if std is None or value == 0:
-        return ''
-    if not np.isfinite(std):
-        return ' (1σ not determined)'
-    pct = abs(std / value) * 100
-    return f' ± {pct:.0f} %' if pct >= 9.5 else f' ± {pct:.2g} %'
 
 
 def _complex_lin(lin) -> complex:
@@ -380,10 +364,13 @@ class ShaftBow(Effect):
 
 class Misalignment(Effect):
     """
-    Coupling misalignment at the shaft end ``node``: a 2X force.
+    Coupling misalignment: a 2X force at the shaft end ``node`` or on a coupling element (``node``, ``pair``).
 
-    Forward + backward rotating parts (complex); the peak force is |F_f| + |F_b| [N].  (The static bearing-load part
-    of misalignment is not modelled.)
+    A flexible coupling inside the model (the element between ``node`` and ``pair``) takes equal and opposite 2X
+    forces on its two nodes (the coupling's reaction on both halves).
+
+    Forward + backward rotating parts (complex); the peak force is |F_f| + |F_b| [N] (on each node of a pair).  (The
+    static bearing-load part of misalignment is not modelled.)
     """
 
     name = 'misalignment'
@@ -391,16 +378,18 @@ class Misalignment(Effect):
     acts_on_1x = False
     key = 'force_2x'
 
-    def __init__(self, node: int):
+    def __init__(self, node: int, pair: int | None = None):
         super().__init__()
-        self.node = node
-        self.where = f'coupling end, node {node}'
+        self.node, self.pair = node, pair
+        self.where = f'coupling end, node {node}' if pair is None else f'coupling between nodes {node} and {pair}'
 
     def force_columns(self, prob, k, ratio, nl):
         if ratio != 2.0:
             return None
         n = prob.model.n_nodes
         Ff = forward_force(prob.model.ndof, self.node, n)
+        if self.pair is not None:
+            Ff = Ff - forward_force(prob.model.ndof, self.pair, n)
         Fb = np.conj(Ff)
         return np.column_stack([Ff, 1j * Ff, Fb, 1j * Fb])
 
@@ -414,13 +403,19 @@ class Misalignment(Effect):
                 f"{_pm(phys['force_2x'], std.get('force_2x'))} (forward {phys['forward']:.3g} N, backward "
                 f"{phys['backward']:.3g} N)")
 
+    def conflicts(self, other) -> bool:
+        """Return True for another misalignment sharing a node (one coupling, one force model)."""
+        mine = {self.node, self.pair} - {None}
+        return other.name == self.name and bool(mine & ({other.node, getattr(other, 'pair', None)} - {None}))
+
     def to_extra(self, phys):
-        return {'effect': self.name, 'node': self.node,
+        return {'effect': self.name, 'node': self.node, **({'pair': self.pair} if self.pair is not None else {}),
                 **{k: float(phys[k]) for k in ('f_re', 'f_im', 'b_re', 'b_im')}}
 
     @classmethod
     def from_extra(cls, d, rig):
-        return cls(int(d['node'])), np.zeros(0), np.array([d['f_re'], d['f_im'], d['b_re'], d['b_im']])
+        pair = int(d['pair']) if d.get('pair') is not None else None
+        return cls(int(d['node']), pair), np.zeros(0), np.array([d['f_re'], d['f_im'], d['b_re'], d['b_im']])
 
 
 # ------------------------------------------------------------------------------------------------ measurement
@@ -658,6 +653,10 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
     if 'misalignment' in names and 2 in prob.obs.orders:
         ends = misalignment_nodes or (1, model.n_nodes)
         out += [Misalignment(n) for n in ends]
+        # a flexible coupling modelled as the shaft element at an end (both halves in the model)
+        out += [Misalignment(a, b) for a, b in ((1, 2), (model.n_nodes - 1, model.n_nodes)) if a in ends or b in ends]
+    if 'breathing_crack' in names and {2, 3} <= set(prob.obs.orders):
+        out += [BreathingCrack(model, e) for e in crack_elements(model)]
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
     if 'bearing_model_form' in names and not any(b.model == 'table' for b in rig.bearings):
@@ -675,7 +674,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
 
 # ------------------------------------------------------------------------------------------------ augmented model
 _FROM_EXTRA = {'support_flexibility': SupportFlexibility, 'disc_mass_error': DiscMassError,
-               'residual_unbalance': ResidualUnbalance, 'shaft_bow': ShaftBow, 'misalignment': Misalignment}
+               'residual_unbalance': ResidualUnbalance, 'shaft_bow': ShaftBow, 'misalignment': Misalignment,
+               'breathing_crack': BreathingCrack}
 
 
 def effects_from_extra(rig) -> list[tuple]:
@@ -719,12 +719,12 @@ def augmented_dynamic_stiffness(model, rig, speed: float, omega: float, coeffs: 
 
 
 def augmented_forces(model, rig, speed: float, effects=None) -> dict:
-    """Extra force phasors {ratio: (ndof,)} [N] of the augmentations (residual unbalance, bow, misalignment)."""
+    """Extra force phasors {ratio: (ndof,)} [N] of the augmentations (residual unbalance, bow, misalignment, crack)."""
     out: dict = {}
     for e, nl, lin in (effects_from_extra(rig) if effects is None else effects):
         if not e.n_lin:
             continue
-        for ratio in (1.0, 2.0):
+        for ratio in (1.0, 2.0, 3.0):
             cols = _force_cols(e, model, speed, ratio)
             if cols is not None:
                 out.setdefault(ratio, np.zeros(model.ndof, complex))
@@ -738,6 +738,7 @@ def _force_cols(e, model, speed, ratio):
 
 
 __all__ = ['EFFECT_NAMES', 'Effect', 'SupportFlexibility', 'DiscMassError', 'ResidualUnbalance', 'ShaftBow',
-           'Misalignment', 'ProbeRunout', 'BearingModelForm', 'ProbeOrientation', 'ProbePairOrientation', 'OilWhirl',
+           'Misalignment', 'BreathingCrack', 'ProbeRunout', 'BearingModelForm', 'ProbeOrientation',
+           'ProbePairOrientation', 'OilWhirl',
            'candidates', 'bow_shape', 'effects_from_extra', 'measurement_corrections', 'augmented_dynamic_stiffness',
            'augmented_forces', 'determined', 'DETERMINED_REL']

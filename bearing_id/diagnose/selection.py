@@ -466,7 +466,11 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
                 v = validate(prob, f.effects, selected, cache=vcache, frac_in=1.0 - f.chi2 / max(current.chi2, 1e-300),
                              folds=folds)
                 if accepted is None and v['validated']:
-                    accepted = f
+                    why = f.effects[-1].missing_signature(f.phys[-1], f.std[-1]) if f.phys else None
+                    if why:            # it fits, but its own signature is absent: no name it cannot stand behind
+                        v = {**v, 'validated': False, 'signature_missing': why}
+                    else:
+                        accepted = f
             round_rows.append((f, v))
         rounds.append((current, round_rows))
         if accepted is None:

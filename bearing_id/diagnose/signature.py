@@ -245,12 +245,12 @@ def _readings(s: Signature, n_runs: int) -> tuple[list, list]:
         like.append('a sub-synchronous source: oil whirl or whip (forward, 0.4-0.5X, above an onset speed) or a rub '
                     '(backward or fractional 1/2X, 1/3X where the orbit reaches a clearance)')
     elif dom != '1X':
-        like.append(f'a {dom} source the candidates lack: a breathing crack (1X, 2X and 3X, the 2X rising near half a '
-                    f'critical speed, independent of the unbalance), a rub (harmonics where the orbit reaches a '
+        like.append(f'a {dom} source beyond the fitted candidates: a crack breathing with the orbit rather than the '
+                    f'sag (its harmonics then change with the run), a rub (harmonics where the orbit reaches a '
                     f'clearance), a coupling or a non-circular journal')
         if dom == '2X':
-            meas.append('speeds through half of each critical speed (a crack 2X peaks there, a misalignment 2X does '
-                        'not)')
+            meas.append('speeds through half and a third of each critical speed (a crack under its sag peaks at '
+                        'both, its 3X beside its 2X; a coupling 2X has no 3X)')
     else:
         if s.speed_local:
             like.append('a speed-local 1X change: a rub where the orbit is largest, or a resonance of a part the model '
@@ -263,8 +263,8 @@ def _readings(s: Signature, n_runs: int) -> tuple[list, list]:
                 'runout or a bow (present at slow roll)' if s.slow_roll else
                 'a residual unbalance or a bow (growing with speed), or a rub'))
     if s.slow_roll is None:
-        meas.append('a slow-roll run (runout and bow are present at slow roll, unbalance and cracks driven by speed '
-                    'are not)')
+        meas.append('a slow-roll run (runout, bow and the harmonics of a crack under its sag are present at slow '
+                    'roll, unbalance is not)')
     if s.n_stations < 2:
         meas.append('a second probe station (locates the source along the shaft)')
     if n_runs < 2 or s.runs is None:

@@ -348,19 +348,12 @@ def probe_matrix(model: RotorModel, probes) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------- statics
-def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, float]:
-    """
-    Weight carried by each bearing [N] (positive = the bearing pushes the shaft against gravity).
-
-    The bearings are rigid supports; the statics is solved in one bending plane (y, tx) with the consistent gravity
-    load f = -|g| M u_y, so the reactions satisfy force and moment balance exactly (two supports: the lever rule,
-    independent of the shaft stiffness).  The reactions act along -gravity (the planes are alike).  Known bearings
-    (``identify: false``) are supports too: ``model.support_nodes`` are added to ``bearing_nodes``.
-    """
+def _gravity_statics(model: RotorModel, bearing_nodes=None) -> tuple:
+    """Return (q (ndof,) [m, rad], supports, reactions [N]) of the shaft under its weight on rigid supports."""
     nodes = tuple(bearing_nodes if bearing_nodes is not None else model.bearing_nodes)
     nodes += tuple(n for n in model.support_nodes if n not in nodes)
     if len(nodes) < 2:
-        raise ValueError('static bearing loads need at least two bearings (the vertical plane must be supported)')
+        raise ValueError('the statics needs at least two bearings (the vertical plane must be supported)')
     n = model.n_nodes
     plane = np.sort(np.concatenate([np.arange(n) * DOF_PER_NODE + LOCAL_DOF['y'],
                                     np.arange(n) * DOF_PER_NODE + LOCAL_DOF['tx']]))
@@ -370,9 +363,33 @@ def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, flo
     sup = np.array([dof_index(b, 'y', n) for b in nodes])
     free = np.setdiff1d(plane, sup)
     K = model.K
-    qf = np.linalg.solve(K[np.ix_(free, free)], f[free])
-    r = K[np.ix_(sup, free)] @ qf - f[sup]
+    q = np.zeros(model.ndof)
+    q[free] = np.linalg.solve(K[np.ix_(free, free)], f[free])
+    r = K[np.ix_(sup, free)] @ q[free] - f[sup]
+    return q, nodes, r
+
+
+def static_bearing_loads(model: RotorModel, bearing_nodes=None) -> dict[int, float]:
+    """
+    Weight carried by each bearing [N] (positive = the bearing pushes the shaft against gravity).
+
+    The bearings are rigid supports; the statics is solved in one bending plane (y, tx) with the consistent gravity
+    load f = -|g| M u_y, so the reactions satisfy force and moment balance exactly (two supports: the lever rule,
+    independent of the shaft stiffness).  The reactions act along -gravity (the planes are alike).  Known bearings
+    (``identify: false``) are supports too: ``model.support_nodes`` are added to ``bearing_nodes``.
+    """
+    _, nodes, r = _gravity_statics(model, bearing_nodes)
     return {int(b): float(v) for b, v in zip(nodes, r)}
+
+
+def static_sag(model: RotorModel, bearing_nodes=None) -> np.ndarray:
+    """
+    Return the shaft's static deflection under its own weight, q (ndof,) [m, rad], on rigid supports.
+
+    Zero at the bearings.  The shaft's bending (what a crack sees) does not depend on the support stiffness when two
+    bearings carry it (statically determinate); with more, rigid supports are the approximation.
+    """
+    return _gravity_statics(model, bearing_nodes)[0]
 
 
 def known_fn(model):
@@ -407,4 +424,4 @@ def known_fn(model):
 
 __all__ = ['RotorModel', 'film_dofs', 'add_film_impedance', 'add_bearings', 'add_known', 'bearing_matrices',
            'system_matrices', 'dynamic_stiffness', 'harmonic_response', 'state_space', 'measurement_row',
-           'probe_matrix', 'static_bearing_loads', 'known_fn']
+           'probe_matrix', 'static_bearing_loads', 'static_sag', 'known_fn']
