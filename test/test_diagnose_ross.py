@@ -8,8 +8,10 @@ says about the fault's size, e.g. the coupling's 2X reaction force computed by R
 ``_nominal`` set runs on the project's own nominal bearings (the model diagnose starts from); the reference set on
 ROSS-style constant bearings the model does not have.  1 % white noise (of each channel's RMS) is added here, seeded.
 
-Right answers (issue 24): a library fault is named and sized within 15 % (or its size is reported not determined);
-a fault outside the library, or a recording whose bearings differ from the model, gets no validated wrong name.
+Right answers (issue 24): a library fault is named and sized within 15 % (or its size is reported not determined:
+the crack's depth is not given -- diagnose reports the open crack's compliance, which needs a compliance law to be a
+depth); a fault outside the library, or a recording whose bearings differ from the model, gets no validated wrong
+name.
 """
 from __future__ import annotations
 

@@ -45,6 +45,9 @@ from .selection import conflicts, fit, NUIS_BOUND, run_folds, select, Selection,
 from .signature import residual_signature
 
 
+MIN_EXPLAINED = 0.5      # share of the residual power the named effects must explain when the model still misfits
+
+
 @dataclass
 class Diagnosis:
     """
@@ -289,9 +292,20 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                        'undetermined': e.undetermined(final.phys[i], final.std[i]),
                        'alternatives': [{'where': w, 'delta_bic': d} for w, d in alts]})
     names = [e.name for e in final.effects]
-    vf, cf = prob.nuisance_factors(final.theta)
     sentences = []
     misfit_after = fc is not None and np.isfinite(fc.chi2_dof_after) and fc.chi2_dof_after > fc.threshold
+    # no confident wrong name: effects that explain less than MIN_EXPLAINED of the residual power while the model
+    # still misfits at the noise floor are a partial fit to something else (a mispredicted response, a fault the
+    # library lacks), not the answer
+    partial, frac_partial = [], 1.0 - final.chi2 / max(base.chi2, 1e-300)
+    if not mism and fc is not None and np.isfinite(fc.chi2_dof) and np.isfinite(fc.chi2_dof_after):
+        # nothing located at the model tolerance: the effects were found at the noise floor, judged there
+        frac_partial = 1.0 - fc.chi2_dof_after / max(fc.chi2_dof, 1e-300)
+    if names and misfit_after and frac_partial < MIN_EXPLAINED:
+        partial, chosen, names = chosen, [], []
+        final = s.final = base
+        misfit_after = bool(fc.misfit)
+    vf, cf = prob.nuisance_factors(final.theta)
     # no candidate explains a located mismatch or the noise-floor misfit: "unexplained", with where it lives
     unexplained = not names and (bool(mism) or (fc is not None and fc.misfit))
     remaining = []        # located mismatch the selected effects leave (against the final model)
@@ -328,6 +342,10 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                      f'and ' if fc is not None and np.isfinite(fc.chi2_dof) else 'the noise floor and ')
             sentences.append(f'none: the nominal model explains the recordings within {floor}'
                              f'the {rel_tol:.0%} model tolerance (residual {base.rms:.2f} sigma)')
+        for c in partial:
+            sentences.append(f"partly fitted, not named: {c['effect']} at {c['where']} (with the others here "
+                             f'{frac_partial:.0%} of the residual power, and the model still misfits at the noise '
+                             f'floor; a name needs {MIN_EXPLAINED:.0%})')
         if sig is not None:
             sentences += sig.sentences()
     else:

@@ -21,6 +21,8 @@ Fit (:class:`BreathingCrack`): at the element, the kink's x- and y-plane compone
 numbers (12 linear parameters [urad]); the breathing model is used for the *size*: with Mayes breathing and a crack
 bending in one direction, the kink in the plane of the static moment has a 2X component of c M_s / 4 (the Fourier
 coefficient of g(a) cos^2(a) at 2a), so ``c = 4 |phi_2X| / |M_s|`` with M_s from the shaft's sag on rigid supports.
+(The horizontal plane's 2X kink is c M_s / 4 too when the crack's stiffness loss turns with it -- a circular 2X --
+and zero in models that keep only the direct terms, as ROSS's Mayes crack does; the sag plane's is the same in both.)
 Other breathing laws (a switching crack, Gasch) give another factor; the breathing law is not identified from 1X-3X
 alone, so the compliance is stated for the Mayes law.  The crack also softens the shaft on average (the open crack's
 stiffness loss, averaged over a turn, acts on every response: a lower critical speed); that mean compliance is the
@@ -45,7 +47,7 @@ from ..rotor.assembly import RotorModel, static_sag
 
 ORDERS = (1.0, 2.0, 3.0)
 UNIT = 1e-6               # the linear parameters are kinks in micro-radians (the numerical Jacobians well scaled)
-SIGNATURE_SIGMA = 3.0     # the 2X and 3X kinks must both exceed this many sigma ...
+SIGNATURE_SIGMA = 4.0     # the 2X and 3X kinks must both exceed this many sigma ...
 SIGNATURE_3X = (0.1, 2.0)  # ... and the 3X be this fraction of the 2X (Mayes 0.5; a switching crack 2/3 ... 1)
 MAYES_2X = 0.25           # 2X Fourier coefficient of (1 + cos a)/2 cos^2 a: the 2X kink per c M_s (Mayes breathing)
 
@@ -83,16 +85,25 @@ def kink_patterns(model, element: int) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
-def sag_moment(model, element: int, P_y: np.ndarray | None = None) -> float:
+def sag_moment(model, element: int, sag: np.ndarray | None = None) -> float:
     """
     Return the static bending moment [N m] at the middle of ``element`` from the shaft's weight (y-z plane).
 
-    It is the load conjugate to a unit y-plane kink there (the work P_y . q_sag), so it carries the sign of the
-    kink that would lower the sag.
+    The load conjugate to a unit y-plane kink there (the virtual work of the element's end forces and of its own
+    weight on the kinked element): d . (K_e q_e - f_e) + W, with q_e the element's part of the sag (``sag``, (ndof,)
+    [m, rad]: :func:`bearing_id.rotor.assembly.static_sag`, computed when not given), f_e the element's consistent
+    weight load (K_e q_e - f_e are the end forces) and W = -g m' L^2 / 8 the work of the weight of the half beyond
+    the kink.  Its sign is that of the kink that would lower the sag.
     """
-    if P_y is None:
-        P_y = kink_patterns(model, element)[1]
-    return float(P_y @ static_sag(model))
+    el = model.elements[element - 1]
+    q = static_sag(model) if sag is None else sag
+    i0 = DOF_PER_NODE * (element - 1)
+    u_y = np.zeros(2 * DOF_PER_NODE)
+    u_y[[1, DOF_PER_NODE + 1]] = 1.0
+    f_e = -model.gravity * (el.M() @ u_y)
+    d = unit_kink(el.length, 'y')
+    W = -model.gravity * el.mass_per_length * el.length ** 2 / 8
+    return float(d @ (el.K() @ q[i0:i0 + 2 * DOF_PER_NODE] - f_e) + W)
 
 
 class BreathingCrack(Effect):
@@ -100,8 +111,9 @@ class BreathingCrack(Effect):
     A breathing crack in shaft ``element`` (1-based; between nodes ``element`` and ``element + 1``), gravity dominated.
 
     Linear parameters: the kink at the crack [urad] per order (1X, 2X, 3X) and plane (x, y), complex -- 12 reals.
-    ``physical`` gives the 2X kink, the open crack's rotational compliance for Mayes breathing (see the module
-    docstring) and its ratio to the element's own bending compliance L/(E I).
+    ``physical`` gives the kinks per order in the sag plane (``kink_2x``) and across it (``kink_2x_cross``) [rad],
+    the open crack's rotational compliance for Mayes breathing [rad/(N m)] (see the module docstring) and its ratio
+    to the element's own bending compliance L/(E I).
     """
 
     name = 'breathing_crack'
@@ -112,12 +124,12 @@ class BreathingCrack(Effect):
     nl_lo = (0.0,)
     nl_hi = (5.0,)
 
-    def __init__(self, model, element: int):
+    def __init__(self, model, element: int, sag: np.ndarray | None = None):
         super().__init__()
         self.element = int(element)
         self.where = f'shaft element {element} (nodes {element}-{element + 1})'
         Px, Py = kink_patterns(model, self.element)
-        self.moment = sag_moment(model, self.element, Py)
+        self.moment = sag_moment(model, self.element, sag)          # N m
         el = model.elements[self.element - 1]
         self.element_compliance = el.length / (el.E * el.inertia)          # rad/(N m)
         i0 = DOF_PER_NODE * (self.element - 1)
@@ -136,6 +148,7 @@ class BreathingCrack(Effect):
         return [np.array([0.0])]
 
     def add_dZ(self, prob, Z, speed, omega, nl):
+        """Subtract the mean softening (``nl[0]`` x L/(E I) of compliance, Mayes average) from Z (ndof, ndof)."""
         c = float(nl[0]) * self.element_compliance
         if c > 0:
             Z[self._span, self._span] -= 0.25 * c / (1.0 + c * self._kink_stiffness) * self._PPt
@@ -144,12 +157,14 @@ class BreathingCrack(Effect):
         return self._cols.get(float(ratio))
 
     def physical(self, nl, lin):
+        """Return the kinks [rad] per order and plane, the compliance [rad/(N m)] and its ratios to L/(E I)."""
         lin = np.asarray(lin, float)
         out = {}
         for o, r in enumerate(ORDERS):
             kx = UNIT * complex(lin[4 * o], lin[4 * o + 1])
             ky = UNIT * complex(lin[4 * o + 2], lin[4 * o + 3])
-            out[f'kink_{r:g}x'] = math.hypot(abs(kx), abs(ky))
+            out[f'kink_{r:g}x'] = abs(ky)              # in the sag plane (y-z): Mayes 2X = c M_s / 4 with or
+            out[f'kink_{r:g}x_cross'] = abs(kx)        # without the cross-plane term (a circular or a line 2X)
             out[f'x{r:g}_re'], out[f'x{r:g}_im'] = kx.real, kx.imag
             out[f'y{r:g}_re'], out[f'y{r:g}_im'] = ky.real, ky.imag
         c = out['kink_2x'] / (MAYES_2X * abs(self.moment)) if self.moment else math.inf
@@ -162,7 +177,8 @@ class BreathingCrack(Effect):
         """Return why the fit is not a crack: under its sag a crack has a 3X beside its 2X (Mayes: half of it)."""
         k2, k3 = phys['kink_2x'], phys['kink_3x']
         s2, s3 = std.get('kink_2x', math.inf), std.get('kink_3x', math.inf)
-        if not (k2 > SIGNATURE_SIGMA * s2 and k3 > SIGNATURE_SIGMA * s3):
+        if not (k2 > SIGNATURE_SIGMA * s2 and k3 > SIGNATURE_SIGMA * s3):      # (a magnitude of 2 normal reals:
+            #                                                      beyond 4 sigma by chance with probability e^-8)
             return (f'no significant 2X and 3X kink (2X {k2 * 1e6:.3g} ± {s2 * 1e6:.2g} µrad, 3X {k3 * 1e6:.3g} ± '
                     f'{s3 * 1e6:.2g} µrad): a crack under its own weight shows both')
         if not SIGNATURE_3X[0] <= k3 / k2 <= SIGNATURE_3X[1]:
@@ -179,12 +195,14 @@ class BreathingCrack(Effect):
         return (f'breathing crack in {self.where}: open-crack rotational compliance {c:.3g} rad/(N·m)'
                 f"{pm(c, std.get('compliance'))} ({phys['relative_compliance']:.3g} of the element's L/EI; Mayes "
                 f'breathing under the static sag moment {abs(self.moment):.3g} N·m; from the mean softening {cm:.3g}'
-                f"{pm(cm, std.get('mean_relative_compliance'))} of L/EI); kink 1X/2X/3X {k} µrad, fixed to the key "
-                f'mark at every speed and in every run (a slow roll would show it: the sag is there at any speed)')
+                f"{pm(cm, std.get('mean_relative_compliance'))} of L/EI); sag-plane kink 1X/2X/3X {k} µrad, fixed to "
+                f'the key mark at every speed and in every run (a slow roll would show it: the sag is there at any '
+                f'speed)')
 
     def to_extra(self, phys):
+        keys = [f'{p}{r:g}_{c}' for r in ORDERS for p in 'xy' for c in ('re', 'im')]
         return {'effect': self.name, 'element': self.element, 'c_mean': float(phys['mean_relative_compliance']),
-                **{k: float(v) for k, v in phys.items() if k[0] in 'xy' and k[-3:] in ('_re', '_im')}}
+                **{k: float(phys[k]) for k in keys}}
 
     @classmethod
     def from_extra(cls, d, rig):
@@ -193,7 +211,7 @@ class BreathingCrack(Effect):
 
 
 def crack_elements(model) -> list[int]:
-    """Return the shaft elements (1-based) between the outermost bearings: where a gravity sag moment acts."""
+    """Return the shaft elements (1-based) between the outermost bearings (an overhang's sag moment is not tried)."""
     b = sorted(model.bearing_nodes)
     if len(b) < 2:
         return []

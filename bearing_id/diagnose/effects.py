@@ -29,7 +29,7 @@ from .predict import bearing_form, form_label, forward_force, model_forms
 from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
-from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel
+from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel, static_sag
 
 SLOW_ROLL_RPM = 400.0     # windows below this speed are slow roll (as locate.locate)
 
@@ -656,7 +656,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
         # a flexible coupling modelled as the shaft element at an end (both halves in the model)
         out += [Misalignment(a, b) for a, b in ((1, 2), (model.n_nodes - 1, model.n_nodes)) if a in ends or b in ends]
     if 'breathing_crack' in names and {2, 3} <= set(prob.obs.orders):
-        out += [BreathingCrack(model, e) for e in crack_elements(model)]
+        sag = static_sag(model)
+        out += [BreathingCrack(model, e, sag) for e in crack_elements(model)]
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
     if 'bearing_model_form' in names and not any(b.model == 'table' for b in rig.bearings):

@@ -466,7 +466,8 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
                 v = validate(prob, f.effects, selected, cache=vcache, frac_in=1.0 - f.chi2 / max(current.chi2, 1e-300),
                              folds=folds)
                 if accepted is None and v['validated']:
-                    why = f.effects[-1].missing_signature(f.phys[-1], f.std[-1]) if f.phys else None
+                    why = (f.effects[-1].missing_signature(f.phys[-1], f.std[-1]) if f.phys else
+                           'no uncertainty to judge its signature by')
                     if why:            # it fits, but its own signature is absent: no name it cannot stand behind
                         v = {**v, 'validated': False, 'signature_missing': why}
                     else:
