@@ -127,10 +127,10 @@ def test_the_same_result_twice_is_one_row(url):
 
 
 def _write_machine(url: str, machine: str, n: int, barrier, queue) -> None:
-    """Child process: write n records of ``machine`` once both children are ready."""
+    """Child process: open the (new) database when both children are ready, write n records of ``machine``."""
     try:
+        barrier.wait(timeout=60)
         with HistoryStore(url) as store:
-            barrier.wait(timeout=60)
             for i in range(n):
                 store.write(_record(machine, i))
         queue.put(('ok', machine))
@@ -139,7 +139,6 @@ def _write_machine(url: str, machine: str, n: int, barrier, queue) -> None:
 
 
 def test_two_processes_writing_two_machines_lose_nothing(url):
-    HistoryStore(url).close()                     # the schema exists before the race (its creation is tested apart)
     ctx = multiprocessing.get_context('spawn')
     barrier, queue = ctx.Barrier(2), ctx.Queue()
     n = 40

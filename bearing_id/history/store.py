@@ -321,8 +321,8 @@ def _engine(url: str, busy_timeout: float) -> sa.Engine:
     def _on_connect(dbapi_conn, _record):
         dbapi_conn.isolation_level = None          # pysqlite issues no BEGIN of its own: _on_begin does
         cur = dbapi_conn.cursor()
-        cur.execute('PRAGMA journal_mode=WAL')
         cur.execute(f'PRAGMA busy_timeout={int(busy_timeout * 1000)}')
+        cur.execute('PRAGMA journal_mode=WAL')
         cur.execute('PRAGMA foreign_keys=ON')
         cur.close()
 
