@@ -23,7 +23,8 @@ in the database itself, so it works the same on SQLite and PostgreSQL and for wr
 file would not reach PostgreSQL, an advisory lock would not exist on SQLite); the check and the take-over happen in
 one transaction (SQLite: the IMMEDIATE write lock; PostgreSQL: SELECT ... FOR UPDATE, the primary key for two
 first-timers).  A writer whose lease was taken over (it stalled for longer than ``lease_timeout``) is refused at its
-next write: two writers never interleave rows of one machine unknowingly.
+next write: two writers never interleave rows of one machine unknowingly.  Heartbeats are wall-clock times: hosts
+that share a PostgreSQL history need clocks synchronised (NTP) well within ``lease_timeout``.
 """
 from __future__ import annotations
 
