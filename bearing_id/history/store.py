@@ -34,6 +34,7 @@ import math
 import os
 from pathlib import Path
 import socket
+import sqlite3
 import time
 import uuid
 
@@ -309,6 +310,26 @@ def _holder(row) -> str:
     return 'nobody' if row is None else f'process {row.pid} on host {row.host!r}'
 
 
+def _wal(cur, busy_timeout: float) -> None:
+    """
+    Put the database into WAL journal mode (persistent in the file), waiting up to ``busy_timeout`` [s].
+
+    Switching needs the file to itself and SQLite answers "database is locked" at once instead of calling the busy
+    handler (seen when two processes open a new file together), so the switch is retried until the mode is WAL.
+    """
+    deadline = time.monotonic() + busy_timeout
+    while True:
+        try:
+            mode = cur.execute('PRAGMA journal_mode').fetchone()[0]
+            if str(mode).lower() in ('wal', 'memory'):
+                return
+            cur.execute('PRAGMA journal_mode=WAL')
+        except sqlite3.OperationalError as e:
+            if 'locked' not in str(e) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
+
+
 def _engine(url: str, busy_timeout: float) -> sa.Engine:
     """Return the engine for ``url``: SQLite with WAL, busy timeout, foreign keys and IMMEDIATE write transactions."""
     u = sa.make_url(url)
@@ -323,7 +344,7 @@ def _engine(url: str, busy_timeout: float) -> sa.Engine:
         dbapi_conn.isolation_level = None          # pysqlite issues no BEGIN of its own: _on_begin does
         cur = dbapi_conn.cursor()
         cur.execute(f'PRAGMA busy_timeout={int(busy_timeout * 1000)}')
-        cur.execute('PRAGMA journal_mode=WAL')
+        _wal(cur, busy_timeout)
         cur.execute('PRAGMA foreign_keys=ON')
         cur.close()
 
