@@ -408,7 +408,8 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
             'bearing_id_msgs': 'bearing_id_msgs', 'numpy': 'python3-numpy', 'scipy': 'python3-scipy',
             'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib', 'rosbags': 'python3-rosbags-pip',
             'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip',
-            'pydantic': 'python3-pydantic2-pip', 'pydantic_core': 'python3-pydantic2-pip'}
+            'pydantic': 'python3-pydantic2-pip', 'pydantic_core': 'python3-pydantic2-pip',
+            'sqlalchemy': 'python3-sqlalchemy'}
     own = yaml.safe_load((REPO / 'rosdep' / 'bearing_id.yaml').read_text())
     pip_keys = {'python3-pint-pip': 'pint', 'python3-mcap-pip': 'mcap', 'python3-pydantic2-pip': 'pydantic',
                 'python3-import-linter-pip': 'import-linter', 'python3-threadpoolctl-pip': 'threadpoolctl',
