@@ -210,9 +210,12 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         folds = speed_folds(prob)
     else:
         raise ValueError(f"held_out must be 'speeds' or 'runs', got {held_out!r}")
+    base0 = fit(prob, [])
+    if 'rub' in effects and not residual_signature(prob, base0, threshold=3.0).speed_local:
+        effects = tuple(n for n in effects if n != 'rub')      # a rub acts where the orbit is largest: speed-local
     cands = candidates(prob, unbalance_planes=unbalance_planes, names=effects)
     s = select(prob, cands, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor, peak_sigma=threshold,
-               folds=folds)
+               folds=folds, base=base0)
     # noise-floor check: the same test identify applies; the bearing model form tried there when it trips
     fc = None
     fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance) if noise_floor
@@ -277,6 +280,14 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                            delta_bic=r['delta_bic'], explained_fraction=r['explained'],
                            chi2_dof_before=v['chi2_dof_before'], chi2_dof_after=r['chi2_dof'])
             hyps.append(row)
+    # a model that misfits shows no number its misfit disowns: parameters fitted at the model tolerance while the
+    # final model misfits identify's vectors at the noise floor have their 1-sigma scaled by the Birge ratio there
+    # (sqrt(chi2/dof)); the noise-floor refit has it already
+    birge = 1.0
+    if (fc is not None and np.isfinite(fc.chi2_dof_after) and fc.chi2_dof_after > fc.threshold
+            and fc.refined != 'noise floor'):
+        birge = float(np.sqrt(fc.chi2_dof_after))
+        final.std = [{k: v * birge for k, v in sd.items()} for sd in final.std]
     chosen = []
     for i, e in enumerate(final.effects):
         sent = e.sentence(final.phys[i], final.std[i])
@@ -378,7 +389,9 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                                  + (' (1-sigma scaled by sqrt(chi2/dof))' if misfit_after else ''))
             elif fc.refined == 'model tolerance':
                 sentences.append('the parameters above are fitted with the model tolerance (the model misfits too '
-                                 'much at the noise floor for a fit there)')
+                                 'much at the noise floor for a fit there)'
+                                 + (f'; their 1-sigma is scaled by sqrt(chi2/dof) = {birge:.3g} of that misfit'
+                                    if birge > 1 else ''))
         if remaining and not misfit_after and sig is not None:
             top = remaining[0]
             sentences.append(f'the selected effects leave a located mismatch ({top.order} at {top.where}, '

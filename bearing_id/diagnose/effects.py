@@ -26,6 +26,7 @@ import numpy as np
 from .crack import BreathingCrack, crack_elements
 from .effect import determined, DETERMINED_REL, Effect, pm as _pm
 from .predict import bearing_form, form_label, forward_force, model_forms
+from .rub import rub_candidates
 from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
@@ -34,7 +35,7 @@ from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel, 
 SLOW_ROLL_RPM = 400.0     # windows below this speed are slow roll (as locate.locate)
 
 EFFECT_NAMES = ('support_flexibility', 'residual_unbalance', 'shaft_bow', 'probe_runout', 'misalignment',
-                'oil_whirl', 'probe_orientation', 'disc_mass_error', 'bearing_model_form', 'breathing_crack')
+                'oil_whirl', 'probe_orientation', 'disc_mass_error', 'bearing_model_form', 'breathing_crack', 'rub')
 
 
 def _dir_word(d: str) -> str:
@@ -658,6 +659,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
     if 'breathing_crack' in names and {2, 3} <= set(prob.obs.orders):
         sag = static_sag(model)
         out += [BreathingCrack(model, e, sag) for e in crack_elements(model)]
+    if 'rub' in names:
+        out += rub_candidates(prob.obs)
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
     if 'bearing_model_form' in names and not any(b.model == 'table' for b in rig.bearings):

@@ -135,27 +135,39 @@ def _residual(prob, effects, z, windows, lin=None):
 
 
 def fit(prob: Problem, effects: list, *, windows=None, theta0=None, max_nfev: int = 60,
-        free_nuisance: bool = True, uncertainty: bool = True, nl0=None) -> Fit:
+        free_nuisance: bool = True, uncertainty: bool = True, nl0=None, hold_nl=None) -> Fit:
     """
     Fit nuisance + effect parameters of the hypothesis ``effects`` on ``windows`` (default all).
 
     ``free_nuisance=False`` keeps the bearing nuisance at ``theta0`` (fast screening: linear effects then need no
     iteration at all).  ``nl0`` : per effect, nonlinear parameters to start from as well (e.g. another fit's).
+    ``hold_nl`` : per effect, nonlinear parameters to keep fixed (None: fitted) -- screening a new candidate beside
+    effects already selected keeps theirs (their linear parameters are refitted).
     """
     windows = list(range(len(prob.windows))) if windows is None else list(windows)
     th0 = np.zeros(prob.n_nuis) if theta0 is None else np.asarray(theta0, float)[:prob.n_nuis]
     nn = prob.n_nuis if free_nuisance else 0
-    lo = [-NUIS_BOUND] * nn + [v for e in effects for v in e.nl_lo]
-    hi = [NUIS_BOUND] * nn + [v for e in effects for v in e.nl_hi]
+    held = list(hold_nl) if hold_nl is not None else [None] * len(effects)
+    free_e = [e for e, h in zip(effects, held) if h is None]
+    lo = [-NUIS_BOUND] * nn + [v for e in free_e for v in e.nl_lo]
+    hi = [NUIS_BOUND] * nn + [v for e in free_e for v in e.nl_hi]
     head = th0[:nn]
     fixed = th0 if not free_nuisance else np.zeros(0)
-    starts = [np.concatenate([head, *combo]) for combo in itertools.product(*[e.starts for e in effects])] \
-        if effects else [head]
-    if nl0 is not None and effects:
-        starts.insert(0, np.concatenate([head, *[np.asarray(v, float) for v in nl0]]))
+    starts = [np.concatenate([head, *combo]) for combo in itertools.product(*[e.starts for e in free_e])] \
+        if free_e else [head]
+    if nl0 is not None and free_e:
+        starts.insert(0, np.concatenate([head, *[np.asarray(v, float) for v, h in zip(nl0, held) if h is None]]))
 
     def full(z):
-        return np.concatenate([fixed, z])
+        out, i = [fixed, z[:nn]], nn
+        for e, h in zip(effects, held):
+            m = len(e.nl_names)
+            if h is None:
+                out.append(z[i:i + m])
+                i += m
+            else:
+                out.append(np.asarray(h, float).reshape(m))
+        return np.concatenate(out)
 
     best = None
     nz = len(lo)
@@ -430,8 +442,10 @@ def select(prob: Problem, cands: list, *, max_effects: int = 3, dbic_min: float 
         for c in cands:
             if any(conflicts(c, e) for e in selected):
                 continue
+            hold = list(current.nls) + [None] if len(current.nls) == len(selected) else None
             screen.append(fit(prob, selected + [c], theta0=current.theta,
-                              free_nuisance=bool(getattr(c, 'screen_free_nuisance', False)), uncertainty=False))
+                              free_nuisance=bool(getattr(c, 'screen_free_nuisance', False)), uncertainty=False,
+                              hold_nl=hold))
         if not screen:
             break
         screen.sort(key=lambda f: f.bic)
