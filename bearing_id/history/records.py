@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import hashlib
 import json
 import math
+import time
 
 import numpy as np
 
@@ -99,6 +100,45 @@ def coefficients_from_arrays(bearing: str, K, C, K_sigma, C_sigma, determined) -
             for j, b in enumerate('xy'):
                 out.append(Coefficient(bearing, f'{kind}{a}{b}', float(val[i, j]), float(sig[i, j]), bool(d[i, j])))
     return tuple(out)
+
+
+def record_from_result(result: dict, machine: str, *, rig_name: str = '', provenance: dict | None = None,
+                       stamp: float | None = None) -> IdentificationRecord:
+    """
+    Return the :class:`IdentificationRecord` of one identification result in its JSON form (``IdentResult.to_dict``).
+
+    ``result['data_span']`` (first, last) [s, UNIX] is the data's time span when the identifier gave it, else
+    (``stamp``, ``stamp``) (default: now); coefficients from ``result['bearings']`` (K, C, K_std, C_std 2x2 [SI] and
+    ``determined`` {K, C}; None = NaN); parameters from ``result['parameters']`` ({'bearing1.viscosity': {'value',
+    'std'}, ...} [SI]); ``misfit``, ``method`` and ``speed_rad_s`` as given.
+    """
+    span = result.get('data_span')
+    if not span:
+        t = time.time() if stamp is None else float(stamp)
+        span = (t, t)
+    coefs = []
+    for b in result.get('bearings', []):
+        det = b.get('determined') or {}
+        coefs += coefficients_from_arrays(str(b['name']), _arr(b['K']), _arr(b['C']), _arr(b['K_std']),
+                                          _arr(b['C_std']), [np.broadcast_to(np.asarray(det.get(k, False), bool),
+                                                                             (2, 2)) for k in ('K', 'C')])
+    pars = []
+    for name, p in sorted((result.get('parameters') or {}).items()):
+        bearing, _, what = str(name).rpartition('.')
+        pars.append(Parameter(bearing, what, _num(p.get('value')), _num(p.get('std'))))
+    return IdentificationRecord(machine=str(machine), t_start=float(span[0]), t_end=float(span[1]),
+                                speed=float(result['speed_rad_s']), method=str(result['method']),
+                                coefficients=tuple(coefs), parameters=tuple(pars), misfit=bool(result.get('misfit')),
+                                provenance=dict(provenance or {}), rig_name=str(rig_name))
+
+
+def _num(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _arr(a) -> np.ndarray:
+    """Return a 2x2 float array of a JSON matrix (None = NaN)."""
+    return np.array([[_num(v) for v in row] for row in a], dtype=float)
 
 
 def _f(x) -> str:

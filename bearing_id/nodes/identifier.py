@@ -22,7 +22,7 @@ from rclpy.node import Node
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
 from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
-from .machine import label, machine_id, record_dir
+from .machine import history_url, label, machine_id, record_dir
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
@@ -30,6 +30,7 @@ from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, WARN
 from .topics import relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION
 from ..config.params import load_rig
+from ..history import HistoryStore
 from ..io import messages as M
 
 SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this long after its window closed
@@ -47,11 +48,20 @@ class Identifier(Node):
         self.machine = machine_id(v['machine_id'], self.get_namespace())
         self.label = label(self.machine, rig.name)            # hardware_id and frame_id
         channels = v['channels'] or [p.name for p in rig.probes]
-        self.core = IdentifierCore(rig, v['method'], record_dir(v['record_dir'], self.get_namespace(), self.get_name()),
+        rdir = record_dir(v['record_dir'], self.get_namespace(), self.get_name())
+        self.history_problem = ''
+        history = None
+        if str(v['history']).strip():
+            try:
+                history = HistoryStore(history_url(v['history'], rdir))
+            except Exception as exc:      # the node runs and records without it; /diagnostics says why (ERROR)
+                self.history_problem = f"history database {v['history']!r} not opened: {type(exc).__name__}: {exc}"
+                self.get_logger().error(self.history_problem)
+        self.core = IdentifierCore(rig, v['method'], rdir,
                                    v['runs'], v['speed_tolerance'], v['settle_fraction'], v['min_window'],
                                    options={'kf': {'Q': v['kf_process_noise'],
                                                    'R': v['kf_measurement_noise'] ** 2 or None}},
-                                   max_window=v['max_segment'], machine=self.machine)
+                                   max_window=v['max_segment'], machine=self.machine, history=history)
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
         self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
@@ -255,6 +265,8 @@ class Identifier(Node):
         items.append(acc)
         items.append(identifiability_item(self.last_results, self.values['publish_undetermined']))
         items.append(self.core.gaps_item())
+        items.append(DiagItem(f'{NAME}: history', ERROR, self.history_problem, {}) if self.history_problem
+                     else self.core.history_item())
         items.append(flag_publishers(self, TOPIC_COEFFICIENTS, DiagItem(
             f'{NAME}: output {TOPIC_COEFFICIENTS}', OK, f'{self.published} result(s) published', {}),
             'another node publishes coefficients here too (a second identifier, or another machine in this '
@@ -265,6 +277,8 @@ class Identifier(Node):
         self._jobs.put(None)
         self._worker.join(timeout=5.0)
         self.core.close()
+        if self.core.history is not None:
+            self.core.history.close()
 
 
 def main(argv=None) -> int:

@@ -32,15 +32,18 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 import math
 import threading
+import time
 
 import numpy as np
+from sqlalchemy import make_url
 
 from .machine import label
 from .specs import ParamSpec
-from .status import DiagItem, OK, WARN
+from .status import DiagItem, ERROR, OK, WARN
 from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
+from ..history import record_from_result
 from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
                                   WindowVector)
@@ -60,6 +63,11 @@ SPECS = [
     ParamSpec('record_dir', '', 'directory of the append-only record (resumed on restart; one identifier per record). '
               'Empty: ~/.ros/bearing_id_record in the root namespace, else ~/.ros/bearing_id_record/<namespace>/<node '
               'name>'),
+    ParamSpec('history', 'record', "database of every published identification, for trends: 'record' = the SQLite "
+              'file history.db in record_dir; a SQLAlchemy URL (sqlite:////var/lib/bearing_id/fleet.db, '
+              "postgresql+psycopg://user@host/db) to share one with a fleet; '' = none.  One writer per machine: a "
+              'second identifier of this machine is an ERROR on /diagnostics; the record keeps every result and '
+              'writes what the history lacks at the next start'),
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
@@ -128,7 +136,7 @@ class IdentifierCore:
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = defaults.SPEED_TOLERANCE,
                  settle: float = defaults.SETTLE_FRACTION, min_window: float = defaults.MIN_WINDOW, options=None,
                  max_window: float | None = None,
-                 warm_start: bool = True, machine: str = ''):
+                 warm_start: bool = True, machine: str = '', history=None):
         self.rig = rig
         self.machine = label(machine, rig.name)    # the machine the record belongs to
         self.model = RotorModel.from_params(rig)
@@ -160,6 +168,9 @@ class IdentifierCore:
         self._warm = None                      # (parameter names, values [SI]) of the last physical fit
         self._ran = None                       # the method the last solve ran (auto chooses per solve)
         self.lock = threading.Lock()
+        self.history = history                 # a HistoryStore (or None): every result recorded is written there too
+        self.history_rows = 0                  # identifications this process added to the history
+        self.history_error = ''                # the last failed write (kept until a write succeeds)
         get_method(method)
         self._lock_file = lock_record(record_dir)      # one writer per record (RecordInUse otherwise)
         try:
@@ -167,6 +178,7 @@ class IdentifierCore:
             entries = self.record.entries()          # read once for both
             self._check_machine(entries)
             self.resumed = self._resume(entries)
+            self.resumed['history_backfilled'] = self._backfill_history(entries)
         except BaseException:
             self._lock_file.close()
             raise
@@ -616,11 +628,48 @@ class IdentifierCore:
             stability_threshold(self.model, self.rig, float(rpm_to_rad_s(max(sim.speeds_rpm))))
 
     def record_results(self, results) -> None:
-        """Append results to the record (one fsync'ed line each)."""
+        """Append results to the record (one fsync'ed line each), then write them to the history."""
         for r in results:
-            self.record.append('result', **_result_payload(r))
+            payload, stamp = _result_payload(r), time.time()
+            self.record.append('result', stamp=stamp, **payload)
+            self._to_history(payload['result'], stamp)
         if self.record.lines > COMPACT_AFTER:
             self.compact()
+
+    def _to_history(self, result: dict, stamp: float) -> bool:
+        """Write one recorded result (its dict) to the history; a failure is kept for /diagnostics, never raised."""
+        if self.history is None:
+            return False
+        try:
+            rec = record_from_result(result, self.machine, rig_name=self.rig.name, stamp=stamp,
+                                     provenance={'record': str(self.record.path)})
+            inserted = self.history.write(rec).inserted
+        except Exception as exc:      # a database down, a second writer, a bad value: the record still has it
+            self.history_error = f'{type(exc).__name__}: {exc}'
+            return False
+        self.history_error = ''
+        self.history_rows += int(inserted)
+        return inserted
+
+    def _backfill_history(self, entries: list) -> int:
+        """Write the record's results the history lacks (a write that failed, a kill before it); return how many."""
+        n = 0
+        for e in entries:
+            if e.get('type') == 'result' and isinstance(e.get('result'), dict):
+                n += self._to_history(e['result'], float(e.get('stamp', e.get('wall_time', 0.0))))
+        return n
+
+    def history_item(self) -> DiagItem:
+        """Return the /diagnostics item of the history database: rows written, or the failed write (ERROR)."""
+        name = f'{NAME}: history'
+        if self.history is None:
+            return DiagItem(name, OK, 'no history database (parameter history)', {})
+        vals = {'database': _redacted(self.history.url), 'identifications_written': self.history_rows,
+                'backfilled_at_start': self.resumed.get('history_backfilled', 0)}
+        if self.history_error:
+            return DiagItem(name, ERROR, f'not written to the history: {self.history_error} (the record keeps '
+                                         f'every result; they are written at the next start)', vals)
+        return DiagItem(name, OK, f'{self.history_rows} identification(s) written', vals)
 
     def close(self):
         self.record.close()
@@ -653,6 +702,14 @@ def _moved(old, new) -> str:
     if best[0] <= CHANGE_SIGMAS:
         return ''
     return f'changed since the last result at this speed: {best[1]} ({best[0]:.1f} sigma)'
+
+
+def _redacted(url: str) -> str:
+    """Return ``url`` without a password."""
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:
+        return '(unparsable URL)'
 
 
 def _result_payload(r) -> dict:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..history import sqlite_url
+
 RECORD_BASE = '~/.ros/bearing_id_record'     # the record of the identifier in the root namespace (as before)
 
 
@@ -27,6 +29,19 @@ def label(machine: str, rig_name: str) -> str:
 def status_name(machine: str, name: str) -> str:
     """Return a /diagnostics status name for the machine: ``machine1/identifier: accumulation`` (unprefixed at root)."""
     return f'{machine}/{name}' if machine else name
+
+
+def history_url(param: str, record: Path) -> str:
+    """
+    Return the history database's SQLAlchemy URL from the ``history`` parameter.
+
+    'record': the SQLite file ``history.db`` in the record directory ``record``; a URL (``scheme://...``) as given;
+    anything else: a SQLite file path.
+    """
+    p = str(param).strip()
+    if p == 'record':
+        return sqlite_url(Path(record) / 'history.db')
+    return p if '://' in p else sqlite_url(p)
 
 
 def record_dir(param: str, namespace: str, node_name: str) -> Path:
