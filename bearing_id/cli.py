@@ -25,7 +25,7 @@ from .config.params import ParamError
 from .io.bags import BagError
 from .io.daq import DaqError
 
-COMMANDS = ('model', 'simulate', 'design', 'identify', 'diagnose', 'report', 'record', 'play', 'import_ross')
+COMMANDS = ('model', 'simulate', 'design', 'identify', 'diagnose', 'report', 'trend', 'record', 'play', 'import_ross')
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:

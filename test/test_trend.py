@@ -1,0 +1,77 @@
+"""
+``bearing-id trend`` on a history with a known change (issue 25 items 3 and 4).
+
+A machine's history written here: 80 solves, each three identifications (three speeds) carrying the same global fit;
+bearing 1's clearance steps up by 4 % (8 of its 1-sigma of 0.5 %) at solve 40; its viscosity and bearing 2's
+parameters do not change; every value drawn around its truth with its stated 1-sigma (seeded).  At ARL0 = 1e5 points
+(a false alarm in these 70 monitored points has probability ~7e-4 per series), the CUSUM tuned for a 2-sigma shift
+must raise one alarm: bearing 1's clearance, up, its onset within 3 solves of the step (the statistic's last zero; a
+shift of 8 sigma leaves it within a point or two), its size within 3 of its own 1-sigma of the true 4 %.  The CLI
+exits 1 (an alarm) and writes the page; a machine without a change exits 0; a missing database exits 2.
+"""
+from __future__ import annotations
+
+import math
+
+from bearing_id import cli
+from bearing_id.history import HistoryStore, IdentificationRecord, Parameter, sqlite_url
+from bearing_id.history.trend import changes, parameter_series
+import numpy as np
+import pytest
+
+T0, STEP_AT, N, REL_SIGMA, STEP = 1.8e9, 40, 80, 0.005, 0.04
+TRUTH = {('bearing1', 'clearance'): 100e-6, ('bearing1', 'viscosity'): 0.02,
+         ('bearing2', 'clearance'): 120e-6, ('bearing2', 'viscosity'): 0.02}
+
+
+def write_history(path, machine: str, step: bool, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    with HistoryStore(sqlite_url(path)) as store:
+        for i in range(N):
+            pars = []
+            for (b, name), v in TRUTH.items():
+                true = v * (1 + STEP) if (step and (b, name) == ('bearing1', 'clearance') and i >= STEP_AT) else v
+                pars.append(Parameter(b, name, true + REL_SIGMA * v * rng.standard_normal(), REL_SIGMA * v))
+            for speed in (100.0, 200.0, 300.0):
+                store.write(IdentificationRecord(machine=machine, t_start=T0 + 600 * i, t_end=T0 + 600 * i + 60,
+                                                 speed=speed, method='physical', parameters=tuple(pars)))
+
+
+@pytest.fixture(scope='module')
+def db(tmp_path_factory):
+    path = tmp_path_factory.mktemp('trend') / 'fleet.db'
+    write_history(path, 'worn', step=True, seed=1)
+    write_history(path, 'steady', step=False, seed=2)
+    return path
+
+
+def test_one_solve_is_one_point(db):
+    with HistoryStore(sqlite_url(db)) as store:
+        series = parameter_series(store, 'worn')
+    assert [(s.bearing, s.name) for s in series] == sorted(TRUTH)
+    assert all(s.t.size == N for s in series)
+
+
+def test_the_clearance_step_is_found_named_and_sized(db):
+    with HistoryStore(sqlite_url(db)) as store:
+        found = changes(parameter_series(store, 'worn'), arl0=1e5, delta=2.0, n_reference=10)
+        quiet = changes(parameter_series(store, 'steady'), arl0=1e5, delta=2.0, n_reference=10)
+    assert quiet == []
+    (c,) = found
+    a = c.alarm
+    assert (c.bearing, c.name, a.direction) == ('bearing1', 'clearance', 1)
+    onset_solve = (a.onset_time - T0 - 60) / 600
+    assert abs(onset_solve - STEP_AT) <= 3, onset_solve
+    true_size = STEP * TRUTH[('bearing1', 'clearance')]
+    assert abs(a.size - true_size) <= 3 * math.hypot(a.size_sigma, a.reference_sigma), (a.size, a.size_sigma)
+
+
+def test_the_command_exits_1_on_an_alarm_and_writes_the_page(db, tmp_path, capsys):
+    page = tmp_path / 'trend.html'
+    assert cli.main(['trend', str(db), '--machine', 'worn', '--arl0', '1e5', '--html', str(page)]) == 1
+    out = capsys.readouterr().out
+    assert 'ALARM bearing1 clearance: up' in out, out
+    html = page.read_text()
+    assert 'data:image/png;base64,' in html and 'bearing1 clearance: up' in html
+    assert cli.main(['trend', str(db), '--machine', 'steady', '--arl0', '1e5']) == 0
+    assert cli.main(['trend', str(tmp_path / 'none.db')]) == 2
