@@ -22,7 +22,7 @@ from rclpy.node import Node
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
 from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
-from .machine import history_url, label, machine_id, record_dir
+from .machine import history_url, label, machine_id, record_dir, redacted_url
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
@@ -52,10 +52,12 @@ class Identifier(Node):
         self.history_problem = ''
         history = None
         if str(v['history']).strip():
+            url = history_url(v['history'], rdir)
             try:
-                history = HistoryStore(history_url(v['history'], rdir))
+                history = HistoryStore(url)
             except Exception as exc:      # the node runs and records without it; /diagnostics says why (ERROR)
-                self.history_problem = f"history database {v['history']!r} not opened: {type(exc).__name__}: {exc}"
+                self.history_problem = (f'history database {redacted_url(url)} not opened: {type(exc).__name__}: '
+                                        f'{str(exc).replace(url, redacted_url(url))}')
                 self.get_logger().error(self.history_problem)
         self.core = IdentifierCore(rig, v['method'], rdir,
                                    v['runs'], v['speed_tolerance'], v['settle_fraction'], v['min_window'],

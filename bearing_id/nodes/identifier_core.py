@@ -35,9 +35,8 @@ import threading
 import time
 
 import numpy as np
-from sqlalchemy import make_url
 
-from .machine import label
+from .machine import label, redacted_url
 from .specs import ParamSpec
 from .status import DiagItem, ERROR, OK, WARN
 from ..config import defaults
@@ -664,7 +663,7 @@ class IdentifierCore:
         name = f'{NAME}: history'
         if self.history is None:
             return DiagItem(name, OK, 'no history database (parameter history)', {})
-        vals = {'database': _redacted(self.history.url), 'identifications_written': self.history_rows,
+        vals = {'database': redacted_url(self.history.url), 'identifications_written': self.history_rows,
                 'backfilled_at_start': self.resumed.get('history_backfilled', 0)}
         if self.history_error:
             return DiagItem(name, ERROR, f'not written to the history: {self.history_error} (the record keeps '
@@ -702,14 +701,6 @@ def _moved(old, new) -> str:
     if best[0] <= CHANGE_SIGMAS:
         return ''
     return f'changed since the last result at this speed: {best[1]} ({best[0]:.1f} sigma)'
-
-
-def _redacted(url: str) -> str:
-    """Return ``url`` without a password."""
-    try:
-        return make_url(url).render_as_string(hide_password=True)
-    except Exception:
-        return '(unparsable URL)'
 
 
 def _result_payload(r) -> dict:

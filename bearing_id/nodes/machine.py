@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from sqlalchemy import make_url
+
 from ..history import sqlite_url
 
 RECORD_BASE = '~/.ros/bearing_id_record'     # the record of the identifier in the root namespace (as before)
@@ -42,6 +44,14 @@ def history_url(param: str, record: Path) -> str:
     if p == 'record':
         return sqlite_url(Path(record) / 'history.db')
     return p if '://' in p else sqlite_url(p)
+
+
+def redacted_url(url: str) -> str:
+    """Return the database URL ``url`` without its password (for logs and /diagnostics)."""
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:      # not a URL SQLAlchemy reads: say so rather than echo it
+        return '(unparsable URL)'
 
 
 def record_dir(param: str, namespace: str, node_name: str) -> Path:
