@@ -8,6 +8,7 @@ of its own there).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import multiprocessing
 import os
@@ -35,6 +36,13 @@ def url(request, tmp_path):
     if request.param == 'sqlite':
         yield sqlite_url(tmp_path / 'fleet.db')
         return
+    with pg_database() as u:
+        yield u
+
+
+@contextlib.contextmanager
+def pg_database():
+    """Yield the URL of a new, empty PostgreSQL database on the test server; drop it afterwards."""
     assert PG_URL, 'CI is set but BEARING_ID_TEST_PG_URL is not: .ci/run should have started PostgreSQL'
     base = sa.make_url(PG_URL)
     name = 'bearing_id_test_' + uuid.uuid4().hex[:12]
@@ -277,3 +285,20 @@ def test_a_newer_schema_is_refused(url):
     with eng.connect() as c:
         assert c.execute(sa.text('SELECT version FROM schema_version')).scalar_one() == SCHEMA_VERSION + 1
     eng.dispose()
+
+
+@_PG_SKIP
+def test_a_fleet_on_postgresql_and_on_sqlite_holds_the_same_content(tmp_path):
+    # three machines (namespaced ids) written alike to both databases, in another order on each: the same records
+    machines = ['/plant/c101', '/plant/c102', '/plant/p201']
+    recs = [_record(m, i, clearance=(100 + j) * 1e-6) for j, m in enumerate(machines) for i in range(6)]
+    with pg_database() as pg_url, HistoryStore(pg_url) as pg, HistoryStore(sqlite_url(tmp_path / 'fleet.db')) as lite:
+        for r in recs:
+            pg.write(r)
+        for r in reversed(recs):
+            lite.write(r)
+        assert [m.machine_id for m in pg.machines()] == [m.machine_id for m in lite.machines()] == sorted(machines)
+        for m in machines:
+            a, b = pg.records(m), lite.records(m)
+            assert [r.key() for r in a] == [r.key() for r in b] == [r.key() for r in sorted(
+                (r for r in recs if r.machine == m), key=lambda r: r.t_end)]
