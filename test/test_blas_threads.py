@@ -28,7 +28,7 @@ def test_entry_points_set_one_thread_before_numpy(module):
     # records whether numpy was loaded at the moment blas_threads ran
     check = ('import sys, builtins\nseen = {}\nreal = builtins.__import__\n'
              'def imp(name, *a, **k):\n'
-             "    if name.endswith('blas_threads') or (a and a[2] and 'blas_threads' in a[2]):\n"
+             "    if name.endswith('blas_threads') or (len(a) > 2 and a[2] and 'blas_threads' in a[2]):\n"
              "        seen.setdefault('numpy_before', 'numpy' in sys.modules)\n"
              '    return real(name, *a, **k)\n'
              'builtins.__import__ = imp\n' + code + "\nprint(seen.get('numpy_before'))")

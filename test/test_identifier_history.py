@@ -11,8 +11,7 @@ crashed.
 from __future__ import annotations
 
 from bearing_id.history import HistoryStore, sqlite_url
-from bearing_id.nodes.identifier_core import IdentifierCore
-from bearing_id.nodes.machine import history_url
+from bearing_id.nodes.identifier_core import history_url, IdentifierCore
 from bearing_id.nodes.status import ERROR, OK
 import numpy as np
 from sqlalchemy.exc import OperationalError

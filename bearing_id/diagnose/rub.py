@@ -9,8 +9,9 @@ Childs 1993)::
 
 with e_t the direction of the surface speed (the spin: +x -> +y), k the contact stiffness [N/m] and mu the friction
 coefficient.  The force is periodic with the orbit; its 1X, 2X and 3X phasors are computed from the orbit *as
-measured* at the node (its x/y probe pair; the orbit rebuilt from the measured 1X-3X vectors of the window over one
-turn), so for a clearance ``delta`` the force is linear in (k, k mu): the candidate's two linear parameters, with
+measured* at the node (its x/y probe pair, the window's samples about their mean, the force projected on e^{-j r
+angle}: a quasi-periodic contact response counts with its true peaks), so for a clearance ``delta`` the force is
+linear in (k, k mu): the candidate's two linear parameters, with
 ``delta`` its one nonlinear parameter.  Contact happens only at the speeds whose orbit reaches ``delta`` -- the rub's
 signature: speed-local changes of 1X (and harmonics) where the orbit is largest, none elsewhere.
 
@@ -26,7 +27,7 @@ import numpy as np
 from .effect import determined, Effect, pm
 from ..conventions import dof_index, rad_s_to_rpm
 
-N_ANGLE = 64              # samples per turn for the contact force's Fourier series
+MAX_SAMPLES = 4096        # samples per window the contact force's harmonics are computed from (every k-th)
 ORDERS = (1.0, 2.0, 3.0)
 SIGNATURE_SIGMA = 4.0     # the contact stiffness must exceed this many sigma
 
@@ -47,23 +48,24 @@ class Rub(Effect):
         super().__init__()
         self.px, self.py, self.node = px, py, px.node
         self.where = f'node {px.node} (probes {px.name}/{py.name})'
-        self._orbits = {}                     # window -> (x, y) over one turn [m], (N_ANGLE,) each
+        self._orbits = {}                     # window -> (x, y, angle) as measured [m, m, rad], (n,) each
         self._rpm = {}
-        ang = np.linspace(0.0, 2 * math.pi, N_ANGLE, endpoint=False)
-        self._ang = ang
         for k, w in enumerate(obs.windows):
             names = [p.name for p in obs.probes(w.rec)]
             if px.name not in names or py.name not in names:
                 continue
             cx, cy = names.index(px.name), names.index(py.name)
-            x = np.zeros(N_ANGLE)
-            y = np.zeros(N_ANGLE)
-            for o, r in enumerate(obs.orders):
-                x += np.real(w.X[o, cx] * np.exp(1j * r * ang))
-                y += np.real(w.X[o, cy] * np.exp(1j * r * ang))
-            self._orbits[k] = (x, y)
+            rec = obs.recordings[w.rec]
+            step = max(1, (w.i1 - w.i0) // MAX_SAMPLES)
+            xy = np.asarray(rec.samples[w.i0:w.i1:step][:, [cx, cy]], dtype=float)
+            ang = np.asarray(rec.angle[w.i0:w.i1:step], dtype=float)
+            ok = np.all(np.isfinite(xy), axis=1) & np.isfinite(ang)
+            if ok.sum() < 16:
+                continue
+            xy = xy[ok] - np.mean(xy[ok], axis=0)           # about the mean position (the probes' gaps unknown)
+            self._orbits[k] = (xy[:, 0], xy[:, 1], ang[ok])
             self._rpm[k] = rad_s_to_rpm(w.speed)
-        radii = [float(np.max(np.hypot(*xy))) for xy in self._orbits.values()]
+        radii = [float(np.max(np.hypot(x, y))) for x, y, _ in self._orbits.values()]
         self.r_max = max(radii) if radii else 0.0
         self.nl_lo = (0.2 * self.r_max,)
         self.nl_hi = (max(self.r_max, 1e-12),)
@@ -82,14 +84,14 @@ class Rub(Effect):
         key = (k, float(delta))
         out = self._cache.get(key)
         if out is None:
-            x, y = self._orbits[k]
+            x, y, ang = self._orbits[k]
             r = np.maximum(np.hypot(x, y), 1e-300)
             pen = np.maximum(r - delta, 0.0)
-            fn = -pen * np.array([x / r, y / r])              # (2, N) normal push, per unit k
+            fn = -pen * np.array([x / r, y / r])              # (2, n) normal push, per unit k
             ft = -pen * np.array([-y / r, x / r])             # friction against the spin, per unit k mu
             out = {}
             for ratio in ORDERS:
-                e = np.exp(-1j * ratio * self._ang)
+                e = np.exp(-1j * ratio * ang)
                 out[ratio] = (2.0 * np.mean(fn * e, axis=1), 2.0 * np.mean(ft * e, axis=1))
             if len(self._cache) > 4096:
                 self._cache.clear()
@@ -109,7 +111,7 @@ class Rub(Effect):
 
     def contact_speeds(self, delta: float) -> list[float]:
         """Return the speeds [rpm] whose measured orbit at the node reaches ``delta`` [m]."""
-        return sorted({round(self._rpm[k]) for k, xy in self._orbits.items() if np.max(np.hypot(*xy)) > delta})
+        return sorted({round(self._rpm[k]) for k, (x, y, _) in self._orbits.items() if np.max(np.hypot(x, y)) > delta})
 
     def physical(self, nl, lin):
         """Return the clearance [m], contact stiffness [N/m], friction [-] and the contact speed range [rpm]."""

@@ -9,9 +9,10 @@ The history of every machine's identifications, without ROS: SQLite by default, 
 from .records import (Coefficient, COEFFICIENT_NAMES, coefficients_from_arrays, IdentificationRecord, Parameter,
                       record_from_result)
 from .schema import SCHEMA_VERSION, SchemaVersionError
-from .store import HistoryStore, Machine, sqlite_url, WriterConflict, WriteResult
+from .store import HistoryStore, Machine, redacted_url, sqlite_url, WriterConflict, WriteResult
 
 __all__ = ['COEFFICIENT_NAMES', 'Coefficient', 'coefficients_from_arrays', 'IdentificationRecord', 'Parameter',
            'record_from_result',
-           'SCHEMA_VERSION', 'SchemaVersionError', 'HistoryStore', 'Machine', 'sqlite_url', 'WriteResult',
+           'SCHEMA_VERSION', 'SchemaVersionError', 'HistoryStore', 'Machine', 'redacted_url', 'sqlite_url',
+           'WriteResult',
            'WriterConflict']

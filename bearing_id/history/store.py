@@ -80,6 +80,14 @@ def sqlite_url(path) -> str:
     return 'sqlite:///' + str(Path(path).expanduser().resolve())
 
 
+def redacted_url(url: str) -> str:
+    """Return the database URL ``url`` without its password (for logs and /diagnostics)."""
+    try:
+        return sa.make_url(url).render_as_string(hide_password=True)
+    except Exception:      # not a URL SQLAlchemy reads: say so rather than echo it
+        return '(unparsable URL)'
+
+
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(int(pid), 0)
@@ -356,4 +364,4 @@ def _engine(url: str, busy_timeout: float) -> sa.Engine:
 
 
 __all__ = ['HistoryStore', 'IdentificationRecord', 'Coefficient', 'Parameter', 'Machine', 'WriteResult',
-           'WriterConflict', 'SchemaVersionError', 'sqlite_url', 'LEASE_TIMEOUT', 'QUERY_COLUMNS']
+           'WriterConflict', 'SchemaVersionError', 'sqlite_url', 'redacted_url', 'LEASE_TIMEOUT', 'QUERY_COLUMNS']

@@ -21,8 +21,8 @@ from rclpy.node import Node
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
-from .identifier_core import identifiability_item, IdentifierCore, NAME, SPECS
-from .machine import history_url, label, machine_id, record_dir, redacted_url
+from .identifier_core import history_url, identifiability_item, IdentifierCore, NAME, SPECS
+from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
@@ -30,7 +30,7 @@ from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, WARN
 from .topics import relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION
 from ..config.params import load_rig
-from ..history import HistoryStore
+from ..history import HistoryStore, redacted_url
 from ..io import messages as M
 
 SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this long after its window closed

@@ -31,18 +31,19 @@ from collections import deque
 from dataclasses import dataclass
 from datetime import datetime, timezone
 import math
+from pathlib import Path
 import threading
 import time
 
 import numpy as np
 
-from .machine import label, redacted_url
+from .machine import label
 from .specs import ParamSpec
 from .status import DiagItem, ERROR, OK, WARN
 from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
-from ..history import record_from_result
+from ..history import record_from_result, redacted_url, sqlite_url
 from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
                                   WindowVector)
@@ -673,6 +674,19 @@ class IdentifierCore:
     def close(self):
         self.record.close()
         self._lock_file.close()
+
+
+def history_url(param: str, record) -> str:
+    """
+    Return the history database's SQLAlchemy URL from the ``history`` parameter.
+
+    'record': the SQLite file ``history.db`` in the record directory ``record``; a URL (``scheme://...``) as given;
+    anything else: a SQLite file path.
+    """
+    p = str(param).strip()
+    if p == 'record':
+        return sqlite_url(Path(record) / 'history.db')
+    return p if '://' in p else sqlite_url(p)
 
 
 def _utc(stamp: float) -> str:

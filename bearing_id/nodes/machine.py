@@ -11,9 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sqlalchemy import make_url
-
-from ..history import sqlite_url
 
 RECORD_BASE = '~/.ros/bearing_id_record'     # the record of the identifier in the root namespace (as before)
 
@@ -31,27 +28,6 @@ def label(machine: str, rig_name: str) -> str:
 def status_name(machine: str, name: str) -> str:
     """Return a /diagnostics status name for the machine: ``machine1/identifier: accumulation`` (unprefixed at root)."""
     return f'{machine}/{name}' if machine else name
-
-
-def history_url(param: str, record: Path) -> str:
-    """
-    Return the history database's SQLAlchemy URL from the ``history`` parameter.
-
-    'record': the SQLite file ``history.db`` in the record directory ``record``; a URL (``scheme://...``) as given;
-    anything else: a SQLite file path.
-    """
-    p = str(param).strip()
-    if p == 'record':
-        return sqlite_url(Path(record) / 'history.db')
-    return p if '://' in p else sqlite_url(p)
-
-
-def redacted_url(url: str) -> str:
-    """Return the database URL ``url`` without its password (for logs and /diagnostics)."""
-    try:
-        return make_url(url).render_as_string(hide_password=True)
-    except Exception:      # not a URL SQLAlchemy reads: say so rather than echo it
-        return '(unparsable URL)'
 
 
 def record_dir(param: str, namespace: str, node_name: str) -> Path:
