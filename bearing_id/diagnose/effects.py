@@ -26,7 +26,7 @@ import numpy as np
 from .crack import BreathingCrack, crack_elements
 from .effect import determined, DETERMINED_REL, Effect, pm as _pm
 from .predict import bearing_form, form_label, forward_force, model_forms
-from .rub import rub_candidates
+from .rub import Rub
 from ..config.params import ExcitationEntry
 from ..conventions import dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
@@ -643,14 +643,16 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
         for p in prob.obs.probes(r):
             if p.name not in [q.name for q in probes]:
                 probes.append(p)
+    pairs = []                     # every x/y probe pair at one node
+    for px in probes:
+        py = next((q for q in probes if q.node == px.node and q.direction == 'y'), None)
+        if px.direction == 'x' and py is not None:
+            pairs.append((px, py))
     if 'probe_runout' in names:
         out += [ProbeRunout(c, p) for c, p in enumerate(probes)]
     if 'probe_orientation' in names:
         out += [ProbeOrientation(c, p) for c, p in enumerate(probes)]
-        for px in probes:          # every x/y pair at one node: the pair turned (both axes), one effect
-            py = next((q for q in probes if q.node == px.node and q.direction == 'y'), None)
-            if px.direction == 'x' and py is not None:
-                out.append(ProbePairOrientation(px, py))
+        out += [ProbePairOrientation(px, py) for px, py in pairs]     # the pair turned (both axes), one effect
     if 'misalignment' in names and 2 in prob.obs.orders:
         ends = misalignment_nodes or (1, model.n_nodes)
         out += [Misalignment(n) for n in ends]
@@ -659,8 +661,8 @@ def candidates(prob, *, unbalance_planes=None, misalignment_nodes=None, names=EF
     if 'breathing_crack' in names and {2, 3} <= set(prob.obs.orders):
         sag = static_sag(model)
         out += [BreathingCrack(model, e, sag) for e in crack_elements(model)]
-    if 'rub' in names:
-        out += rub_candidates(prob.obs)
+    if 'rub' in names:             # at a pair whose orbit was measured
+        out += [r for r in (Rub(prob.obs, px, py) for px, py in pairs) if r.r_max > 0]
     if 'disc_mass_error' in names:
         out += [DiscMassError(n, d) for n, d in sorted(model.discs.items())]
     if 'bearing_model_form' in names and not any(b.model == 'table' for b in rig.bearings):

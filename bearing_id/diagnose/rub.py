@@ -15,8 +15,8 @@ linear in (k, k mu): the candidate's two linear parameters, with
 ``delta`` its one nonlinear parameter.  Contact happens only at the speeds whose orbit reaches ``delta`` -- the rub's
 signature: speed-local changes of 1X (and harmonics) where the orbit is largest, none elsewhere.
 
-Only nodes with an x/y probe pair are tried (the orbit must be measured there).  Units SI; phasors as in
-:mod:`bearing_id.conventions` (x = Re{X e^{j r angle}}).
+Only nodes with an x/y probe pair are tried (the orbit must be measured there; ``effects.candidates`` finds the
+pairs).  Units SI; phasors as in :mod:`bearing_id.conventions` (x = Re{X e^{j r angle}}).
 """
 from __future__ import annotations
 
@@ -65,8 +65,8 @@ class Rub(Effect):
             xy = xy[ok] - np.mean(xy[ok], axis=0)           # about the mean position (the probes' gaps unknown)
             self._orbits[k] = (xy[:, 0], xy[:, 1], ang[ok])
             self._rpm[k] = rad_s_to_rpm(w.speed)
-        radii = [float(np.max(np.hypot(x, y))) for x, y, _ in self._orbits.values()]
-        self.r_max = max(radii) if radii else 0.0
+        self._peak = {k: float(np.max(np.hypot(x, y))) for k, (x, y, _) in self._orbits.items()}   # [m]
+        self.r_max = max(self._peak.values(), default=0.0)
         self.nl_lo = (0.2 * self.r_max,)
         self.nl_hi = (max(self.r_max, 1e-12),)
         self._cache: dict = {}
@@ -111,7 +111,7 @@ class Rub(Effect):
 
     def contact_speeds(self, delta: float) -> list[float]:
         """Return the speeds [rpm] whose measured orbit at the node reaches ``delta`` [m]."""
-        return sorted({round(self._rpm[k]) for k, (x, y, _) in self._orbits.items() if np.max(np.hypot(x, y)) > delta})
+        return sorted({round(self._rpm[k]) for k, peak in self._peak.items() if peak > delta})
 
     def physical(self, nl, lin):
         """Return the clearance [m], contact stiffness [N/m], friction [-] and the contact speed range [rpm]."""
@@ -151,17 +151,4 @@ class Rub(Effect):
                 f"{num('contact_stiffness', '.3g', 1.0, ' N/m')}, friction {num('friction', '.2g')}")
 
 
-def rub_candidates(obs) -> list[Rub]:
-    """Return a :class:`Rub` at every node with an x/y probe pair in the observations."""
-    out, seen = [], set()
-    for r in range(len(obs.recordings)):
-        ps = obs.probes(r)
-        for px in ps:
-            py = next((q for q in ps if q.node == px.node and q.direction == 'y'), None)
-            if px.direction == 'x' and py is not None and px.node not in seen:
-                seen.add(px.node)
-                out.append(Rub(obs, px, py))
-    return [c for c in out if c.r_max > 0]
-
-
-__all__ = ['Rub', 'rub_candidates']
+__all__ = ['Rub']
