@@ -149,7 +149,8 @@ def test_the_cli_and_the_nodes_share_their_defaults():
     args = cmd.add_parser(sub).parse_args(['x.npz'])
     spec = {s.name: s.default for s in identifier_core.SPECS}
     assert args.method == spec['method'] == defaults.METHOD
-    assert spec['kf_process_noise'] == {s.name: s.default for s in kf_estimator_core.SPECS}['process_noise'] \
-        == defaults.KF_PROCESS_NOISE
+    assert spec['kf_process_noise'] == defaults.KF_PROCESS_NOISE
+    # the live filter fits its Q to the innovations (0) around the paper's value
+    assert {s.name: s.default for s in kf_estimator_core.SPECS}['process_noise'] == 0.0
     assert (spec['speed_tolerance'], spec['settle_fraction'], spec['min_window'], spec['max_segment']) == \
         (defaults.SPEED_TOLERANCE, defaults.SETTLE_FRACTION, defaults.MIN_WINDOW, defaults.MAX_WINDOW)

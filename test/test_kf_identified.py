@@ -7,8 +7,9 @@ identifier's fully determined coefficients at that speed are given (`physical` o
 receives them on bearing_id/coefficients) it is within 1 % in amplitude and 1 degree in phase.  Reference: the
 simulator's noise-free motion at the bearing nodes (the same simulation, probes there, no noise); the 1X of both by
 a plain DFT over whole revolutions of the steady part (numpy here, not the package's harmonic fit).  The filter's noise
-is each channel's own (from the data), a probe gap offset never reaches it, and on speed ramps its state carries over
-from band to band (no restart, orbits as the simulator's).
+is each channel's own (from the data), its process noise the one the innovations imply, so every dwell's NIS is inside
+its chi-square band once identified (and above it on the theory bearings); a probe gap offset never reaches it, and
+on speed ramps its state carries over from band to band (no restart, orbits as the simulator's).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import math
 import time
 
 from bearing_id.config.params import load_rig, Probe
+from bearing_id.estimation.kalman import nis_band
 from bearing_id.identify import harmonics, identify
 from bearing_id.io.messages import Block
 from bearing_id.nodes import kf_estimator_core
@@ -38,6 +40,14 @@ def one_x(x, angle):
 
 
 def filtered(core, rec, run):
+    return np.concatenate([o.estimates for o in filtered_outputs(core, rec, run)])
+
+
+def filtered_nis(core, rec, run):
+    return np.concatenate([o.nis for o in filtered_outputs(core, rec, run)])
+
+
+def filtered_outputs(core, rec, run):
     fs = rec.sample_rate
     out = []
     for k, i0 in enumerate(range(0, rec.samples.shape[0], 1024)):
@@ -49,7 +59,7 @@ def filtered(core, rec, run):
         core.submit(b, run, float(np.mean(rec.speed[i0:i1])), k > 0)
         while core.pending:
             out += core.drain()
-    return np.concatenate([o.estimates for o in out])
+    return out
 
 
 @pytest.fixture(scope='module')
@@ -90,6 +100,30 @@ def test_bearing_node_estimates_follow_the_identified_bearings(case):
     core.close()
     assert np.all(amp <= 0.01) and np.all(phase <= 1.0), (amp, phase)
     assert health.level == OK and 'white' in health.message, health.message
+
+
+def test_each_dwell_is_consistent_once_identified_and_the_theory_is_not(case):
+    """
+    Each dwell's mean NIS is in its 95 % band once identified, above it on the theory bearings.
+
+    The node's default noise (R per channel, Q from the innovations); the theory bearings mispredict the 1X.
+
+    One core per route through three speeds, as the node runs: what it learnt of the noise carries over.  Band: the
+    chi-square of the dwell's samples times the two probes (kalman.nis_band), not a tuned number.
+    """
+    rig = case[0]
+    ident, theory = EstimatorCore(rig, 0.0, 0.0, 0.01), EstimatorCore(rig, 0.0, 0.0, 0.01)
+    for rpm in (900.0, 1500.0, 2400.0):
+        recs = [R.simulate_run(rig, run, speeds_rpm=[rpm], dwell=2.0, ramp=0.0) for run in rig.simulation.runs]
+        (r,) = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(recs))
+        assert r.fully_determined
+        ident.set_coefficients(r.speed, {n: (r.K[i], r.C[i]) for i, n in enumerate(r.nodes)})
+        for core, inside in ((ident, True), (theory, False)):
+            nis = filtered_nis(core, recs[0], recs[0].run)
+            lo, hi = nis_band(nis.size, 2)
+            assert (lo <= np.mean(nis) <= hi) == inside and (inside or np.mean(nis) > hi), (rpm, inside, np.mean(nis))
+    ident.close()
+    theory.close()
 
 
 def test_a_probe_gap_offset_never_reaches_the_filter(case):

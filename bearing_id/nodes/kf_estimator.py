@@ -81,7 +81,8 @@ class KFEstimator(Node):
         self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
         self.create_timer(v['diagnostics_period'], self.diagnostics)
         noise = f"({v['measurement_noise']:g} m)^2" if v['measurement_noise'] else 'per channel from the data'
-        self.get_logger().info(f"model: {rig.name}, probes {channels}, Q {v['process_noise']:g} m^2, R {noise}; "
+        qn = f'{v["process_noise"]:g} m^2' if v['process_noise'] else 'from the innovations'
+        self.get_logger().info(f'model: {rig.name}, probes {channels}, Q {qn}, R {noise}; '
                                f'prebuilding {len(speeds or [])} models')
 
     def on_speed(self, msg):

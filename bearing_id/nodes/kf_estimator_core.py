@@ -12,9 +12,11 @@ Model cache
     cached per speed band (relative width ``speed_band``) and bearing generation, at most ``MAX_MODELS`` of them, and
     built by a worker thread with the latest noise.  A block whose model is not built yet waits in an ordered queue (at
     most ``max_pending_blocks``) while the callback returns at once.  Expected speeds (``prebuild_speeds_rpm``) are
-    built at start-up.  When a channel's noise moves by more than ``NOISE_STEP`` from the model's, its gain is re-solved
-    (and cached).  The filter starts from the model's steady state (kalman.StreamingKF) at a new run or after lost data;
-    when only the model changes (speed band, bearings, noise) the state carries over (``continue_from``).
+    built at start-up.  When a channel's noise moves by more than ``NOISE_STEP`` from the model's, or the process noise
+    the innovations imply by more than ``Q_STEP`` (``process_noise`` 0, the default:
+    :meth:`EstimatorCore._fit_process_noise`), its gain is re-solved (and cached).  The filter starts from the model's
+    steady state (kalman.StreamingKF) at a new run or after lost data; when only the model changes (speed band,
+    bearings, noise) the state carries over (``continue_from``).
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ from ..config import defaults
 from ..config.params import Probe
 from ..conventions import rad_s_to_rpm
 from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
+from ..estimation.process_noise import process_noise_scale
 from ..estimation.uncertainty import coefficient_sigma, filter_std
 from ..excitation import harmonic_forces
 from ..identify.plausibility import ORBIT_LIMIT
@@ -51,8 +54,10 @@ MODEL_CUTOFF = 0.5
 
 SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
-    ParamSpec('process_noise', defaults.KF_PROCESS_NOISE, 'Q, process noise variance per step times identity '
-              '(paper: 1e-16 .. 1e-18)', 'm^2', lo=0.0, hi=1.0),
+    ParamSpec('process_noise', 0.0, 'Q, process noise variance per step times identity (paper: 1e-16 .. '
+              '1e-18); 0: from the data (the multiple of 1e-16 I the broadband innovations imply, refitted every 8 '
+              'blocks, kept within 1e-6 .. 1e6 of it, starting at its bottom: none until the data show some)', 'm^2',
+              lo=0.0, hi=1.0),
     ParamSpec('bearing_source', 'identified', "the model's bearing coefficients: the identifier's latest fully "
               'determined ones (subscribed on bearing_id/coefficients; theory where none cover the speed), or always '
               'the theory', choices=('identified', 'theory')),
@@ -86,6 +91,8 @@ SPECS = [
 NOISE_BLOCKS = 8         # blocks whose median DC and noise the filter uses
 NOISE_STEP = 1.25       # a channel's noise std moving by more than this factor re-solves the filter's gain
 NOISE_FLOOR = 1e-12     # m: the smallest noise std used (a noise-free signal still needs R > 0)
+Q_STEP = 2.0            # the process noise the innovations imply moving by more than this factor re-solves the gain
+Q_RANGE = 1e6           # the fitted process noise stays within this factor of defaults.KF_PROCESS_NOISE either way
 DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
 MODEL_MOVE = 0.25       # an identified coefficient moving less than this times its 1-sigma keeps the models
 MAX_MODELS = 64         # models kept in the cache (the least recently used goes first)
@@ -283,7 +290,13 @@ class EstimatorCore:
         self.reduction_error = 0.0     # largest relative 1X receptance error of the reduced models built
         self.bearing_fn = supports.bearing_fn(rig)
         self.bearings = IdentifiedBearings(self.bearing_fn, band)     # what the filter's models use
-        self.Q = float(Q)
+        # Q [m^2 per step, times identity on the full states] new models are built with: fixed (Q > 0), or fitted
+        # to the broadband innovations (Q = 0: _fit_process_noise), starting at the bottom of its range (none)
+        self.Q_fixed = float(Q) > 0
+        self.Q = float(Q) if self.Q_fixed else defaults.KF_PROCESS_NOISE / Q_RANGE
+        self.q_fits = 0               # times the fitted process noise moved the filter's gain
+        self._q_unit: dict = {}       # sample rate [Hz] -> trace of the filter's Q for Q = 1 (full or reduced states)
+        self._bb = None               # broadband innovation sums since the active model started (_fit_process_noise)
         self.R_fixed = float(R_std) > 0                 # else R per channel from the data (_clean)
         # R [m^2] new models are built with: fixed, or the latest per-channel noise the data gave (_clean)
         self.R = float(R_std) ** 2 if self.R_fixed else DEFAULT_R_STD ** 2
@@ -440,10 +453,13 @@ class EstimatorCore:
                 self._noise.clear()
             z, dc = self._clean(block.samples, angle)
             R = None if self.R_fixed else np.broadcast_to(self.R, (block.samples.shape[1],))
-            if not same_stream or act[0] != key or (R is not None and _noise_moved(R, np.diag(act[2].km.R))):
-                if R is not None and _noise_moved(R, np.diag(km.R)):
-                    km = km.with_noise(R=R)         # the cached model's noise is not the data's: its gain re-solved,
-                    km.steady_state()               # and cached for the next visit of this band
+            if (not same_stream or act[0] != key or (R is not None and _noise_moved(R, np.diag(act[2].km.R)))
+                    or self._q_moved(act[2].km)):
+                r_moved = R is not None and _noise_moved(R, np.diag(km.R))
+                if r_moved or self._q_moved(km):
+                    # the cached model's noise is not the data's: its gain re-solved, and cached for the next visit
+                    km = km.with_noise(R=R if r_moved else None, Q=km.Q * (self.Q / self._q_of(km)))
+                    km.steady_state()
                     with self._lock:
                         if key in self._models:
                             self._models[key] = km
@@ -457,10 +473,13 @@ class EstimatorCore:
                     self.resets += 1
                     self.health_hist.clear()   # 1X coherence is only meaningful within one speed band and run
                 self._active = act = (key, run.id, kf)
+                self._bb = None
             kf = act[2]
             est, nu, nis = kf.step_block(z, angle, speed)
             self.nis_hist.append((float(np.sum(nis)), n))
-            self.health_hist.append(innovation_health_terms(nu, angle))
+            terms = innovation_health_terms(nu, angle)
+            self.health_hist.append(terms)
+            self._fit_process_noise(kf.km, terms)
             self.n_meas = nu.shape[1]
             for j, b in enumerate(self.rig.bearings):
                 r = np.sqrt(est[:, 2 * j] ** 2 + est[:, 2 * j + 1] ** 2)
@@ -469,6 +488,53 @@ class EstimatorCore:
             out.append(Output(block.seq, block.stamp, speed, est, nu, nis, block, run.id, dc))
         self._evict()
         return out
+
+    def _q_of(self, km) -> float:
+        """Return the process noise q [m^2 per step] model ``km`` was built with (its Q is q times that of Q = 1)."""
+        fs = 1.0 / km.dt
+        unit = self._q_unit.get(fs)
+        if unit is None or unit[0] != km.n:
+            rot = self.kf_rotor(fs)
+            unit = (km.n, float(np.trace(rot.reduce_covariance(1.0))) if rot is not self.rotor else float(km.n))
+            self._q_unit[fs] = unit
+        return float(np.trace(km.Q)) / unit[1]
+
+    def _q_moved(self, km) -> bool:
+        """Whether the process noise to use moved by more than ``Q_STEP`` from model ``km``'s."""
+        return not self.Q_fixed and abs(math.log(self.Q / self._q_of(km))) > math.log(Q_STEP)
+
+    def _fit_process_noise(self, km, terms: dict) -> None:
+        """
+        Fit the process noise to the broadband innovations of the active model (unless ``process_noise`` is fixed).
+
+        Over every ``NOISE_BLOCKS`` blocks of one model: the innovations' variance per channel less their 1X and 2X
+        (a model that mispredicts the synchronous response is the health check's finding, not process noise), and
+        the multiple of the model's Q it implies (:func:`bearing_id.estimation.process_noise.process_noise_scale`).
+        The new Q, kept within ``Q_RANGE`` of the paper's, is used once it moves by more than ``Q_STEP``.  On a
+        machine the model predicts, the filter so stays consistent (mean NIS ~ number of probes) whatever the ratio
+        of the probe noise to the paper's fixed Q.
+        """
+        if self.Q_fixed:
+            return
+        bb = self._bb
+        if bb is None:
+            bb = self._bb = {'n': 0, 'power': 0.0, 1: 0.0, 2: 0.0, 'blocks': 0}
+        for k in ('n', 'power', 1, 2):
+            bb[k] = bb[k] + terms[k]
+        bb['blocks'] += 1
+        if bb['blocks'] < NOISE_BLOCKS:
+            return
+        n = bb['n']
+        var = bb['power'] / n - 2 * np.abs(bb[1] / n) ** 2 - 2 * np.abs(bb[2] / n) ** 2
+        self._bb = None
+        s = process_noise_scale(km, var)
+        if not math.isfinite(s):
+            return
+        q0 = defaults.KF_PROCESS_NOISE
+        q = min(max(self._q_of(km) * s, q0 / Q_RANGE), q0 * Q_RANGE)
+        if abs(math.log(q / self.Q)) > math.log(Q_STEP):
+            self.Q = q
+            self.q_fits += 1
 
     def _evict(self):
         """Keep at most MAX_MODELS models: the least recently used go first, never one a queued block needs."""
@@ -512,11 +578,12 @@ class EstimatorCore:
         mean = tot / n
         lo, hi = nis_band(n, self.n_meas)
         vals = {'mean_nis': mean, 'band_lo': lo, 'band_hi': hi, 'expected': self.n_meas, 'samples': n,
-                'filter_restarts': self.resets, 'model_switches_state_kept': self.switches}
+                'filter_restarts': self.resets, 'model_switches_state_kept': self.switches,
+                'process_noise_m2': self.Q, 'process_noise': 'fixed' if self.Q_fixed else 'from the innovations'}
         if lo <= mean <= hi:
             return DiagItem(name, OK, f'consistent: mean NIS {mean:.3g} in [{lo:.3g}, {hi:.3g}]', vals)
         how = 'model or noise settings disagree with the data (model error, R too small)' if mean > hi else \
-            'R larger than the real noise'
+            'R or Q larger than the data imply'
         return DiagItem(name, WARN, f'inconsistent: mean NIS {mean:.3g} outside [{lo:.3g}, {hi:.3g}]: {how}', vals)
 
     def health_status(self) -> DiagItem:
