@@ -6,16 +6,18 @@ each recorded result is one identification in the history, with its data span, t
 determined flags as published, and the fitted viscosity and clearance with their 1-sigma.  A write that fails (the
 database down) is an ERROR on /diagnostics while the record keeps the result; the next start writes what the history
 lacks, once (a second restart adds nothing).  A second identifier writing the same machine is refused (ERROR), not
-crashed.
+crashed.  The change detection runs on the machine's history and queues each alarm once.
 """
 from __future__ import annotations
 
 from bearing_id.history import HistoryStore, sqlite_url
-from bearing_id.nodes.identifier_core import history_url, IdentifierCore
-from bearing_id.nodes.status import ERROR, OK
+from bearing_id.history.trend import changes, parameter_series
+from bearing_id.nodes.identifier_core import alarm_items, history_url, IdentifierCore
+from bearing_id.nodes.status import ERROR, OK, WARN
 import numpy as np
 from sqlalchemy.exc import OperationalError
 from test_identifier_tracking import feed, passes  # noqa: F401  (the fixture)
+from test_trend import write_history
 
 
 class DownStore:
@@ -98,3 +100,37 @@ def test_the_history_parameter_names_a_database(tmp_path):
     assert history_url('record', tmp_path) == sqlite_url(tmp_path / 'history.db')
     assert history_url(str(tmp_path / 'fleet.db'), tmp_path / 'x') == sqlite_url(tmp_path / 'fleet.db')
     assert history_url('postgresql+psycopg://u@h/db', tmp_path) == 'postgresql+psycopg://u@h/db'
+
+
+def test_a_change_in_the_history_is_an_alarm_once_with_its_evidence(passes, tmp_path):  # noqa: F811
+    """
+    The identifier's change detection is bearing-id trend's, on the machine's own history (issue 25 item 3).
+
+    A history with bearing 1's clearance stepped by 8 sigma (test_trend's, written there): at start the identifier
+    queues that one alarm for bearing_id/alarms (bearing, parameter, direction, size, onset, evidence as values) and
+    /diagnostics names it (WARN); a machine whose history holds only its own fresh solve has none (OK).
+    """
+    rig, _, first, _ = passes
+    db = tmp_path / 'fleet.db'
+    write_history(db, 'worn', step=True, seed=1)
+    with HistoryStore(sqlite_url(db)) as store:
+        core = IdentifierCore(rig, 'physical', tmp_path / 'rec', machine='worn', history=store,
+                              alarms={'arl0': 1e5})
+        core.close()
+        expected = changes(parameter_series(store, 'worn'), arl0=1e5, delta=2.0, n_reference=10)
+        (alarm,) = core.new_alarms
+        (c,) = expected
+        assert (alarm.bearing, alarm.name, alarm.alarm.onset_time) == (c.bearing, c.name, c.alarm.onset_time)
+        (item,) = alarm_items(list(core.new_alarms))
+        assert item.level == WARN and item.values['bearing'] == 'bearing1' and item.values['parameter'] == 'clearance'
+        assert item.values['direction'] == 'up' and abs(float(item.values['onset_stamp']) - c.alarm.onset_time) <= 1e-3
+        assert item.values['size'] == c.alarm.size and item.values['threshold_sigma'] == c.alarm.h
+        diag = core.alarm_item()
+        assert diag.level == WARN and 'bearing1 clearance: up' in diag.message, diag.message
+
+        fresh = IdentifierCore(rig, 'physical', tmp_path / 'rec2', machine='new', history=store)
+        feed(fresh, first, 0.0)
+        fresh.solve()
+        fresh.close()
+        assert not fresh.new_alarms and fresh.alarm_item().level == OK, fresh.alarm_item().message
+        assert fresh.watch.points == 1 and fresh.watch.series > 0

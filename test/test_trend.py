@@ -15,7 +15,7 @@ import math
 
 from bearing_id import cli
 from bearing_id.history import HistoryStore, IdentificationRecord, Parameter, sqlite_url
-from bearing_id.history.trend import changes, parameter_series
+from bearing_id.history.trend import changes, ChangeWatch, parameter_series
 import numpy as np
 import pytest
 
@@ -52,6 +52,26 @@ def test_one_solve_is_one_point(db):
     assert all(s.t.size == N for s in series)
 
 
+def test_solves_that_reuse_data_are_not_independent_points(tmp_path):
+    """
+    The identifier re-solves as each speed's window arrives: every solve re-uses the other speeds' data.
+
+    Three speeds, a new window every 60 s in turn, each solve spanning the latest window of every speed: solve k's
+    data start where window k-2 starts.  Only solves whose data begin at or after the previous point's end are
+    points: every third one.  Each solve is one point however many speeds carry it.
+    """
+    with HistoryStore(sqlite_url(tmp_path / 'h.db')) as store:
+        for k in range(2, 14):
+            pars = (Parameter('bearing1', 'clearance', 100e-6 + 1e-9 * k, 1e-7),)
+            for j, speed in enumerate((100.0, 200.0, 300.0)):
+                w = k - ((k - j) % 3)            # the latest window of this speed (windows take the speeds in turn)
+                store.write(IdentificationRecord(machine='m', t_start=T0 + 60 * w, t_end=T0 + 60 * w + 59,
+                                                 speed=speed, method='physical', parameters=pars))
+        (s,) = parameter_series(store, 'm')
+    solves = np.round((s.value - 100e-6) / 1e-9).astype(int)
+    assert list(solves) == [2, 5, 8, 11], solves
+
+
 def test_the_clearance_step_is_found_named_and_sized(db):
     with HistoryStore(sqlite_url(db)) as store:
         found = changes(parameter_series(store, 'worn'), arl0=1e5, delta=2.0, n_reference=10)
@@ -75,3 +95,38 @@ def test_the_command_exits_1_on_an_alarm_and_writes_the_page(db, tmp_path, capsy
     assert 'data:image/png;base64,' in html and 'bearing1 clearance: up' in html
     assert cli.main(['trend', str(db), '--machine', 'steady', '--arl0', '1e5']) == 0
     assert cli.main(['trend', str(tmp_path / 'none.db')]) == 2
+
+
+def test_the_live_watch_finds_what_the_whole_history_shows(tmp_path):
+    """
+    The watch updated after every solve (as the identifier) against changes() on the whole history at the end.
+
+    300 solves of two series, steps of +8 and -5 sigma and a low ARL0 (200 points: false alarms too), so that the
+    resumed statistic meets every case (alarm, new reference, resumption after a zero): the same alarms, onsets and
+    sizes; and the watch keeps only the points since the statistic was last zero on both sides.
+    """
+    rng = np.random.default_rng(7)
+    with HistoryStore(sqlite_url(tmp_path / 'h.db')) as store:
+        watch = ChangeWatch(store, 'm', arl0=200.0, delta=2.0, n_reference=10)
+        live, held = [], 0
+        for i in range(300):
+            shift = (8.0 if 100 <= i < 200 else -5.0 if i >= 200 else 0.0)
+            pars = (Parameter('bearing1', 'clearance', 100e-6 + 1e-7 * (shift + rng.standard_normal()), 1e-7),
+                    Parameter('bearing2', 'clearance', 120e-6 + 1e-7 * rng.standard_normal(), 1e-7))
+            store.write(IdentificationRecord(machine='m', t_start=T0 + 600 * i, t_end=T0 + 600 * i + 60, speed=100.0,
+                                             method='physical', parameters=pars))
+            live += watch.update()
+            held = max(held, max(len(st[1]) for st in watch._state.values()))
+        whole = changes(parameter_series(store, 'm'), arl0=200.0, delta=2.0, n_reference=10)
+
+    def keys(found):
+        return sorted((c.bearing, c.name, c.alarm.onset_time, c.alarm.time, c.alarm.direction) for c in found)
+
+    assert keys(live) == keys(whole)
+    by = {(c.bearing, c.alarm.time): c.alarm for c in whole}
+    for c in live:
+        w = by[(c.bearing, c.alarm.time)]
+        assert abs(c.alarm.size - w.size) <= 1e-9 * abs(w.size) and abs(c.alarm.size_sigma - w.size_sigma) <= \
+            1e-9 * w.size_sigma
+    assert {(c.bearing, c.alarm.direction) for c in whole} >= {('bearing1', 1), ('bearing1', -1)}
+    assert watch.points == 300 and held < 60, held

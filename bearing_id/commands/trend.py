@@ -17,6 +17,7 @@ from pathlib import Path
 from sqlalchemy.exc import SQLAlchemyError
 
 from .inputs import InputError
+from ..config import defaults
 from ..history import HistoryStore, SchemaVersionError, sqlite_url
 from ..history.trend import changes, parameter_series
 from ..plots.common import png_bytes
@@ -30,11 +31,14 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument('history', help="history database: a SQLite file (e.g. the identifier's history.db) or a "
                                    'SQLAlchemy URL (postgresql+psycopg://user@host/db)')
     p.add_argument('--machine', action='append', help='machine id (repeatable; default: every machine)')
-    p.add_argument('--arl0', type=float, default=10000.0,
-                   help='average number of points to a false alarm, per parameter series (default 10000)')
-    p.add_argument('--shift', type=float, default=2.0, help='the shift to detect fastest, in sigma (default 2)')
-    p.add_argument('--reference', type=int, default=10,
-                   help='the first N points of each series are its in-control reference (default 10)')
+    p.add_argument('--arl0', type=float, default=defaults.ALARM_ARL0,
+                   help=f'average number of points to a false alarm, per parameter series (default '
+                        f'{defaults.ALARM_ARL0:g})')
+    p.add_argument('--shift', type=float, default=defaults.ALARM_SHIFT,
+                   help=f'the shift to detect fastest, in sigma (default {defaults.ALARM_SHIFT:g})')
+    p.add_argument('--reference', type=int, default=defaults.ALARM_REFERENCE,
+                   help=f'the first N points of each series are its in-control reference (default '
+                        f'{defaults.ALARM_REFERENCE})')
     p.add_argument('--html', help='write the trend page here (one self-contained HTML file)')
     return p
 

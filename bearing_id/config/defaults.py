@@ -13,3 +13,7 @@ SETTLE_FRACTION = 0.25      # fraction of each steady window discarded at its st
 MIN_WINDOW = 0.2            # s: the shortest steady window whose 1X vector is fitted
 TRANSIENTS = 3              # decaying modes (the rotor ringing after a speed change) fitted jointly with the 1X
 MAX_WINDOW = 120.0          # s: a longer steady window is fitted in pieces of this length, then combined (memory)
+# change detection on the history (bearing-id trend and the identifier's live alarms: the same CUSUM)
+ALARM_ARL0 = 10000.0        # points (solves) to a false alarm, per parameter series: ~1 a year at one solve an hour
+ALARM_SHIFT = 2.0           # sigma: the shift the CUSUM detects fastest
+ALARM_REFERENCE = 10        # points: the first N of each series (and after each alarm) are its in-control reference

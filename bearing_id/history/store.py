@@ -239,14 +239,15 @@ class HistoryStore:
         return [Machine(r.machine_id, r.rig_name, float(r.created)) for r in rows]
 
     def query(self, machine: str, bearing: str | None = None, parameter: str | None = None,
-              since: float | None = None) -> dict[str, np.ndarray]:
+              since: float | None = None, after_id: int | None = None) -> dict[str, np.ndarray]:
         """
         Return the coefficient and parameter rows of ``machine`` as columns (QUERY_COLUMNS -> arrays (n,)).
 
         Optional filters: ``bearing``; ``parameter`` (a parameter or coefficient name, e.g. 'clearance', 'Kxx');
-        ``since`` [s, UNIX]: identifications whose data end at or after it.  Ordered by t_end, identification, kind
-        ('coefficient' before 'parameter'), bearing, name.  value and sigma are float (NaN where not stored),
-        determined bool (True for parameters), t_* and speed float, the rest str (identification int).
+        ``since`` [s, UNIX]: identifications whose data end at or after it; ``after_id``: identifications written
+        after the one with this id (``identification`` column; ids grow with every write).  Ordered by t_end,
+        identification, kind ('coefficient' before 'parameter'), bearing, name.  value and sigma are float (NaN where
+        not stored), determined bool (True for parameters), t_* and speed float, the rest str (identification int).
         """
         i = identifications
         parts = []
@@ -262,6 +263,8 @@ class HistoryStore:
                 sel = sel.where(table.c.name == parameter)
             if since is not None:
                 sel = sel.where(i.c.t_end >= float(since))
+            if after_id is not None:
+                sel = sel.where(i.c.id > int(after_id))
             parts.append(sel)
         u = sa.union_all(*parts).subquery()
         stmt = sa.select(u).order_by(u.c.t_end, u.c.identification, u.c.kind, u.c.bearing, u.c.name)

@@ -182,14 +182,15 @@ def reference_from(x, sigma) -> tuple[float, float]:
 
 
 def detect(x, sigma, *, arl0: float, delta: float = 1.0, reference: float | None = None,
-           n_reference: int | None = None, times=None) -> list[Alarm]:
+           n_reference: int | None = None, times=None, reference_sigma: float = 0.0) -> list[Alarm]:
     """
     Return the alarms of the two-sided CUSUM on ``x`` (n,) with 1-sigma ``sigma`` (n,) or scalar (unit of x).
 
     ``arl0`` [samples]: the average run length to a false alarm; ``delta`` [sigma]: the shift to detect fastest.
-    The in-control value is ``reference`` (unit of x), or else the weighted mean of the first ``n_reference``
-    samples, which are then not monitored.  ``times`` (n,) label the samples (e.g. UNIX s), default their index.
-    After an alarm both sides restart from 0 at the next sample.
+    The in-control value is ``reference`` (unit of x; its 1-sigma ``reference_sigma`` enters the sizes' 1-sigma),
+    or else the weighted mean of the first ``n_reference`` samples, which are then not monitored.  ``times`` (n,)
+    label the samples (e.g. UNIX s), default their index.  After an alarm both sides restart from 0 at the next
+    sample.
     """
     x, sigma = _checked(x, sigma)
     n = x.size
@@ -197,7 +198,7 @@ def detect(x, sigma, *, arl0: float, delta: float = 1.0, reference: float | None
     if t.size != n:
         raise ValueError(f'times must have one entry per sample ({n}), got {t.size}')
     first = 0
-    ref_sigma = 0.0
+    ref_sigma = float(reference_sigma)
     if reference is None:
         if n_reference is None or not (1 <= int(n_reference) <= n):
             raise ValueError(f'give a reference, or n_reference between 1 and the number of samples ({n}), '

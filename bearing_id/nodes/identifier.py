@@ -3,9 +3,10 @@
 
 Consumes ``/rotor/displacement`` (measured) and ``/rotor/excitation``; monitors ``/bearing_id/bearing_displacement``
 (the kf_estimator's bearing-node estimates: their rate and health only); publishes ``/bearing_id/coefficients``
-(BearingCoefficients, latched) and /diagnostics.  The data path, the record and the solve are
-:class:`bearing_id.nodes.identifier_core.IdentifierCore` (the offline route's functions, call for call); this module
-only moves messages, runs the fits and solves in a worker thread and reports.
+(BearingCoefficients, latched), ``/bearing_id/alarms`` (a DiagnosticArray per change the history's change detection
+finds: bearing, parameter, size with its 1-sigma, onset, evidence; latched) and /diagnostics.  The data path, the
+record and the solve are :class:`bearing_id.nodes.identifier_core.IdentifierCore` (the offline route's functions, call
+for call); this module only moves messages, runs the fits and solves in a worker thread and reports.
 """
 from __future__ import annotations
 
@@ -21,14 +22,15 @@ from rclpy.node import Node
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
-from .identifier_core import history_url, identifiability_item, IdentifierCore, NAME, SPECS
+from .identifier_core import alarm_items, history_url, identifiability_item, IdentifierCore, NAME, SPECS
 from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, WARN
-from .topics import relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION
+from .topics import (relative, TOPIC_ALARMS, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
+                     TOPIC_EXCITATION)
 from ..config.params import load_rig
 from ..history import HistoryStore, redacted_url
 from ..io import messages as M
@@ -63,7 +65,9 @@ class Identifier(Node):
                                    v['runs'], v['speed_tolerance'], v['settle_fraction'], v['min_window'],
                                    options={'kf': {'Q': v['kf_process_noise'],
                                                    'R': v['kf_measurement_noise'] ** 2 or None}},
-                                   max_window=v['max_segment'], machine=self.machine, history=history)
+                                   max_window=v['max_segment'], machine=self.machine, history=history,
+                                   alarms={'arl0': v['alarm_arl0'], 'delta': v['alarm_shift'],
+                                           'n_reference': v['alarm_reference']})
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
         self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
@@ -81,6 +85,9 @@ class Identifier(Node):
         self._worker = threading.Thread(target=self._work, daemon=True, name='identifier_solver')
         self.pub = self.create_publisher(M.BearingCoefficients, relative(TOPIC_COEFFICIENTS), qos_latched(100))
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_alarms = self.create_publisher(DiagnosticArray, relative(TOPIC_ALARMS), qos_latched(100))
+        self.alarms_published = 0
+        self.publish_alarms()             # those already in the history (a late subscriber gets them: latched)
         # the excitation subscription first: when a run's announcement and its first block are ready together,
         # the executor takes the announcement first (a block of a run not yet announced waits for it)
         subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
@@ -221,6 +228,20 @@ class Identifier(Node):
                 self.core.record_results(results)
             except (OSError, ValueError) as exc:
                 self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
+            self.publish_alarms()
+
+    def publish_alarms(self):
+        """Publish the changes the history's change detection found and has not published yet (one array)."""
+        new = []
+        while self.core.new_alarms:
+            new.append(self.core.new_alarms.popleft())
+        if not new:
+            return
+        self.pub_alarms.publish(diagnostics_msg(alarm_items(new), self.get_clock().now().to_msg(), self.label,
+                                                self.machine))
+        self.alarms_published += len(new)
+        for c in new:
+            self.get_logger().warn(f'bearing change: {c.sentence()}')
 
     def diagnostics(self):
         disp = self.monitor.status(f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])
@@ -269,6 +290,9 @@ class Identifier(Node):
         items.append(self.core.gaps_item())
         items.append(DiagItem(f'{NAME}: history', ERROR, self.history_problem, {}) if self.history_problem
                      else self.core.history_item())
+        alarm = self.core.alarm_item()
+        alarm.values['published_on'] = f'{TOPIC_ALARMS} ({self.alarms_published})'
+        items.append(alarm)
         items.append(flag_publishers(self, TOPIC_COEFFICIENTS, DiagItem(
             f'{NAME}: output {TOPIC_COEFFICIENTS}', OK, f'{self.published} result(s) published', {}),
             'another node publishes coefficients here too (a second identifier, or another machine in this '

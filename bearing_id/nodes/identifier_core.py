@@ -44,6 +44,7 @@ from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
 from ..history import record_from_result, redacted_url, sqlite_url
+from ..history.trend import Change, ChangeWatch
 from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
                                   WindowVector)
@@ -68,6 +69,13 @@ SPECS = [
               "postgresql+psycopg://user@host/db) to share one with a fleet; '' = none.  One writer per machine: a "
               'second identifier of this machine is an ERROR on /diagnostics; the record keeps every result and '
               'writes what the history lacks at the next start'),
+    ParamSpec('alarm_arl0', defaults.ALARM_ARL0, "change detection on the history's fitted bearing parameters "
+              '(two-sided CUSUM, as bearing-id trend): the average number of solves to a false alarm, per parameter '
+              'series; alarms go to bearing_id/alarms and /diagnostics', 'solves', lo=2.0, hi=1e12),
+    ParamSpec('alarm_shift', defaults.ALARM_SHIFT, 'the shift the change detection finds fastest', 'sigma', lo=0.05,
+              hi=100.0),
+    ParamSpec('alarm_reference', defaults.ALARM_REFERENCE, 'the first solves of each parameter series (and after each '
+              'alarm) that are its in-control reference', 'solves', lo=1, hi=100000),
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
@@ -136,7 +144,7 @@ class IdentifierCore:
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = defaults.SPEED_TOLERANCE,
                  settle: float = defaults.SETTLE_FRACTION, min_window: float = defaults.MIN_WINDOW, options=None,
                  max_window: float | None = None,
-                 warm_start: bool = True, machine: str = '', history=None):
+                 warm_start: bool = True, machine: str = '', history=None, alarms: dict | None = None):
         self.rig = rig
         self.machine = label(machine, rig.name)    # the machine the record belongs to
         self.model = RotorModel.from_params(rig)
@@ -171,6 +179,12 @@ class IdentifierCore:
         self.history = history                 # a HistoryStore (or None): every result recorded is written there too
         self.history_rows = 0                  # identifications this process added to the history
         self.history_error = ''                # the last failed write (kept until a write succeeds)
+        # change detection on the history (history/trend.ChangeWatch); alarms not yet published wait in new_alarms
+        a = {'arl0': defaults.ALARM_ARL0, 'delta': defaults.ALARM_SHIFT, 'n_reference': defaults.ALARM_REFERENCE,
+             **(alarms or {})}
+        self.watch = None if history is None else ChangeWatch(history, self.machine, **a)
+        self.new_alarms: deque = deque()
+        self.alarm_error = ''
         get_method(method)
         self._lock_file = lock_record(record_dir)      # one writer per record (RecordInUse otherwise)
         try:
@@ -179,6 +193,7 @@ class IdentifierCore:
             self._check_machine(entries)
             self.resumed = self._resume(entries)
             self.resumed['history_backfilled'] = self._backfill_history(entries)
+            self.check_changes()           # the alarms already in the history: reported again after a restart
         except BaseException:
             self._lock_file.close()
             raise
@@ -628,13 +643,54 @@ class IdentifierCore:
             stability_threshold(self.model, self.rig, float(rpm_to_rad_s(max(sim.speeds_rpm))))
 
     def record_results(self, results) -> None:
-        """Append results to the record (one fsync'ed line each), then write them to the history."""
+        """Append results to the record (one fsync'ed line each), write them to the history, look for changes."""
+        added = 0
         for r in results:
             payload, stamp = _result_payload(r), time.time()
             self.record.append('result', stamp=stamp, **payload)
-            self._to_history(payload['result'], stamp)
+            added += self._to_history(payload['result'], stamp)
+        if added:
+            self.check_changes()
         if self.record.lines > COMPACT_AFTER:
             self.compact()
+
+    def check_changes(self) -> None:
+        """
+        Run the change detection on this machine's history; queue the alarms not reported yet in ``new_alarms``.
+
+        A failure (the database unreachable) is kept for /diagnostics (:meth:`alarm_item`), never raised.
+        """
+        if self.watch is None:
+            return
+        try:
+            new = self.watch.update()
+        except Exception as exc:      # the results are recorded; the next write retries the detection
+            self.alarm_error = f'{type(exc).__name__}: {exc}'
+            return
+        self.alarm_error = ''
+        self.new_alarms.extend(new)
+
+    def alarm_item(self) -> DiagItem:
+        """Return the /diagnostics item of the change detection: the alarms found, or the series watched."""
+        name = f'{NAME}: bearing change alarms'
+        w = self.watch
+        if w is None:
+            return DiagItem(name, OK, 'no history database: no change detection (parameter history)', {})
+        vals = {'series_watched': w.series, 'independent_points': w.points, 'alarms': len(w.found),
+                'arl0_solves': w.arl0, 'shift_sigma': w.delta, 'reference_solves': w.n_reference}
+        if self.alarm_error:
+            return DiagItem(name, ERROR, f'change detection failed: {self.alarm_error}', vals)
+        if not w.found:
+            return DiagItem(name, OK, f'no change in {w.series} parameter series over {w.points} independent '
+                            f'solve(s) (average {w.arl0:g} to a false alarm per series)', vals)
+        latest: dict = {}
+        for c in w.found:              # the latest alarm of each series
+            latest[(c.bearing, c.name)] = c
+        for i, c in enumerate(latest.values()):
+            vals[f'alarm_{i + 1}'] = c.sentence()
+        last = max(w.found, key=lambda c: c.alarm.time)
+        return DiagItem(name, WARN, f'{len(w.found)} change(s) in {len(latest)} series; latest: {last.sentence()}',
+                        vals)
 
     def _to_history(self, result: dict, stamp: float) -> bool:
         """Write one recorded result (its dict) to the history; a failure is kept for /diagnostics, never raised."""
@@ -674,6 +730,26 @@ class IdentifierCore:
     def close(self):
         self.record.close()
         self._lock_file.close()
+
+
+def alarm_items(changes: list[Change]) -> list[DiagItem]:
+    """
+    Return one WARN item per change, for the alarm topic.
+
+    Values: bearing, parameter, direction, size with its 1-sigma (SI), reference, onset and alarm time (UNIX s and
+    UTC; the UNIX stamps as text to the millisecond, not to /diagnostics' 6 digits), and the evidence (CUSUM statistic,
+    threshold, points).
+    """
+    out = []
+    for c in changes:
+        a = c.alarm
+        out.append(DiagItem(f'{NAME}: alarm: {c.bearing} {c.name}', WARN, c.sentence(), {
+            'bearing': c.bearing, 'parameter': c.name, 'direction': 'up' if a.direction > 0 else 'down',
+            'size': a.size, 'size_sigma': a.size_sigma, 'reference': a.reference,
+            'reference_sigma': a.reference_sigma, 'onset_stamp': f'{a.onset_time:.3f}', 'onset_utc': _utc(a.onset_time),
+            'alarm_stamp': f'{a.time:.3f}', 'alarm_utc': _utc(a.time), 'cusum_statistic_sigma': a.statistic,
+            'threshold_sigma': a.h, 'points_since_onset': a.n}))
+    return out
 
 
 def history_url(param: str, record) -> str:

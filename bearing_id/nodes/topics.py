@@ -15,6 +15,7 @@ TOPIC_EXCITATION = '/rotor/excitation'
 TOPIC_BEARING_DISPLACEMENT = '/bearing_id/bearing_displacement'
 TOPIC_INNOVATION = '/bearing_id/innovation'
 TOPIC_COEFFICIENTS = '/bearing_id/coefficients'
+TOPIC_ALARMS = '/bearing_id/alarms'
 TOPIC_DIAGNOSTICS = '/diagnostics'
 
 
