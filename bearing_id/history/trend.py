@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from .oil_temperature import not_monitored
 from ..monitor.cusum import Alarm, design, detect, reference_from, statistics
 
 
@@ -156,10 +157,14 @@ def changes(series: list[Series], *, arl0: float, delta: float = 2.0, n_referenc
     Return the CUSUM alarms of every series with more than ``n_reference`` points: one per change.
 
     ``arl0`` [points]: average run length to a false alarm per series; ``delta`` [sigma]: the shift to detect
-    fastest (:func:`series_changes`).
+    fastest (:func:`series_changes`).  The oil inlet temperature and a viscosity with its temperature-compensated
+    ratio are not monitored (:func:`bearing_id.history.oil_temperature.not_monitored`).
     """
     out = []
+    skip = not_monitored((s.bearing, s.name) for s in series)
     for s in series:
+        if (s.bearing, s.name) in skip:
+            continue
         out += series_changes(s, arl0=arl0, delta=delta, n_reference=n_reference)[0]
     return out
 
@@ -183,6 +188,7 @@ class ChangeWatch:
         self.found: list[Change] = []
         self._last_id = None
         self._state: dict = {}       # (bearing, parameter) -> [Resume, pending points [(t, v, s)], data end, count]
+        self._skipped: set = set()   # series not monitored (oil_temperature.not_monitored)
 
     @property
     def series(self) -> int:
@@ -198,7 +204,13 @@ class ChangeWatch:
         if q['identification'].size:
             self._last_id = int(np.max(q['identification']))
         new = []
-        for key, fits in _fits(q).items():
+        fits_by = _fits(q)
+        skip = not_monitored(set(fits_by) | set(self._state) | self._skipped)
+        self._skipped |= skip
+        for key, fits in fits_by.items():
+            if key in skip:
+                self._state.pop(key, None)
+                continue
             st = self._state.setdefault(key, [None, [], -math.inf, 0])
             kept, st[2] = _independent(fits, st[2])
             if not kept:

@@ -19,10 +19,11 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 from rclpy.node import Node
+from sensor_msgs.msg import Temperature
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
-from .identifier_core import alarm_items, history_url, identifiability_item, IdentifierCore, NAME, SPECS
+from .identifier_core import alarm_items, history_url, identifiability_item, IdentifierCore, NAME, oil_law, SPECS
 from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
 from .process import run_node
@@ -30,7 +31,8 @@ from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, WARN
 from .topics import (relative, TOPIC_ALARMS, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
-                     TOPIC_EXCITATION)
+                     TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE)
+from ..bearings.viscosity import celsius
 from ..config.params import load_rig
 from ..history import HistoryStore, redacted_url
 from ..io import messages as M
@@ -61,13 +63,14 @@ class Identifier(Node):
                 self.history_problem = (f'history database {redacted_url(url)} not opened: {type(exc).__name__}: '
                                         f'{str(exc).replace(url, redacted_url(url))}')
                 self.get_logger().error(self.history_problem)
+        oil = oil_law(v['oil_viscosities'], v['oil_reference_temperatures'], v['oil_density'])
         self.core = IdentifierCore(rig, v['method'], rdir,
                                    v['runs'], v['speed_tolerance'], v['settle_fraction'], v['min_window'],
                                    options={'kf': {'Q': v['kf_process_noise'],
                                                    'R': v['kf_measurement_noise'] ** 2 or None}},
                                    max_window=v['max_segment'], machine=self.machine, history=history,
                                    alarms={'arl0': v['alarm_arl0'], 'delta': v['alarm_shift'],
-                                           'n_reference': v['alarm_reference']})
+                                           'n_reference': v['alarm_reference']}, oil=oil)
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
         self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
@@ -95,6 +98,7 @@ class Identifier(Node):
                                  lambda m: self.on_block(m, 'measured'), qos_input(self))
         self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
                                  lambda m: self.on_block(m, 'estimated'), qos_input(self))
+        self.create_subscription(Temperature, relative(TOPIC_OIL_TEMPERATURE), self.on_temperature, qos_input(self, 50))
         # a pause is seen within half a segment_timeout of its end (a timer wake costs ~1 ms of CPU: no faster)
         self.create_timer(0.5 * v['segment_timeout'], self.tick)
         self.create_timer(v['diagnostics_period'], self.diagnostics)
@@ -122,6 +126,16 @@ class Identifier(Node):
             self._feed(b, r, contiguous, now)
         if self.core.add_excitation(run, stamp):
             self.get_logger().info(f'excitation: run {run.id}')
+
+    def on_temperature(self, msg):
+        """Take an oil inlet temperature [degC on the message] at its header stamp (the displacement blocks' clock)."""
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        if stamp <= 0:
+            self._problem('oil temperature without a header stamp rejected: it cannot be matched to the data')
+            return
+        problem = self.core.add_temperature(stamp, float(celsius(msg.temperature)))
+        if problem:
+            self._problem(problem)
 
     def on_block(self, msg, source):
         try:

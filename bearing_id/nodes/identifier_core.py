@@ -40,10 +40,12 @@ import numpy as np
 from .machine import label
 from .specs import ParamSpec
 from .status import DiagItem, ERROR, OK, WARN
+from ..bearings.viscosity import Oil, ZERO_CELSIUS
 from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
 from ..history import record_from_result, redacted_url, sqlite_url
+from ..history.oil_temperature import compensated, RATIO, TemperatureLog
 from ..history.trend import Change, ChangeWatch
 from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
@@ -76,6 +78,13 @@ SPECS = [
               hi=100.0),
     ParamSpec('alarm_reference', defaults.ALARM_REFERENCE, 'the first solves of each parameter series (and after each '
               'alarm) that are its in-control reference', 'solves', lo=1, hi=100000),
+    ParamSpec('oil_viscosities', None, "the oil's kinematic viscosity at its two reference temperatures (datasheet, "
+              'e.g. ISO VG 32: 32e-6 and 5.4e-6); with them the viscosity each physical fit gives is compared with '
+              'the Walther law at the oil inlet temperature (rotor/oil_temperature, sensor_msgs/Temperature); '
+              'unset: the temperature is recorded only', 'm^2/s', lo=2e-6, hi=1.0, type_='float[]'),
+    ParamSpec('oil_reference_temperatures', [313.15, 373.15], 'the temperatures of oil_viscosities (40 and 100 degC)',
+              'K', lo=200.0, hi=600.0, type_='float[]'),
+    ParamSpec('oil_density', 870.0, "the oil's density at 15 degC", 'kg/m^3', lo=500.0, hi=1500.0),
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
@@ -144,7 +153,7 @@ class IdentifierCore:
     def __init__(self, rig, method: str, record_dir, required_runs=None, tol_rel: float = defaults.SPEED_TOLERANCE,
                  settle: float = defaults.SETTLE_FRACTION, min_window: float = defaults.MIN_WINDOW, options=None,
                  max_window: float | None = None,
-                 warm_start: bool = True, machine: str = '', history=None, alarms: dict | None = None):
+                 warm_start: bool = True, machine: str = '', history=None, alarms: dict | None = None, oil=None):
         self.rig = rig
         self.machine = label(machine, rig.name)    # the machine the record belongs to
         self.model = RotorModel.from_params(rig)
@@ -185,6 +194,8 @@ class IdentifierCore:
         self.watch = None if history is None else ChangeWatch(history, self.machine, **a)
         self.new_alarms: deque = deque()
         self.alarm_error = ''
+        self.temperature = TemperatureLog()      # oil inlet readings (stamp [s], T [K])
+        self.oil = oil                           # the oil's viscosity law (bearings.viscosity.Oil) or None
         get_method(method)
         self._lock_file = lock_record(record_dir)      # one writer per record (RecordInUse otherwise)
         try:
@@ -627,9 +638,39 @@ class IdentifierCore:
             if moved:
                 r.notes.append(moved)
             self.results[float(r.speed)] = r
+        self._with_oil_temperature(results)
         if record:
             self.record_results(results)
         return results, data
+
+    def add_temperature(self, stamp: float, T: float) -> str:
+        """Take an oil inlet temperature reading ``T`` [K] at ``stamp`` [s]; return why it was refused, or ''."""
+        return self.temperature.add(float(stamp), float(T))
+
+    def _with_oil_temperature(self, results) -> None:
+        """
+        Add the oil inlet temperature over a global fit's data, and each viscosity against the oil law, to its results.
+
+        Only a fit with physical parameters (one value for all speeds) and readings within its data span: the mean
+        and spread of the readings from the first to the last sample behind any of its speeds, and with an oil law
+        (parameters ``oil_*``) each bearing's fitted viscosity over the law's at that mean
+        (:func:`bearing_id.history.oil_temperature.compensated`), as parameters beside the fitted ones.
+        """
+        spans = [r.extra['data_span'] for r in results if r.extra.get('data_span') and r.extra.get('parameters')]
+        if not spans or not len(self.temperature):
+            return
+        T, T_std, n = self.temperature.over(min(s[0] for s in spans), max(s[1] for s in spans))
+        if not n:
+            return
+        derived = compensated(results[0].extra['parameters'], T, T_std, self.oil)
+        ratios = ', '.join(f"{k.split('.')[0]} {v['value']:.4g} +- {v['std']:.2g}" for k, v in derived.items()
+                           if k.endswith(RATIO))
+        note = (f'oil inlet {T:.2f} K ({T - ZERO_CELSIUS:.1f} degC) +- {T_std:.2g} K over the data ({n} readings)'
+                + (f"; fitted viscosity / the oil law's: {ratios}" if ratios else ''))
+        for r in results:
+            if r.extra.get('parameters'):
+                r.extra['parameters'] = {**r.extra['parameters'], **derived}
+                r.notes.append(note)
 
     def prepare(self) -> None:
         """
@@ -750,6 +791,25 @@ def alarm_items(changes: list[Change]) -> list[DiagItem]:
             'alarm_stamp': f'{a.time:.3f}', 'alarm_utc': _utc(a.time), 'cusum_statistic_sigma': a.statistic,
             'threshold_sigma': a.h, 'points_since_onset': a.n}))
     return out
+
+
+def oil_law(viscosities, temperatures, density: float):
+    """
+    Return the oil's viscosity law (:class:`bearing_id.bearings.viscosity.Oil`) from the node's ``oil_*`` parameters.
+
+    None when ``viscosities`` is unset or empty; ValueError (naming the parameters) when they are not two viscosities
+    at two temperatures the Walther relation can pass through.
+    """
+    if not viscosities:
+        return None
+    if len(viscosities) != 2 or len(temperatures or ()) != 2:
+        raise ValueError(f'oil_viscosities and oil_reference_temperatures need two values each, got '
+                         f'{list(viscosities)} and {list(temperatures or ())}')
+    try:
+        return Oil(nu1=float(viscosities[0]), T1=float(temperatures[0]), nu2=float(viscosities[1]),
+                   T2=float(temperatures[1]), rho_ref=float(density))
+    except ValueError as exc:
+        raise ValueError(f'oil_viscosities / oil_reference_temperatures: {exc}') from None
 
 
 def history_url(param: str, record) -> str:

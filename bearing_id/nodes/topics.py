@@ -12,6 +12,7 @@ from __future__ import annotations
 TOPIC_DISPLACEMENT = '/rotor/displacement'
 TOPIC_SPEED = '/rotor/speed'
 TOPIC_EXCITATION = '/rotor/excitation'
+TOPIC_OIL_TEMPERATURE = '/rotor/oil_temperature'
 TOPIC_BEARING_DISPLACEMENT = '/bearing_id/bearing_displacement'
 TOPIC_INNOVATION = '/bearing_id/innovation'
 TOPIC_COEFFICIENTS = '/bearing_id/coefficients'

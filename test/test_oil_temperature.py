@@ -1,0 +1,101 @@
+"""
+Oil inlet temperature beside the identified bearings (issue 25 item 2): a warm day is not wear, a wrong oil is a change.
+
+The oil law is Walther's through an ISO VG 46 datasheet (46 cSt at 40 degC, 6.8 cSt at 100 degC; bearings/viscosity.py,
+tested against datasheets in test_viscosity.py).  (1) A history written here: three days of solves, the inlet
+temperature cycling daily by +-3.5 K (the viscosity by about +-15 %), each fitted viscosity the law's at that
+temperature with 0.3 % noise, clearances constant: no alarm at ARL0 = 1e4 -- while the raw viscosity alone would alarm
+(the CUSUM on it is run here too, so the test can fail) -- and from day two an oil 10 % more viscous than its law: one
+alarm, on the ratio, sized within 3 sigma.  (2) The identifier core with temperature readings over its data: the mean
+inlet temperature and each bearing's fitted viscosity over the law's are parameters of its results; a law that
+matches the simulator's true viscosity at the readings' temperature gives a ratio within 3 sigma of 1, readings 5 K
+warmer a ratio off by far more than its sigma.
+"""
+from __future__ import annotations
+
+import math
+
+from bearing_id.bearings import viscosity as V
+from bearing_id.history import HistoryStore, IdentificationRecord, Parameter, sqlite_url
+from bearing_id.history.oil_temperature import compensated, TemperatureLog
+from bearing_id.history.trend import changes, parameter_series
+from bearing_id.monitor.cusum import detect
+from bearing_id.nodes.identifier_core import IdentifierCore, oil_law
+import numpy as np
+import pytest
+from test_identifier_tracking import feed, passes  # noqa: F401  (the fixture)
+
+VG46 = V.Oil(nu1=46e-6, T1=V.celsius(40.0), nu2=6.8e-6, T2=V.celsius(100.0), rho_ref=870.0)
+T0 = 1.8e9
+DAY = 86400.0
+
+
+def three_days(path, wrong_oil_from: float | None, seed: int):
+    rng = np.random.default_rng(seed)
+    with HistoryStore(sqlite_url(path)) as store:
+        for i in range(int(3 * DAY / 1800)):
+            t = T0 + 1800.0 * i
+            T = float(V.celsius(45.0) + 3.5 * math.sin(2 * math.pi * (t - T0) / DAY))
+            mu = float(V.dynamic(VG46, T)) * (1.1 if wrong_oil_from is not None and t - T0 >= wrong_oil_from else 1.0)
+            fit = {'bearing1.viscosity': {'value': mu * (1 + 0.003 * rng.standard_normal()), 'std': 0.003 * mu},
+                   'bearing1.clearance': {'value': 100e-6 * (1 + 0.005 * rng.standard_normal()), 'std': 0.5e-6}}
+            pars = {**fit, **compensated(fit, T, 0.05, VG46)}
+            store.write(IdentificationRecord(
+                machine='m', t_start=t, t_end=t + 600.0, speed=100.0, method='physical',
+                parameters=tuple(Parameter(*k.rsplit('.', 1), p['value'], p['std']) for k, p in pars.items())))
+
+
+def test_a_temperature_cycle_is_no_change_and_a_wrong_oil_is(tmp_path):
+    three_days(tmp_path / 'ok.db', None, 1)
+    three_days(tmp_path / 'wrong.db', DAY, 2)
+    with HistoryStore(sqlite_url(tmp_path / 'ok.db')) as store:
+        series = parameter_series(store, 'm')
+    names = {(s.bearing, s.name) for s in series}
+    assert names == {('bearing1', 'viscosity'), ('bearing1', 'clearance'), ('bearing1', 'viscosity_vs_oil'),
+                     ('oil', 'inlet_temperature')}
+    assert changes(series, arl0=1e4, delta=2.0, n_reference=10) == []
+    raw = [s for s in series if s.name == 'viscosity'][0]
+    assert np.ptp(raw.value) / np.mean(raw.value) > 0.25           # +-15 %: the cycle is there ...
+    assert detect(raw.value, raw.sigma, arl0=1e4, delta=2.0, n_reference=10)    # ... and would alarm on its own
+    with HistoryStore(sqlite_url(tmp_path / 'wrong.db')) as store:
+        (c,) = changes(parameter_series(store, 'm'), arl0=1e4, delta=2.0, n_reference=10)
+    assert (c.bearing, c.name, c.alarm.direction) == ('bearing1', 'viscosity_vs_oil', 1)
+    assert abs(c.alarm.size - 0.1) <= 3 * math.hypot(c.alarm.size_sigma, c.alarm.reference_sigma), c.alarm
+    assert T0 + DAY <= c.alarm.onset_time <= T0 + DAY + 6 * 3600.0
+
+
+def test_the_identifier_compares_its_viscosity_with_the_oil_law(passes, tmp_path):  # noqa: F811
+    rig, _, first, _ = passes
+    mu_true = rig.bearings[0].viscosity * rig.simulation.truth.viscosity_factor[0]
+    T_star = float(V.temperature_for_dynamic(VG46, mu_true))
+    ratios = {}
+    for offset in (0.0, 5.0):
+        core = IdentifierCore(rig, 'physical', tmp_path / f'rec{offset}', oil=VG46)
+        rng = np.random.default_rng(3)
+        for t in np.arange(0.0, 400.0, 0.5):
+            assert core.add_temperature(t, T_star + offset + 0.05 * rng.standard_normal()) == ''
+        feed(core, first, 0.0)
+        results, _ = core.solve()
+        core.close()
+        p = results[0].extra['parameters']
+        assert all(r.extra['parameters'] == p for r in results)           # one global fit: one set for all speeds
+        assert p['oil.inlet_temperature']['value'] == pytest.approx(T_star + offset, abs=0.02)
+        ratios[offset] = p['bearing1.viscosity_vs_oil'], p['bearing2.viscosity_vs_oil']
+        assert any(n.startswith('oil inlet ') for n in results[0].notes)
+    for r in ratios[0.0]:
+        assert abs(r['value'] - 1.0) <= 3 * r['std'], r
+    expected = float(V.dynamic(VG46, T_star) / V.dynamic(VG46, T_star + 5.0))     # the law's fall over 5 K
+    for r in ratios[5.0]:
+        assert abs(r['value'] - 1.0) > 10 * r['std'] and abs(r['value'] / expected - 1) < 0.01, (r, expected)
+
+
+def test_bad_readings_and_parameters_are_named():
+    log = TemperatureLog()
+    assert 'outside' in log.add(1.0, 45.0)                  # degC where kelvin is expected
+    assert 'not finite' in log.add(1.0, math.nan)
+    assert log.add(1.0, 318.0) == '' and len(log) == 1
+    assert oil_law(None, [313.15, 373.15], 870.0) is None
+    with pytest.raises(ValueError, match='oil_viscosities'):
+        oil_law([46e-6], [313.15, 373.15], 870.0)
+    with pytest.raises(ValueError, match='must fall as the temperature rises'):
+        oil_law([6.8e-6, 46e-6], [313.15, 373.15], 870.0)
