@@ -14,15 +14,19 @@ warmer a ratio off by far more than its sigma.
 from __future__ import annotations
 
 import math
+import time
 
 from bearing_id.bearings import viscosity as V
+from bearing_id.config.params import load_rig
 from bearing_id.history import HistoryStore, IdentificationRecord, Parameter, sqlite_url
 from bearing_id.history.oil_temperature import compensated, TemperatureLog
 from bearing_id.history.trend import changes, parameter_series
+from bearing_id.io.record import Record
 from bearing_id.monitor.cusum import detect
 from bearing_id.nodes.identifier_core import IdentifierCore, oil_law
 import numpy as np
 import pytest
+import rosutil
 from test_identifier_tracking import feed, passes  # noqa: F401  (the fixture)
 
 VG46 = V.Oil(nu1=46e-6, T1=V.celsius(40.0), nu2=6.8e-6, T2=V.celsius(100.0), rho_ref=870.0)
@@ -99,3 +103,42 @@ def test_bad_readings_and_parameters_are_named():
         oil_law([46e-6], [313.15, 373.15], 870.0)
     with pytest.raises(ValueError, match='must fall as the temperature rises'):
         oil_law([6.8e-6, 46e-6], [313.15, 373.15], 870.0)
+
+
+@pytest.mark.ros
+def test_sensor_driver_s_oil_temperature_reaches_the_identifier_s_results(tmp_path):
+    """
+    The driver's published oil temperature ends in the identifier's results, the viscosity on the oil's law.
+
+    sensor_driver's sim source with an oil temperature (constant here: the law's temperature for the rig's true
+    viscosity) and the identifier with the same oil law: its recorded results carry the mean inlet temperature the
+    driver published, and each bearing's viscosity over the law's within 3 sigma of 1.
+    """
+    rig = load_rig()
+    mu_true = rig.bearings[0].viscosity * rig.simulation.truth.viscosity_factor[0]
+    T_star = float(V.temperature_for_dynamic(VG46, mu_true))
+    oil = ['-p', 'oil_viscosities:=[4.6e-05,6.8e-06]', '-p', 'oil_density:=870.0']
+    env = rosutil.ros_env()
+    rec_dir = tmp_path / 'rec'
+    ident = rosutil.RosProcess([rosutil.script('identifier'), '--ros-args', '-p', 'method:=physical',
+                                '-p', f'record_dir:={rec_dir}', '-p', 'runs:=[A,B]', *oil], env=env, hard_timeout=120)
+    drv = rosutil.RosProcess([rosutil.script('sensor_driver'), '--ros-args', '-p', 'speeds_rpm:=[1200.0,2400.0]',
+                              '-p', 'dwell:=1.5', '-p', 'rate_factor:=4.0', '-p', 'exit_when_done:=true',
+                              '-p', f'oil_temperature_mean:={T_star}', *oil], env=env, hard_timeout=120)
+    try:
+        assert drv.wait(90) == 0, drv.output()
+        t_end, res = time.monotonic() + 30, []
+        while time.monotonic() < t_end and len({round(r['speed_rad_s'], 6) for r in res}) < 2:
+            res = [e['result'] for e in Record(rec_dir, fsync=False).entries('result')]
+            time.sleep(0.25)
+        assert ident.alive(), ident.output()
+        ident.interrupt()
+        assert 'Traceback' not in ident.stderr + drv.stderr, ident.output() + drv.output()
+    finally:
+        ident.close()
+        drv.close()
+    p = res[-1]['parameters']
+    assert p['oil.inlet_temperature']['value'] == pytest.approx(T_star, abs=1e-6)
+    for b in ('bearing1', 'bearing2'):
+        r = p[f'{b}.viscosity_vs_oil']
+        assert abs(r['value'] - 1.0) <= 3 * r['std'], r

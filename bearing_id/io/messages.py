@@ -27,6 +27,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..bearings.viscosity import ZERO_CELSIUS
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import COEFF_ORDER, parse_probe_direction
 from ..signals.recording import MAX_PLAUSIBLE_DISPLACEMENT
@@ -413,6 +414,14 @@ def speed_to_msg(speed: float, angle: float, *, stamp=0, frame_id: str = '', typ
     t = _types(types)
     return t.make(f'{PACKAGE}/msg/RotorSpeed', header=_header(t, stamp, frame_id),
                   speed=float(speed), angle=float(angle))
+
+
+# ---------------------------------------------------------------------------------------------- oil temperature
+def temperature_to_msg(T: float, *, stamp=0, frame_id: str = '', types=None):
+    """Build a ``sensor_msgs/Temperature`` of ``T`` [K] at ``stamp`` (the message carries degC, variance 0: unknown)."""
+    t = _types(types)
+    return t.make('sensor_msgs/msg/Temperature', header=_header(t, stamp, frame_id),
+                  temperature=float(T) - ZERO_CELSIUS, variance=0.0)
 
 
 # ------------------------------------------------------------------------------------------------------ Excitation

@@ -7,7 +7,9 @@ Sources (the simulated rig or DAQ exports, one recording per excitation run) and
 Topics
     ``/rotor/displacement`` (DisplacementBlock, ``block_size`` samples; sequence +1 per block across runs; stamps
     continuous across runs, wall time of the first sample), ``/rotor/speed`` (RotorSpeed, one per block),
-    ``/rotor/excitation`` (Excitation, latched; sent at each run change, stamped with the run's first block).
+    ``/rotor/excitation`` (Excitation, latched; sent at each run change, stamped with the run's first block),
+    ``/rotor/oil_temperature`` (sensor_msgs/Temperature, degC, every ``oil_temperature_interval`` of stream time,
+    when the sim source has an oil temperature: ``oil_temperature_mean``).
     QoS: see :mod:`bearing_id.nodes.qos`.
 """
 from __future__ import annotations
@@ -18,15 +20,17 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from sensor_msgs.msg import Temperature
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg
 from .machine import label, machine_id
 from .process import run_node
 from .qos import qos_latched, qos_stream
-from .sensor_driver_core import load_sources, n_blocks, NAME, opened, Prefetch, SPECS, stream_messages
+from .sensor_driver_core import (load_sources, n_blocks, NAME, opened, Prefetch, sim_temperature, SPECS,
+                                 stream_messages)
 from .status import DiagItem, ERROR, OK, WARN
-from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
+from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
 from ..io import messages as M
 
 
@@ -54,6 +58,8 @@ class SensorDriver(Node):
         self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
         self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.temperature = sim_temperature(v)
+        self.pub_temp = self.create_publisher(Temperature, relative(TOPIC_OIL_TEMPERATURE), qos_stream(50))
         self.sent = 0
         self.late = 0            # blocks published later than their real-time slot by > one block
         self.state = 'waiting for subscribers'
@@ -78,12 +84,14 @@ class SensorDriver(Node):
         t0_wall = time.monotonic()
         base_ns = self.get_clock().now().nanoseconds
         rate = v['rate_factor']
-        pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc}
+        pubs = {TOPIC_DISPLACEMENT: self.pub_disp, TOPIC_SPEED: self.pub_speed, TOPIC_EXCITATION: self.pub_exc,
+                TOPIC_OIL_TEMPERATURE: self.pub_temp}
         # computed (sim) or read (files) up to PREFETCH_SECONDS of stream ahead of the real-time pacing (3 messages
         # per block: speed, displacement, an excitation now and then)
         ahead = 3 * max(1, int(PREFETCH_SECONDS * self.sample_rate / v['block_size']))
         self._prefetch = Prefetch(stream_messages(self.sources, v['block_size'], base_ns, self.frame_id,
-                                                  on_skip=self._skip), ahead)
+                                                  on_skip=self._skip, temperature=self.temperature,
+                                                  temperature_interval=v['oil_temperature_interval']), ahead)
         for topic, t_ns, msg, end_ns in self._prefetch:
             if self._stop.is_set():
                 return

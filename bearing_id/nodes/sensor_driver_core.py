@@ -17,13 +17,15 @@ import threading
 import numpy as np
 
 from .specs import ParamSpec
-from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_SPEED
+from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
+from ..bearings import viscosity
 from ..config.params import load_rig, ParamError, parse_probes
 from ..io import messages as M
 from ..io.daq import read_daq
 from ..rotor.assembly import RotorModel
 from ..signals.recording import Recording
 from ..simulation import rig as rigmod
+from ..simulation.operation import Operation
 
 NAME = 'sensor_driver'
 
@@ -52,6 +54,27 @@ SPECS = [
               'truth_change_after (wear: > 1)', '-', lo=0.1, hi=10.0),
     ParamSpec('truth_change_viscosity', 1.0, 'sim source: the true oil viscosity times this after truth_change_after '
               '(oil temperature)', '-', lo=0.1, hi=10.0),
+    ParamSpec('oil_temperature_mean', None, 'sim source: the oil inlet temperature, published on rotor/oil_temperature '
+              '(sensor_msgs/Temperature) and moving the true viscosity by the oil law (oil_viscosities); unset: none',
+              'K', lo=250.0, hi=450.0, type_='float'),
+    ParamSpec('oil_temperature_amplitude', 0.0, 'sim source: the amplitude of its sinusoidal cycle', 'K', lo=0.0,
+              hi=100.0),
+    ParamSpec('oil_temperature_period', 86400.0, 'sim source: the period of that cycle (a day)', 's', lo=1.0,
+              hi=1e8),
+    ParamSpec('oil_temperature_interval', 1.0, 'sim source: stream time between two published readings', 's',
+              lo=0.01, hi=3600.0),
+    ParamSpec('oil_viscosities', None, "sim source: the oil's kinematic viscosity at oil_reference_temperatures "
+              '(needed with oil_temperature_mean)', 'm^2/s', lo=2e-6, hi=1.0, type_='float[]'),
+    ParamSpec('oil_reference_temperatures', [313.15, 373.15], 'the temperatures of oil_viscosities', 'K', lo=200.0,
+              hi=600.0, type_='float[]'),
+    ParamSpec('oil_density', 870.0, "the oil's density at 15 degC", 'kg/m^3', lo=500.0, hi=1500.0),
+    ParamSpec('wear_bearing', '', 'sim source: the bearing (its name in rig_params) whose clearance grows from '
+              'wear_onset to wear_end (empty: none)'),
+    ParamSpec('wear_onset', 0.0, 'sim source: stream time the wear starts', 's', lo=0.0, hi=1e9),
+    ParamSpec('wear_end', 1.0, 'sim source: stream time it reaches wear_clearance (constant after)', 's', lo=0.0,
+              hi=1e9),
+    ParamSpec('wear_clearance', 1.0, "sim source: the wearing bearing's clearance at wear_end, times its start",
+              '-', lo=0.1, hi=10.0),
     ParamSpec('block_size', 1024, 'samples per DisplacementBlock', 'samples', lo=16, hi=1 << 20),
     ParamSpec('rate_factor', 1.0, 'playback speed relative to real time', '-', lo=0.01, hi=1000.0),
     ParamSpec('wait_for_subscribers', 1, 'start once this many subscribers listen to /rotor/displacement '
@@ -118,6 +141,11 @@ def load_sources(values: dict) -> list:
             raise ParamError(f"parameter 'probes': {exc}") from None
     model = RotorModel.from_params(rig)
     schedule = rigmod.run_schedule(rig, values['speeds_rpm'], values['dwell'])
+    op = operation_of(values, rig)
+    if op is not None and values['truth_change_after'] is not None:
+        raise ParamError("parameters 'truth_change_after' and an operating profile (oil_temperature_mean, "
+                         'wear_bearing) both change the simulated machine: give one')
+    truth_at = None if op is None else (lambda t: op.truth_at(rig, t))
     changes = ()
     if values['truth_change_after'] is not None:
         changed = rigmod.changed_truth(rig, values['truth_change_clearance'], values['truth_change_viscosity'])
@@ -127,9 +155,51 @@ def load_sources(values: dict) -> list:
         for r in runs:
             out.append(rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model,
                                               seed=rigmod.run_seed(rig.simulation.seed, r.id, k), t0=t_off,
-                                              truth_changes=changes))
+                                              truth_changes=changes, truth_at=truth_at))
             t_off += out[-1].n_samples / out[-1].sample_rate
     return out
+
+
+def operation_of(values: dict, rig=None):
+    """
+    Return the sim source's operating profile (:class:`bearing_id.simulation.operation.Operation`) or None.
+
+    From the ``oil_*`` and ``wear_*`` parameters; ParamError naming the parameter when they do not make one.
+    """
+    T_mean, wear = values['oil_temperature_mean'], str(values['wear_bearing']).strip()
+    if T_mean is None and not wear:
+        return None
+    oil = None
+    if T_mean is not None:
+        visc, temps = values['oil_viscosities'], values['oil_reference_temperatures']
+        if not visc or len(visc) != 2 or len(temps or ()) != 2:
+            raise ParamError("parameter 'oil_viscosities' needs the oil's two reference viscosities (and "
+                             "'oil_reference_temperatures' their two temperatures) with oil_temperature_mean")
+        try:
+            oil = viscosity.Oil(nu1=float(visc[0]), T1=float(temps[0]), nu2=float(visc[1]), T2=float(temps[1]),
+                                rho_ref=float(values['oil_density']))
+        except ValueError as exc:
+            raise ParamError(f"parameter 'oil_viscosities': {exc}") from None
+    index = None
+    if wear:
+        names = [b.name for b in rig.bearings] if rig is not None else []
+        if wear not in names:
+            raise ParamError(f"parameter 'wear_bearing': {wear!r} is not a bearing of the rig ({', '.join(names)})")
+        index = names.index(wear)
+    try:
+        return Operation(oil=oil, T_mean=T_mean, T_amplitude=values['oil_temperature_amplitude'],
+                         T_period=values['oil_temperature_period'], wear_bearing=index,
+                         wear_onset=values['wear_onset'], wear_end=values['wear_end'],
+                         wear_clearance=values['wear_clearance'])
+    except ValueError as exc:
+        raise ParamError(f'operating profile: {exc}') from None
+
+
+def sim_temperature(values: dict):
+    """Return the sim source's oil inlet temperature profile (stream time [s] -> K), or None when it has none."""
+    if values['source'] != 'sim' or values['oil_temperature_mean'] is None:
+        return None
+    return operation_of({**values, 'wear_bearing': ''}).temperature
 
 
 def opened(source):
@@ -164,7 +234,8 @@ def run_blocks(src, block_size: int):
         yield buf
 
 
-def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=None, on_skip=None):
+def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=None, on_skip=None,
+                    temperature=None, temperature_interval: float = 1.0):
     """
     Yield everything the driver publishes for ``sources``, in order, as (topic, stamp_ns, msg, end_ns).
 
@@ -176,10 +247,13 @@ def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=N
     runs on across runs at the first run's sample rate.  Each run is opened (a file read, a simulation started) when
     its turn comes.  A run that cannot be opened or has another sample rate is skipped: ``on_skip(source, reason)``
     is called (None: raise).  ``types``: None for rclpy messages, a rosbags typestore for bag writing.
+    ``temperature``: stream time [s] -> oil inlet temperature [K] (an operating profile), published as a
+    ``sensor_msgs/Temperature`` every ``temperature_interval`` [s] of stream time, before the block that passes it.
     """
     fs = None
     t_off = 0.0
     seq = 0
+    t_next = 0.0          # stream time of the next oil temperature reading [s]
     for source in sources:
         try:
             src = opened(source)
@@ -199,6 +273,11 @@ def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=N
                 yield (TOPIC_EXCITATION, t_ns, M.excitation_to_msg(src.run, stamp=t_ns, frame_id=frame_id,
                                                                    types=types), t_ns)
                 first = False
+            while temperature is not None and t_off + i0 / fs >= t_next:
+                r_ns = t0_ns + int(round(t_next * 1e9))
+                yield (TOPIC_OIL_TEMPERATURE, r_ns, M.temperature_to_msg(float(temperature(t_next)), stamp=r_ns,
+                                                                         frame_id=frame_id, types=types), r_ns)
+                t_next += temperature_interval
             w0, a0 = float(w[0]), float(a[0])
             yield TOPIC_SPEED, t_ns, M.speed_to_msg(w0, a0, stamp=t_ns, frame_id=frame_id, types=types), t_ns
             yield (TOPIC_DISPLACEMENT, t_ns, M.block_to_msg(y, seq, fs, w0, a0, src.probes, stamp=t_ns,

@@ -168,7 +168,7 @@ def run_seed(seed: int, run_id: str, pass_index: int = 0) -> int:
 
 def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes=None, noise=None, seed=None,
                     bearing_fn=None, effects=(), sample_rate=None, model=None, t0: float = 0.0,
-                    truth_changes=()) -> SimulatedRun:
+                    truth_changes=(), truth_at=None) -> SimulatedRun:
     """
     Simulate one excitation run over a speed ``schedule``, lazily.
 
@@ -204,6 +204,9 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
         [(t [s], bearing_fn)] the machine changing while it runs (wear, oil temperature): from the first segment that
         starts at or after stream time t, the bearings are that ``bearing_fn``'s (:func:`changed_truth`); the state
         carries over as at any segment boundary.
+    truth_at
+        stream time t [s] -> bearing_fn: the machine at every segment's start (an operating profile,
+        :meth:`bearing_id.simulation.operation.Operation.truth_at`); replaces ``bearing_fn`` and ``truth_changes``.
 
     """
     sim = rig.simulation
@@ -235,6 +238,8 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
             for t_change, changed in changes:
                 if t0 + i0 / fs >= t_change:
                     fn = changed
+            if truth_at is not None:
+                fn = truth_at(t0 + i0 / fs)
             coeffs = fn(W)
             out.truth_coefficients.setdefault(W, {k: (np.array(v[0]), np.array(v[1])) for k, v in coeffs.items()})
             M, C, K = system_matrices(model, W, coeffs, effects)
@@ -401,19 +406,23 @@ def check_validity(rig: RigParams, runs, speeds, *, bearing_fn=None, threshold=N
     return out
 
 
-def changed_truth(rig: RigParams, clearance: float = 1.0, viscosity: float = 1.0):
+def changed_truth(rig: RigParams, clearance=1.0, viscosity=1.0):
     """
-    Return the bearing_fn of ``rig``'s truth bearings with clearance and viscosity multiplied (every bearing).
+    Return the bearing_fn of ``rig``'s truth bearings with clearance and viscosity multiplied.
 
-    The machine after a change: wear opens the clearance, the oil temperature moves the viscosity (for
-    :func:`simulate_stream`'s ``truth_changes``).
+    ``clearance``, ``viscosity``: one factor for every bearing, or one per bearing.  The machine after a change: wear
+    opens the clearance, the oil temperature moves the viscosity (for :func:`simulate_stream`'s ``truth_changes`` and
+    ``truth_at``).
     """
     t = rig.simulation.truth
     n = len(rig.bearings)
 
     def scaled(factors, by):
         base = factors if isinstance(factors, (tuple, list)) else (1.0 if factors is None else factors,) * n
-        return tuple(float(f) * by for f in base)
+        by = tuple(by) if isinstance(by, (tuple, list)) else (by,) * n
+        if len(by) != n:
+            raise ValueError(f'{len(by)} factors for {n} bearings')
+        return tuple(float(f) * float(b) for f, b in zip(base, by))
     return truth_bearing_fn(with_truth(rig, clearance_factor=scaled(t.clearance_factor, clearance),
                                        viscosity_factor=scaled(t.viscosity_factor, viscosity)))
 
