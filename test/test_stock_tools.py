@@ -404,7 +404,8 @@ def test_package_xml_declares_a_rosdep_key_for_every_import():
     lacks (pint, mcap, pydantic 2) is defined in the package's own rosdep source, rosdep/bearing_id.yaml.
     """
     keys = {'rclpy': 'rclpy', 'rcl_interfaces': 'rcl_interfaces', 'builtin_interfaces': 'builtin_interfaces',
-            'std_msgs': 'std_msgs', 'diagnostic_msgs': 'diagnostic_msgs', 'ament_index_python': 'ament_index_python',
+            'std_msgs': 'std_msgs', 'diagnostic_msgs': 'diagnostic_msgs', 'sensor_msgs': 'sensor_msgs',
+            'ament_index_python': 'ament_index_python',
             'bearing_id_msgs': 'bearing_id_msgs', 'numpy': 'python3-numpy', 'scipy': 'python3-scipy',
             'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib', 'rosbags': 'python3-rosbags-pip',
             'filterpy': 'python3-filterpy-pip', 'pint': 'python3-pint-pip', 'mcap': 'python3-mcap-pip',
