@@ -13,7 +13,7 @@ is the viscosity with the temperature taken out: about constant while the oil is
 the temperature does; a step in it is a wrong oil, contamination or a film hotter than the inlet (a bearing running
 hot).  Its 1-sigma combines the fit's and the temperature's spread over the data behind the fit (the temperature
 varied that much while the data were taken): sigma_r^2 = (sigma_mu / mu_law)^2 + (r dln(mu)/dT sigma_T)^2.  The raw
-viscosity then follows the temperature and is not itself a change to alarm on (:data:`NOT_MONITORED`).
+viscosity then follows the temperature and is not itself a change to alarm on (:func:`not_monitored`).
 
 SI throughout: T in kelvin (degC only at the node's edge, :func:`bearing_id.bearings.viscosity.celsius`).
 """
