@@ -52,6 +52,7 @@ def main(argv=None) -> int:
     ap.add_argument('--mean', type=float, default=318.15, help='oil inlet mean [K] (default 318.15)')
     ap.add_argument('--amplitude', type=float, default=3.5, help='its daily cycle [K] (default 3.5)')
     ap.add_argument('--no-kf', action='store_true', help='without kf_estimator')
+    ap.add_argument('--keep', help="keep the nodes' logs, record and history in this directory")
     args = ap.parse_args(argv)
     values = {s.name: s.default for s in sensor_driver_core.SPECS}
     plan = sum(s.n_samples / s.sample_rate for s in sensor_driver_core.load_sources(values))
@@ -60,7 +61,8 @@ def main(argv=None) -> int:
     onset = 3600.0 * (args.hours / 2 if args.onset is None else args.onset)
     env = ros_env(_domain_id())
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp)
+        out = Path(args.keep or tmp)
+        out.mkdir(parents=True, exist_ok=True)
         db = out / 'history.db'
         driver = ['-p', f'passes:={passes}', '-p', f'rate_factor:={args.rate}', '-p', 'exit_when_done:=true',
                   '-p', f'oil_temperature_mean:={args.mean}', '-p', f'oil_temperature_amplitude:={args.amplitude}',
