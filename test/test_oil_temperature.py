@@ -24,6 +24,7 @@ from bearing_id.history.trend import changes, parameter_series
 from bearing_id.io.record import Record
 from bearing_id.monitor.cusum import detect
 from bearing_id.nodes.identifier_core import IdentifierCore, oil_law
+from bearing_id.plots.trend import trend_figure
 import numpy as np
 import pytest
 import rosutil
@@ -142,3 +143,17 @@ def test_sensor_driver_s_oil_temperature_reaches_the_identifier_s_results(tmp_pa
     for b in ('bearing1', 'bearing2'):
         r = p[f'{b}.viscosity_vs_oil']
         assert abs(r['value'] - 1.0) <= 3 * r['std'], r
+
+
+def test_the_trend_page_shows_the_temperature_beside_each_viscosity(tmp_path):
+    """The figure: every viscosity axis (raw and compensated) carries the inlet temperature in degC on a twin axis."""
+    three_days(tmp_path / 'ok.db', None, 1)
+    with HistoryStore(sqlite_url(tmp_path / 'ok.db')) as store:
+        series = parameter_series(store, 'm')
+    fig = trend_figure(series)
+    oil = [s for s in series if s.bearing == 'oil'][0]
+    twins = [ax for ax in fig.axes if ax.get_ylabel() == 'oil inlet [degC]']
+    assert len(twins) == sum(s.name.startswith('viscosity') for s in series) == 2
+    for ax in twins:
+        (line,) = ax.get_lines()
+        assert np.allclose(line.get_ydata(), oil.value - 273.15)
