@@ -23,7 +23,8 @@ from bearing_id.history.oil_temperature import compensated, TemperatureLog
 from bearing_id.history.trend import changes, parameter_series
 from bearing_id.io.record import Record
 from bearing_id.monitor.cusum import detect
-from bearing_id.nodes.identifier_core import IdentifierCore, oil_law
+from bearing_id.nodes.identifier_core import IdentifierCore
+from bearing_id.nodes.oil import oil_law
 from bearing_id.plots.trend import trend_figure
 import numpy as np
 import pytest

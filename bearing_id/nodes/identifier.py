@@ -23,9 +23,10 @@ from sensor_msgs.msg import Temperature
 
 from .declare import declare_parameters
 from .diagnostics import diagnostics_msg, flag_best_effort, flag_publishers
-from .identifier_core import alarm_items, history_url, identifiability_item, IdentifierCore, NAME, oil_law, SPECS
+from .identifier_core import alarm_items, history_url, identifiability_item, IdentifierCore, NAME, SPECS
 from .machine import label, machine_id, record_dir
 from .monitor import StreamMonitor
+from .oil import oil_law
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver

@@ -38,9 +38,10 @@ import time
 import numpy as np
 
 from .machine import label
+from .oil import OIL_SPECS
 from .specs import ParamSpec
 from .status import DiagItem, ERROR, OK, WARN
-from ..bearings.viscosity import Oil, ZERO_CELSIUS
+from ..bearings.viscosity import ZERO_CELSIUS
 from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
@@ -78,13 +79,7 @@ SPECS = [
               hi=100.0),
     ParamSpec('alarm_reference', defaults.ALARM_REFERENCE, 'the first solves of each parameter series (and after each '
               'alarm) that are its in-control reference', 'solves', lo=1, hi=100000),
-    ParamSpec('oil_viscosities', None, "the oil's kinematic viscosity at its two reference temperatures (datasheet, "
-              'e.g. ISO VG 32: 32e-6 and 5.4e-6); with them the viscosity each physical fit gives is compared with '
-              'the Walther law at the oil inlet temperature (rotor/oil_temperature, sensor_msgs/Temperature); '
-              'unset: the temperature is recorded only', 'm^2/s', lo=2e-6, hi=1.0, type_='float[]'),
-    ParamSpec('oil_reference_temperatures', [313.15, 373.15], 'the temperatures of oil_viscosities (40 and 100 degC)',
-              'K', lo=200.0, hi=600.0, type_='float[]'),
-    ParamSpec('oil_density', 870.0, "the oil's density at 15 degC", 'kg/m^3', lo=500.0, hi=1500.0),
+    *OIL_SPECS,
     ParamSpec('runs', None, 'excitation runs that must all be present at a speed before solving (unset: every run '
               'announced on /rotor/excitation)', type_='str[]'),
     ParamSpec('channels', None, "expected probe channel names (unset: the rig's probes)", type_='str[]'),
@@ -791,25 +786,6 @@ def alarm_items(changes: list[Change]) -> list[DiagItem]:
             'alarm_stamp': f'{a.time:.3f}', 'alarm_utc': _utc(a.time), 'cusum_statistic_sigma': a.statistic,
             'threshold_sigma': a.h, 'points_since_onset': a.n}))
     return out
-
-
-def oil_law(viscosities, temperatures, density: float):
-    """
-    Return the oil's viscosity law (:class:`bearing_id.bearings.viscosity.Oil`) from the node's ``oil_*`` parameters.
-
-    None when ``viscosities`` is unset or empty; ValueError (naming the parameters) when they are not two viscosities
-    at two temperatures the Walther relation can pass through.
-    """
-    if not viscosities:
-        return None
-    if len(viscosities) != 2 or len(temperatures or ()) != 2:
-        raise ValueError(f'oil_viscosities and oil_reference_temperatures need two values each, got '
-                         f'{list(viscosities)} and {list(temperatures or ())}')
-    try:
-        return Oil(nu1=float(viscosities[0]), T1=float(temperatures[0]), nu2=float(viscosities[1]),
-                   T2=float(temperatures[1]), rho_ref=float(density))
-    except ValueError as exc:
-        raise ValueError(f'oil_viscosities / oil_reference_temperatures: {exc}') from None
 
 
 def history_url(param: str, record) -> str:

@@ -16,9 +16,9 @@ import threading
 
 import numpy as np
 
+from .oil import oil_law, OIL_SPECS
 from .specs import ParamSpec
 from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
-from ..bearings import viscosity
 from ..config.params import load_rig, ParamError, parse_probes
 from ..io import messages as M
 from ..io.daq import read_daq
@@ -63,11 +63,7 @@ SPECS = [
               hi=1e8),
     ParamSpec('oil_temperature_interval', 1.0, 'sim source: stream time between two published readings', 's',
               lo=0.01, hi=3600.0),
-    ParamSpec('oil_viscosities', None, "sim source: the oil's kinematic viscosity at oil_reference_temperatures "
-              '(needed with oil_temperature_mean)', 'm^2/s', lo=2e-6, hi=1.0, type_='float[]'),
-    ParamSpec('oil_reference_temperatures', [313.15, 373.15], 'the temperatures of oil_viscosities', 'K', lo=200.0,
-              hi=600.0, type_='float[]'),
-    ParamSpec('oil_density', 870.0, "the oil's density at 15 degC", 'kg/m^3', lo=500.0, hi=1500.0),
+    *OIL_SPECS,
     ParamSpec('wear_bearing', '', 'sim source: the bearing (its name in rig_params) whose clearance grows from '
               'wear_onset to wear_end (empty: none)'),
     ParamSpec('wear_onset', 0.0, 'sim source: stream time the wear starts', 's', lo=0.0, hi=1e9),
@@ -171,15 +167,13 @@ def operation_of(values: dict, rig=None):
         return None
     oil = None
     if T_mean is not None:
-        visc, temps = values['oil_viscosities'], values['oil_reference_temperatures']
-        if not visc or len(visc) != 2 or len(temps or ()) != 2:
+        try:
+            oil = oil_law(values['oil_viscosities'], values['oil_reference_temperatures'], values['oil_density'])
+        except ValueError as exc:
+            raise ParamError(f'parameter {exc}') from None
+        if oil is None:
             raise ParamError("parameter 'oil_viscosities' needs the oil's two reference viscosities (and "
                              "'oil_reference_temperatures' their two temperatures) with oil_temperature_mean")
-        try:
-            oil = viscosity.Oil(nu1=float(visc[0]), T1=float(temps[0]), nu2=float(visc[1]), T2=float(temps[1]),
-                                rho_ref=float(values['oil_density']))
-        except ValueError as exc:
-            raise ParamError(f"parameter 'oil_viscosities': {exc}") from None
     index = None
     if wear:
         names = [b.name for b in rig.bearings] if rig is not None else []
