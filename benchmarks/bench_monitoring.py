@@ -14,7 +14,7 @@ to the wear alarm (issue 25: within 6 hours), the size against the true mean cha
 alarm (within 20 %); the viscosity's swing and the compensated ratio's; the wall time and so the rate achieved.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_monitoring.py [--hours 72] [--rate 50] [--onset 36]
-      [--wear 1.08] [--no-kf]          (the control: --wear 1.0)
+      [--wear 1.08] [--dwell S] [--no-kf]          (the control: --wear 1.0)
 """
 import os
 
@@ -51,10 +51,13 @@ def main(argv=None) -> int:
     ap.add_argument('--wear', type=float, default=1.08, help="bearing2's clearance at the end (default 1.08)")
     ap.add_argument('--mean', type=float, default=318.15, help='oil inlet mean [K] (default 318.15)')
     ap.add_argument('--amplitude', type=float, default=3.5, help='its daily cycle [K] (default 3.5)')
+    ap.add_argument('--dwell', type=float, default=None,
+                    help="[s] time at each speed of the plan (default: the rig's, 2 s); a plant dwells far longer")
     ap.add_argument('--no-kf', action='store_true', help='without kf_estimator')
     ap.add_argument('--keep', help="keep the nodes' logs, record and history in this directory")
     args = ap.parse_args(argv)
     values = {s.name: s.default for s in sensor_driver_core.SPECS}
+    values['dwell'] = args.dwell
     plan = sum(s.n_samples / s.sample_rate for s in sensor_driver_core.load_sources(values))
     passes = max(1, math.ceil(args.hours * 3600.0 / plan))
     total = passes * plan
@@ -67,6 +70,8 @@ def main(argv=None) -> int:
         driver = ['-p', f'passes:={passes}', '-p', f'rate_factor:={args.rate}', '-p', 'exit_when_done:=true',
                   '-p', f'oil_temperature_mean:={args.mean}', '-p', f'oil_temperature_amplitude:={args.amplitude}',
                   '-p', 'wait_for_subscribers:=' + ('1' if args.no_kf else '2'), *OIL]
+        if args.dwell is not None:
+            driver += ['-p', f'dwell:={args.dwell}']
         if args.wear != 1.0:
             driver += ['-p', 'wear_bearing:=bearing2', '-p', f'wear_onset:={onset}', '-p', f'wear_end:={total}',
                        '-p', f'wear_clearance:={args.wear}']

@@ -137,6 +137,18 @@ def test_the_same_result_twice_is_one_row(url):
     assert _count(url, 'coefficients') == 2 * 16 and _count(url, 'parameters') == 2 * 3
 
 
+def test_many_records_are_one_transaction_all_or_none(url):
+    with HistoryStore(url) as first, HistoryStore(url) as second:
+        first.write(_record('m1', 0))                                  # m1's writer is `first`
+        with pytest.raises(WriterConflict):                            # m2 is free, m1 is not: nothing is written
+            second.write_many([_record('m2', 0), _record('m1', 1), _record('m2', 1)])
+        assert _count(url, 'identifications') == 1
+        done = first.write_many([_record('m1', 1), _record('m1', 0), _record('m1', 2)])
+        assert [w.inserted for w in done] == [True, False, True]
+        assert done[1].identification == first.write(_record('m1', 0)).identification
+    assert _count(url, 'identifications') == 3 and _count(url, 'coefficients') == 3 * 16
+
+
 def _write_machine(url: str, machine: str, n: int, barrier, queue) -> None:
     """Child process: open the (new) database when both children are ready, write n records of ``machine``."""
     try:

@@ -25,7 +25,7 @@ class DownStore:
 
     url = 'postgresql+psycopg://user:secret@db.example/history'
 
-    def write(self, record):
+    def write_many(self, records):
         raise OperationalError('INSERT ...', {}, Exception('server closed the connection unexpectedly'))
 
 

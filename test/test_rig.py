@@ -132,3 +132,21 @@ def test_truth_differs_from_theory_by_about_a_quarter(rig):
         rel = np.linalg.norm(t[node][0] - n[node][0]) / np.linalg.norm(n[node][0])
         assert 0.1 < rel < 1.0
     assert math.isfinite(rel)
+
+
+def test_transient_modes_are_left_out_only_below_the_stated_floor():
+    # definition: a mode is evaluated until amplitude exp(Re(lam) t) falls to floor / n_modes, so at any time the
+    # modes left out sum to less than the floor; a mode that does not decay is never left out
+    rng = np.random.default_rng(5)
+    lam = np.concatenate([-rng.uniform(0.1, 1e4, 40) + 1j * rng.uniform(0, 1e4, 40), [0.0 + 5j, 0.3 - 2j]])
+    amp = 10.0 ** rng.uniform(-15, -3, lam.size)
+    floor = 1e-12
+    ends = rigmod.transient_ends(lam, amp, floor)
+    assert np.all(np.isinf(ends[-2:]))
+    for t in np.concatenate([[0.0], np.sort(ends[np.isfinite(ends)]), np.linspace(0, 0.1, 50)]):
+        left_out = ends <= t
+        assert np.sum(amp[left_out] * np.exp(np.real(lam[left_out]) * t)) <= floor * (1 + 1e-9)
+    # and no mode is dropped while it is above that share
+    live = np.isfinite(ends) & (ends > 0)
+    at_end = amp[live] * np.exp(np.real(lam[live]) * ends[live])
+    assert np.allclose(at_end, floor / lam.size, rtol=1e-9)

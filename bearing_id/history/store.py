@@ -174,29 +174,41 @@ class HistoryStore:
         Takes or renews the machine's lease first; a record already stored (same content key) is not written again
         (``inserted`` False, the existing row's id).
         """
-        key = record.key()
+        return self.write_many([record])[0]
+
+    def write_many(self, records: list[IdentificationRecord]) -> list[WriteResult]:
+        """Store ``records`` as :meth:`write` does each, all in one transaction (one commit: all of them or none)."""
         now = time.time()
+        out = []
         with self.engine.begin() as conn:
-            self._ensure_machine(conn, record.machine, record.rig_name)
-            self._lease(conn, record.machine)
-            ins = self._insert(identifications).values(
-                machine_id=record.machine, result_key=key, t_start=float(record.t_start), t_end=float(record.t_end),
-                speed=float(record.speed), method=str(record.method), misfit=bool(record.misfit), written=now,
-                provenance=json.dumps(record.provenance, sort_keys=True))
-            ident = conn.execute(ins.on_conflict_do_nothing(index_elements=['machine_id', 'result_key'])
-                                 .returning(identifications.c.id)).scalar()
-            inserted = ident is not None
-            if not inserted:
-                ident = conn.execute(sa.select(identifications.c.id).where(
-                    identifications.c.machine_id == record.machine, identifications.c.result_key == key)).scalar_one()
-            if inserted and record.coefficients:
-                conn.execute(coefficients.insert(), [
-                    {'identification_id': ident, 'bearing': c.bearing, 'name': c.name, 'value': _db(c.value),
-                     'sigma': _db(c.sigma), 'determined': bool(c.determined)} for c in record.coefficients])
-            if inserted and record.parameters:
-                conn.execute(parameters.insert(), [
-                    {'identification_id': ident, 'bearing': p.bearing, 'name': p.name, 'value': _db(p.value),
-                     'sigma': _db(p.sigma)} for p in record.parameters])
+            for machine in dict.fromkeys(r.machine for r in records):
+                rig_name = next(r.rig_name for r in records if r.machine == machine)
+                self._ensure_machine(conn, machine, rig_name)
+                self._lease(conn, machine)
+            for record in records:
+                out.append(self._write_one(conn, record, now))
+        return out
+
+    def _write_one(self, conn: sa.Connection, record: IdentificationRecord, now: float) -> WriteResult:
+        key = record.key()
+        ins = self._insert(identifications).values(
+            machine_id=record.machine, result_key=key, t_start=float(record.t_start), t_end=float(record.t_end),
+            speed=float(record.speed), method=str(record.method), misfit=bool(record.misfit), written=now,
+            provenance=json.dumps(record.provenance, sort_keys=True))
+        ident = conn.execute(ins.on_conflict_do_nothing(index_elements=['machine_id', 'result_key'])
+                             .returning(identifications.c.id)).scalar()
+        inserted = ident is not None
+        if not inserted:
+            ident = conn.execute(sa.select(identifications.c.id).where(
+                identifications.c.machine_id == record.machine, identifications.c.result_key == key)).scalar_one()
+        if inserted and record.coefficients:
+            conn.execute(coefficients.insert(), [
+                {'identification_id': ident, 'bearing': c.bearing, 'name': c.name, 'value': _db(c.value),
+                 'sigma': _db(c.sigma), 'determined': bool(c.determined)} for c in record.coefficients])
+        if inserted and record.parameters:
+            conn.execute(parameters.insert(), [
+                {'identification_id': ident, 'bearing': p.bearing, 'name': p.name, 'value': _db(p.value),
+                 'sigma': _db(p.sigma)} for p in record.parameters])
         return WriteResult(int(ident), inserted)
 
     def _insert(self, table: sa.Table):

@@ -141,17 +141,28 @@ class Record:
 
     def append(self, type_: str, **payload) -> int:
         """Append one entry of ``type_`` with ``payload`` (JSON-encodable after :func:`encode`); returns its n."""
+        return self.append_many(type_, [payload])[0]
+
+    def append_many(self, type_: str, payloads: list[dict]) -> list[int]:
+        """
+        Append one entry of ``type_`` per payload, in order, made durable together (one flush and fsync); return n's.
+
+        Each line is complete on its own: a crash part-way keeps the lines before it (and a torn last one, which
+        :meth:`entries` skips and the next start terminates).
+        """
         with self._lock:      # callbacks and the identifier's worker thread both append
-            n = self._n
-            line = json.dumps({'n': n, 'type': type_, 'wall_time': time.time(), **encode(payload)},
-                              separators=(',', ':'), allow_nan=False)
-            self._fh.write(line + '\n')
+            out = []
+            for payload in payloads:
+                line = json.dumps({'n': self._n, 'type': type_, 'wall_time': time.time(), **encode(payload)},
+                                  separators=(',', ':'), allow_nan=False)
+                self._fh.write(line + '\n')
+                out.append(self._n)
+                self._n += 1
+                self.lines += 1
             self._fh.flush()
-            if self.fsync:
+            if self.fsync and out:
                 os.fsync(self._fh.fileno())
-            self._n += 1
-            self.lines += 1
-            return n
+            return out
 
     def rewrite(self, entries: list[dict]) -> None:
         """

@@ -679,12 +679,14 @@ class IdentifierCore:
             stability_threshold(self.model, self.rig, float(rpm_to_rad_s(max(sim.speeds_rpm))))
 
     def record_results(self, results) -> None:
-        """Append results to the record (one fsync'ed line each), write them to the history, look for changes."""
-        added = 0
-        for r in results:
-            payload, stamp = _result_payload(r), time.time()
-            self.record.append('result', stamp=stamp, **payload)
-            added += self._to_history(payload['result'], stamp)
+        """
+        Append results to the record (a line each, fsync'ed together), write them to the history (one transaction),
+        look for changes.
+        """
+        stamp = time.time()
+        payloads = [{'stamp': stamp, **_result_payload(r)} for r in results]
+        self.record.append_many('result', payloads)
+        added = self._to_history([(p['result'], stamp) for p in payloads])
         if added:
             self.check_changes()
         if self.record.lines > COMPACT_AFTER:
@@ -728,28 +730,34 @@ class IdentifierCore:
         return DiagItem(name, WARN, f'{len(w.found)} change(s) in {len(latest)} series; latest: {last.sentence()}',
                         vals)
 
-    def _to_history(self, result: dict, stamp: float) -> bool:
-        """Write one recorded result (its dict) to the history; a failure is kept for /diagnostics, never raised."""
-        if self.history is None:
-            return False
+    def _to_history(self, results: list[tuple]) -> int:
+        """
+        Write recorded results [(result dict, stamp [s])] to the history in one transaction; return how many rows
+        were new.  A failure is kept for /diagnostics, never raised (the record keeps them; the next start writes
+        them); a result that does not make a history row is left out alone.
+        """
+        if self.history is None or not results:
+            return 0
+        recs, error = [], ''
+        for result, stamp in results:
+            try:
+                recs.append(record_from_result(result, self.machine, rig_name=self.rig.name, stamp=stamp,
+                                               provenance={'record': str(self.record.path)}))
+            except Exception as exc:      # a bad value: this result only
+                error = f'{type(exc).__name__}: {exc}'
         try:
-            rec = record_from_result(result, self.machine, rig_name=self.rig.name, stamp=stamp,
-                                     provenance={'record': str(self.record.path)})
-            inserted = self.history.write(rec).inserted
-        except Exception as exc:      # a database down, a second writer, a bad value: the record still has it
+            inserted = sum(w.inserted for w in self.history.write_many(recs)) if recs else 0
+        except Exception as exc:      # a database down, a second writer: the record still has them
             self.history_error = f'{type(exc).__name__}: {exc}'
-            return False
-        self.history_error = ''
-        self.history_rows += int(inserted)
+            return 0
+        self.history_error = error
+        self.history_rows += inserted
         return inserted
 
     def _backfill_history(self, entries: list) -> int:
         """Write the record's results the history lacks (a write that failed, a kill before it); return how many."""
-        n = 0
-        for e in entries:
-            if e.get('type') == 'result' and isinstance(e.get('result'), dict):
-                n += self._to_history(e['result'], float(e.get('stamp', e.get('wall_time', 0.0))))
-        return n
+        return self._to_history([(e['result'], float(e.get('stamp', e.get('wall_time', 0.0)))) for e in entries
+                                 if e.get('type') == 'result' and isinstance(e.get('result'), dict)])
 
     def history_item(self) -> DiagItem:
         """Return the /diagnostics item of the history database: rows written, or the failed write (ERROR)."""

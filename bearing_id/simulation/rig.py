@@ -7,6 +7,8 @@ Physics of the simulation
     The response is computed exactly (no zero-order hold on the force): the particular solution of each harmonic,
     q_r = Z(r Omega)^-1 F_r, plus the homogeneous solution exp(A (t - t0)) x_h(t0) evaluated through the eigen-
     decomposition of A.  The state is continuous across speed changes, so transients after each step are right too.
+    A mode of the transient is evaluated until its largest contribution to a probe has decayed below
+    :data:`TRANSIENT_FLOOR` times the steady response (all the modes left out together stay below that bound).
     A speed ramp is approximated by short constant-speed steps (``ramp_step`` seconds) with a continuous rotor angle.
 
     The run starts in the steady state of its first segment (the machine was already running).
@@ -81,12 +83,16 @@ def ramp_schedule(rpm0: float, rpm1: float, duration: float, step: float = DEFAU
 
 
 # ------------------------------------------------------------------------------------------------- truth model
-def truth_bearing_fn(rig: RigParams):
-    """Speed -> {node: (K, C)} of the simulated machine's real bearings (truth factors applied)."""
+def truth_bearing_fn(rig: RigParams, loads=None):
+    """
+    Speed -> {node: (K, C)} of the simulated machine's real bearings (truth factors applied).
+
+    ``loads`` {node: N}: the static loads when already known (default: :func:`bearing_id.rotor.supports.static_loads`).
+    """
     t = rig.simulation.truth
     return supports.bearing_fn(rig, model=t.bearing_model, viscosity_factor=t.viscosity_factor,
                                clearance_factor=t.clearance_factor, k_factor=t.k_factor or None,
-                               c_factor=t.c_factor or None)
+                               c_factor=t.c_factor or None, loads=loads)
 
 
 def system_matrices(model, speed: float, coeffs: dict, effects=()):
@@ -130,6 +136,22 @@ def steady_state_response(model, speed, coeffs, entries, effects=()):
 # ------------------------------------------------------------------------------------------------- simulation
 PIECE_SAMPLES = 1 << 16     # samples a simulated run is computed in at most (6.4 s at 10,240 Hz): bounds memory
 TRANSIENT_ROWS = 4096       # samples per evaluation of the transient (rows x 2 ndof complex exponentials in memory)
+TRANSIENT_FLOOR = 1e-12     # [-] modes of the transient left out, together, below this times the steady response
+
+
+def transient_ends(lam, amplitude, floor: float):
+    """
+    Return [s] how long each mode of a transient matters: until ``amplitude`` exp(Re(lam) t) < floor / n_modes.
+
+    lam (n,) eigenvalues [1/s], amplitude (n,) each mode's largest contribution to a probe at t = 0 [m]; so the modes
+    left out at any time sum to less than ``floor`` [m].  Modes that do not decay (Re lam >= 0) last for ever.
+    """
+    eps = floor / max(1, lam.size)
+    decay = -np.real(lam)
+    with np.errstate(divide='ignore'):
+        ratio = np.log(np.maximum(amplitude, 1e-300) / eps)
+    out = np.where(ratio > 0, ratio / np.where(decay > 0, decay, 1.0), 0.0)
+    return np.where((decay <= 0) & (amplitude > eps), np.inf, out)
 
 
 @dataclass
@@ -265,6 +287,10 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
                     lam, V = np.linalg.eig(_state_matrix(M, C, K))
                     c = np.linalg.solve(V, xh0)
                     yV = S0 @ V[:S0.shape[1], :]
+                    steady = sum((np.abs(v) for v in yph.values()), np.zeros(S0.shape[0]))
+                    amp = np.abs(c) * np.max(np.abs(yV), axis=0)
+                    floor = TRANSIENT_FLOOR * (np.max(steady) if np.max(steady) > 0 else np.sum(amp))
+                    t_end = transient_ends(lam, amp, floor)
             for a in range(0, n, PIECE_SAMPLES):
                 tau = np.arange(a, min(n, a + PIECE_SAMPLES)) / fs
                 phi = phi0 + W * tau
@@ -273,7 +299,10 @@ def simulate_stream(rig: RigParams, run: Run, schedule: list[Segment], *, probes
                     y += np.real(np.outer(np.exp(1j * r * phi), yr))
                 for k in range(0, tau.size if lam is not None else 0, TRANSIENT_ROWS):
                     tk = tau[k:k + TRANSIENT_ROWS]
-                    y[k:k + tk.size] += np.real((np.exp(np.outer(tk, lam)) * c) @ yV.T)
+                    live = np.flatnonzero(t_end > tk[0])
+                    if live.size == 0:
+                        break
+                    y[k:k + tk.size] += np.real((np.exp(np.outer(tk, lam[live])) * c[live]) @ yV[:, live].T)
                 speed = np.full(tau.size, W)
                 for e in effects:
                     if hasattr(e, 'measure'):
@@ -423,8 +452,10 @@ def changed_truth(rig: RigParams, clearance=1.0, viscosity=1.0):
         if len(by) != n:
             raise ValueError(f'{len(by)} factors for {n} bearings')
         return tuple(float(f) * float(b) for f, b in zip(base, by))
+    # the statics (rigid supports) do not depend on clearance or viscosity: solved once per rig object
     return truth_bearing_fn(with_truth(rig, clearance_factor=scaled(t.clearance_factor, clearance),
-                                       viscosity_factor=scaled(t.viscosity_factor, viscosity)))
+                                       viscosity_factor=scaled(t.viscosity_factor, viscosity)),
+                            loads=supports.static_loads(rig))
 
 
 def with_truth(rig: RigParams, **kw) -> RigParams:
