@@ -143,3 +143,44 @@ def test_warm_start_gives_the_cold_answer_within_a_hundredth_of_its_sigma(rig, m
                 np.testing.assert_allclose(getattr(a, sym + '_std'), getattr(b, sym + '_std'), rtol=0.01, atol=0)
     with pytest.raises(ValueError, match='p0'):
         fit_physical(model, rig, data, p0=cold.values[:2])
+
+
+def _drifting_oil(rig, model, factors):
+    """Phasors of each run and speed from the truth whose viscosity is ``factors[r, s]`` times the rig's truth."""
+    runs = rig.simulation.runs
+    X = np.zeros((len(runs), len(SPEEDS), len(P6)), dtype=complex)
+    for r, run in enumerate(runs):
+        for s, rpm in enumerate(SPEEDS):
+            one = simulate_data(rig, (run,), (rpm,), probes=P6, model=model,
+                                bearing_fn=rigmod.changed_truth(rig, viscosity=float(factors[r, s])))
+            X[r, s] = one.X[0, 0]
+    base = simulate_data(rig, runs, SPEEDS, probes=P6, model=model)
+    return type(base)(base.speeds, base.probes, base.runs, X, np.zeros(X.shape), [], [], base.truth)
+
+
+def test_known_viscosity_factors_per_run_and_speed_recover_the_reference_viscosity(rig, model):
+    # the oil warms while the plan runs: each run's vector at each speed saw its own viscosity (here -2 % to +2 %,
+    # about 0.5 K of an ISO VG 46).  Told those factors, the fit's viscosity is the one at factor 1 (the rig's truth)
+    # and the data fit within their noise; with one viscosity for all, the same data are a misfit
+    factors = np.array([np.linspace(0.98, 1.0, len(SPEEDS)), np.linspace(1.0, 1.02, len(SPEEDS))])
+    data = noisy(_drifting_oil(rig, model, factors), seed=4)
+    truth = true_params(rig)
+    fit, res = fit_physical(model, rig, data, viscosity_factors=factors)
+    assert not fit.misfit and np.all(fit.determined), fit.quality.summary()
+    for name, v, s in zip(fit.names, fit.values, fit.rel_std):
+        assert abs(v / truth[name] - 1) <= 4 * s, (name, v, truth[name], s)
+    assert any('known factor' in n for n in res[0].notes)
+    # each speed's coefficients are the bearings' at the mean factor of its runs (the oil its data saw)
+    for k, r in enumerate(res):
+        co = rigmod.changed_truth(rig, viscosity=float(np.mean(factors[:, k])))(float(data.speeds[k]))
+        for b, node in enumerate(r.nodes):
+            assert np.all(np.abs(r.K[b] - co[node][0]) <= 4 * r.K_std[b] + 1e-12 * np.abs(co[node][0]))
+    plain, _ = fit_physical(model, rig, data)
+    assert plain.misfit, plain.quality.summary()
+
+
+def test_viscosity_factors_of_the_wrong_shape_are_refused(rig, model, clean):
+    with pytest.raises(ValueError, match='viscosity_factors'):
+        fit_physical(model, rig, clean, viscosity_factors=np.ones(len(SPEEDS) + 1))
+    with pytest.raises(ValueError, match='viscosity_factors'):
+        fit_physical(model, rig, clean, viscosity_factors=-np.ones(len(SPEEDS)))

@@ -50,8 +50,9 @@ class TemperatureLog:
     The oil inlet temperature readings of the last ``keep`` seconds: (stamp [s, UNIX], T [K]).
 
     ``add`` refuses a reading that is not finite or outside :data:`T_RANGE` (returns the reason); ``over(t0, t1)``
-    gives (mean [K], std [K], count) of the readings with t0 <= stamp <= t1, count 0 when there are none.  Safe to
-    add from one thread while another reads.
+    gives (mean [K], std [K], count) of the readings with t0 <= stamp <= t1, count 0 when there are none;
+    ``mean_at(t0, t1)`` the temperature over a span also between readings.  Safe to add from one thread while another
+    reads.
     """
 
     def __init__(self, keep: float = 7 * 86400.0, max_readings: int = 200_000):
@@ -86,6 +87,43 @@ class TemperatureLog:
             return math.nan, math.nan, 0
         v = v[sel]
         return float(np.mean(v)), float(np.std(v)), n
+
+    def mean_at(self, t0: float, t1: float) -> float:
+        """
+        Return the inlet temperature [K] over [t0, t1]: the readings' mean there, else the linear interpolation
+        between the readings either side at its middle; NaN without a reading on both sides.
+        """
+        T, _, n = self.over(t0, t1)
+        if n:
+            return T
+        with self._lock:
+            t, v = np.array(self._t, float), np.array(self._v, float)
+        mid = 0.5 * (t0 + t1)
+        if not t.size or not t[0] <= mid <= t[-1]:
+            return math.nan
+        return float(np.interp(mid, t, v))
+
+
+def viscosity_factors(log: TemperatureLog, spans: list, oil: viscosity.Oil | None):
+    """
+    Return the known viscosity factor mu_law(T_k) / mu_law(T_ref) [-] of each data span, or None.
+
+    ``spans`` [[(t0, t1) [s]] per speed] per run: the data behind each run's vector at each speed; the result has
+    their shape (nr, ns).  T_k is the mean inlet temperature over span k (between two readings: interpolated at its
+    middle), T_ref the mean over all of them (what :meth:`TemperatureLog.over` gives for the whole span, so the
+    viscosity fitted at factor 1 is the one :func:`compensated` compares with the law).  None without a law, without
+    every span, or without a temperature for each.  A fit whose data were taken over a temperature swing then has the
+    viscosity each vector saw (``physical``'s ``viscosity_factors``) instead of one value for all: with a minute's
+    dwells the vectors are precise enough that a 0.1 K drift between two runs at one speed is a misfit.
+    """
+    flat = [s for row in spans for s in row]
+    if oil is None or not len(log) or not flat or any(s is None for s in flat):
+        return None
+    T_ref, _, n = log.over(min(s[0] for s in flat), max(s[1] for s in flat))
+    T = np.array([[log.mean_at(*s) for s in row] for row in spans], dtype=float)
+    if not n or not np.all(np.isfinite(T)):
+        return None
+    return np.asarray(viscosity.dynamic(oil, T), float) / float(viscosity.dynamic(oil, T_ref))
 
 
 def compensated(parameters: dict, T: float, T_std: float, oil: viscosity.Oil | None) -> dict:

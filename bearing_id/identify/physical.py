@@ -152,6 +152,15 @@ TABLE_FORMS = {
 }
 
 
+@dataclass
+class _OneRun:
+    """One run's harmonic data (speeds (ns,), X and X_std (1, ns, nch)), for its cases alone."""
+
+    speeds: np.ndarray
+    X: np.ndarray
+    X_std: np.ndarray
+
+
 class _Parametrisation:
     """
     log-parameters p <-> per-bearing parameters, and the coefficients they give.
@@ -230,7 +239,8 @@ class _Parametrisation:
         v.update(zip(self.kinds[i], np.exp(p[self.slices[i]]).tolist()))
         return v
 
-    def bearing_beta(self, p, i, speed) -> np.ndarray:
+    def bearing_beta(self, p, i, speed, factor: float = 1.0) -> np.ndarray:
+        """Bearing i's (K, C) entries (8,) at ``speed`` [rad/s], its viscosity times a known ``factor``."""
         if self.table[i]:
             K, C = self._bm.coefficients(self.bearings[i], speed, 0.0)
             q = p[self.slices[i]]
@@ -241,35 +251,37 @@ class _Parametrisation:
                 scale = np.exp(q)[list(TABLE_FORMS[self.table_form][1])]
             return scale * np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
         v = self.bearing_values(p, i)
-        K, C = self._bm.coefficients(self.bearings[i], speed, v['load'], viscosity=v['viscosity'],
+        K, C = self._bm.coefficients(self.bearings[i], speed, v['load'],
+                                     viscosity=v['viscosity'] * factor,
                                      clearance=v['clearance'], model=self.film_model[i])
         return np.concatenate([np.asarray(K, float).reshape(4), np.asarray(C, float).reshape(4)])
 
-    def beta(self, p, speed) -> np.ndarray:
-        return np.concatenate([self.bearing_beta(p, i, speed) for i in range(len(self.bearings))])
+    def beta(self, p, speed, factor: float = 1.0) -> np.ndarray:
+        return np.concatenate([self.bearing_beta(p, i, speed, factor) for i in range(len(self.bearings))])
 
-    def beta_and_grad(self, p, speed):
+    def beta_and_grad(self, p, speed, factor: float = 1.0):
         """Return beta (8 nb,) and d beta / d p (8 nb, np), central differences (each bearing depends on its own p)."""
         nb = len(self.bearings)
         beta = np.zeros(8 * nb)
         G = np.zeros((8 * nb, p.size))
         for i in range(nb):
-            beta[8 * i:8 * i + 8] = self.bearing_beta(p, i, speed)
+            beta[8 * i:8 * i + 8] = self.bearing_beta(p, i, speed, factor)
             for j in range(self.slices[i].start, self.slices[i].stop):
                 dp = np.zeros_like(p)
                 dp[j] = FD_STEP
-                G[8 * i:8 * i + 8, j] = (self.bearing_beta(p + dp, i, speed)
-                                         - self.bearing_beta(p - dp, i, speed)) / (2 * FD_STEP)
+                G[8 * i:8 * i + 8, j] = (self.bearing_beta(p + dp, i, speed, factor)
+                                         - self.bearing_beta(p - dp, i, speed, factor)) / (2 * FD_STEP)
         return beta, G
 
-    def coeffs(self, p, speed) -> dict:
-        beta = self.beta(p, speed)
+    def coeffs(self, p, speed, factor: float = 1.0) -> dict:
+        beta = self.beta(p, speed, factor)
         return {n: (beta[8 * i:8 * i + 4].reshape(2, 2), beta[8 * i + 4:8 * i + 8].reshape(2, 2))
                 for i, n in enumerate(self.nodes)}
 
 
 def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=False, bearing_model='short',
-                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None, table_form: int = 2):
+                 probes=None, runs=None, max_nfev: int = 100, augment=None, p0=None, table_form: int = 2,
+                 viscosity_factors=None):
     """
     Fit bearing-model parameters per bearing to the 1X phasors of all runs and speeds of ``data``.
 
@@ -300,6 +312,12 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         test/test_identify_physical.py checks warm against cold).
     table_form
         a table bearing's scale form (:data:`TABLE_FORMS`: 2, 4, 8 or 16 scales per bearing).
+    viscosity_factors
+        a known factor on every film bearing's viscosity for each speed (ns,) or each run and speed (nr, ns) of
+        ``data`` (the oil inlet temperature of those data through the oil's law, relative to a reference
+        temperature); the fitted viscosity is then the one at factor 1, and the coefficients of each speed are
+        given at the mean factor of its runs.  Runs at one speed with different factors are fitted each with its own
+        coefficients.  Default None: one viscosity at every speed.
 
     Returns
     -------
@@ -310,23 +328,44 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     runs = tuple(runs if runs is not None else data.runs)
     par = _Parametrisation(model, rig, params, load, bearing_model, table_form, np.asarray(data.speeds, float))
     speeds = [float(w) for w in np.asarray(data.speeds, float)]
-    cases = [cases_from_data(model, data, probes, runs, i, augment=augment) for i in range(len(speeds))]
-    keep = [i for i, c in enumerate(cases) if c]
-    if not keep:
+    vf = np.ones((len(runs), len(speeds)))
+    if viscosity_factors is not None:
+        v = np.asarray(viscosity_factors, dtype=float)
+        if v.shape not in ((len(speeds),), vf.shape) or not np.all(np.isfinite(v) & (v > 0)):
+            raise ValueError(f'physical: viscosity_factors must hold positive values per speed ({len(speeds)},) or '
+                             f'per run and speed {vf.shape}, got shape {v.shape}')
+        vf = np.broadcast_to(v, vf.shape).copy()
+    # the fitted entries: (speed index, its cases, viscosity factor) -- a speed's runs together, or each run on its
+    # own where the runs at a speed saw different viscosities
+    entries = []
+    for i in range(len(speeds)):
+        if np.ptp(vf[:, i]) == 0:
+            entries.append((i, cases_from_data(model, data, probes, runs, i, augment=augment), float(vf[0, i])))
+            continue
+        for r, run in enumerate(runs):
+            one = _OneRun(data.speeds, data.X[r:r + 1], data.X_std[r:r + 1])
+            entries.append((i, cases_from_data(model, one, probes, (run,), i, augment=augment), float(vf[r, i])))
+    entries = [e for e in entries if e[1]]
+    if not entries:
         raise ValueError('physical: no finite synchronous measurements at any speed')
+    keep = sorted({e[0] for e in entries})
     nb = len(par.nodes)
-    weigh = {i: Weighting(cases[i], np.ones(8 * nb)) for i in keep}
-    responses = {}                 # speed index -> direct.SpeedResponse (one factorisation per speed, built lazily)
+    weigh = [Weighting(c, np.ones(8 * nb)) for _, c, _ in entries]
+    responses = {}                 # entry -> direct.SpeedResponse (one factorisation per entry, built lazily)
 
-    def rj_weighted(i, beta):
-        """Weighted residual and d r / d beta of speed i."""
-        if i not in responses:
-            responses[i] = SpeedResponse(model, speeds[i], cases[i], par.nodes, beta)
-        return weigh[i](*responses[i](beta))
+    def rj_weighted(k, beta):
+        """Weighted residual and d r / d beta of entry k."""
+        if k not in responses:
+            responses[k] = SpeedResponse(model, speeds[entries[k][0]], entries[k][1], par.nodes, beta)
+        return weigh[k](*responses[k](beta))
+
+    def predicted(k, p):
+        """The augmented model's prediction of entry k's phasors."""
+        i, c, fk = entries[k]
+        return augmented_response(model, speeds[i], c, par.coeffs(p, speeds[i], fk), augment)
 
     def residual_jac_aug(p, want_jac=True):
-        r = np.concatenate([weigh[i].residual(augmented_response(model, speeds[i], cases[i], par.coeffs(p, speeds[i]),
-                                                                 augment)) for i in keep])
+        r = np.concatenate([weigh[k].residual(predicted(k, p)) for k in range(len(entries))])
         if not want_jac:
             return r, None
         J = np.zeros((r.size, p.size))
@@ -340,9 +379,9 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         if augment is not None:
             return residual_jac_aug(p, want_jac)
         rs, Js = [], []
-        for i in keep:
-            beta, G = par.beta_and_grad(p, speeds[i]) if want_jac else (par.beta(p, speeds[i]), None)
-            r, Jb = rj_weighted(i, beta)
+        for k, (i, _, fk) in enumerate(entries):
+            beta, G = par.beta_and_grad(p, speeds[i], fk) if want_jac else (par.beta(p, speeds[i], fk), None)
+            r, Jb = rj_weighted(k, beta)
             rs.append(r)
             if want_jac:
                 Js.append(Jb @ G)
@@ -411,6 +450,11 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
              else [])
     notes += [f"physical fit of {par.describe()} over {len(keep)} speed(s): rank {info['rank']} of {p.size}, "
               + fq.summary()]
+    if viscosity_factors is not None:
+        fs = [e[2] for e in entries]
+        notes.append(f'the viscosity of each speed and run is the fitted one times a known factor (x{min(fs):.4g} '
+                     f'to x{max(fs):.4g}: the oil inlet temperature of its data through the oil law); the fitted '
+                     "viscosity is the one at the reference temperature, each speed's coefficients at its data's")
     if misfit:
         if all(par.table):
             hint = ("the table's speed dependence does not match the data's: `--method direct` identifies each speed "
@@ -451,11 +495,13 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
     names = tuple(b.name for b in par.bearings)
     for i in keep:
         W = speeds[i]
-        beta, G = par.beta_and_grad(p, W)
-        y = (augmented_response(model, W, cases[i], par.coeffs(p, W), augment) if augment is not None
-             else responses[i](beta)[0])
-        num = float(np.sum(np.abs(y - weigh[i].X) ** 2))
-        den = float(np.sum(np.abs(weigh[i].X) ** 2))
+        mine = [k for k, e in enumerate(entries) if e[0] == i]
+        beta, G = par.beta_and_grad(p, W, float(np.mean([entries[k][2] for k in mine])))
+        num = den = 0.0
+        for k in mine:
+            y = predicted(k, p) if augment is not None else responses[k](par.beta(p, W, entries[k][2]))[0]
+            num += float(np.sum(np.abs(y - weigh[k].X) ** 2))
+            den += float(np.sum(np.abs(weigh[k].X) ** 2))
         num_all += num
         den_all += den
         cov_b = G @ cov @ G.T
@@ -491,7 +537,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
 
 
 OPTIONS = {'params': ('viscosity', 'clearance'), 'load': False, 'bearing_model': None, 'max_nfev': 100,
-           'augment': None, 'p0': None, 'table_form': 'auto'}
+           'augment': None, 'p0': None, 'table_form': 'auto', 'viscosity_factors': None}
 
 
 def identify_physical(model, rig, data, probes=None, runs=None, options=None, **kw) -> list[IdentResult]:
@@ -502,9 +548,10 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     each bearing's model from the params file; 'short' or 'finite' overrides it), ``max_nfev``, ``p0`` (None: start
     at the nominal parameters; SI values: a warm start, see :func:`fit_physical`), ``table_form`` (the scales per
     table bearing, :data:`TABLE_FORMS`; 'auto' = 16, a scale per coefficient at the lowest and at the highest speed,
-    log-linear in between -- with one speed 8).  'auto' takes the most flexible form on purpose: a simpler one (2 or
-    4 scales, even 8) can pass the misfit test on weak data and still be biased by its assumed shape, so its
-    coefficients would look determined and be wrong; the flexible form leaves undetermined what the data do not fix.
+    log-linear in between -- with one speed 8), ``viscosity_factors`` (None; see :func:`fit_physical`).  'auto'
+    takes the most flexible form on purpose: a simpler one (2 or 4 scales, even 8) can pass the misfit test on weak
+    data and still be biased by its assumed shape, so its coefficients would look determined and be wrong; the
+    flexible form leaves undetermined what the data do not fix.
     A model form that misfits is never the answer: when the params file's film model (no ``bearing_model`` given)
     misfits, the other film model is fitted and used if it fits, its note naming it and the option that selects it.
     Returns the per-speed IdentResult list; the fitted parameters are in each result's ``extra['fit']`` (a
@@ -524,7 +571,8 @@ def identify_physical(model, rig, data, probes=None, runs=None, options=None, **
     def fit(bearing_model):
         return fit_physical(model, rig, data, params=tuple(opts['params']), load=bool(opts['load']),
                             bearing_model=bearing_model, probes=probes, runs=runs, max_nfev=int(opts['max_nfev']),
-                            augment=opts['augment'], p0=opts['p0'], table_form=int(form))
+                            augment=opts['augment'], p0=opts['p0'], table_form=int(form),
+                            viscosity_factors=opts['viscosity_factors'])
 
     first, results = fit(opts['bearing_model'])
     films = {b.model for b in rig.bearings if b.model != 'table'}

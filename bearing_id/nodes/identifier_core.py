@@ -46,7 +46,8 @@ from ..config import defaults
 from ..config.params import ExcitationEntry, Probe, Run
 from ..conventions import rad_s_to_rpm, rpm_to_rad_s
 from ..history import record_from_result, redacted_url, sqlite_url
-from ..history.oil_temperature import compensated, RATIO, TemperatureLog
+from ..history.oil_temperature import (compensated, RATIO, TEMPERATURE, TemperatureLog,
+                                       viscosity_factors)
 from ..history.trend import Change, ChangeWatch
 from ..identify import get_method, harmonics, identify, METHODS
 from ..identify.harmonics import (combine_vectors, common_speeds, HarmonicData, PlainFit, RunStream,
@@ -167,6 +168,7 @@ class IdentifierCore:
         self._window_at: dict = {}             # (run id, window key) -> (vector index, part index)
         self._span: dict = {}                  # (run id, vector index) -> (first, last) stamp [s] of its data
         self._data_spans: dict = {}            # speed [rad/s] -> (first, last) stamp [s] of the data assembled
+        self._run_spans: dict = {}             # speed [rad/s] -> [(first, last) stamp [s] or None per run]
         self._noted_combined: set = set()      # window keys whose 'combined' note was given
         self._noted_no_plain = False           # the note on resumed vectors without a plain fit was given
         self._seq_before: dict = {}            # run id -> last block seq in the record (resumed; consumed at 1st block)
@@ -554,6 +556,7 @@ class IdentifierCore:
             spans = [[self._span.get((req[r], indexed[r][k][0])) for r, k in enumerate(row)] for row in picks]
             self._data_spans = {float(w): (min(t[0] for t in sp), max(t[1] for t in sp))
                                 for w, sp in zip(speeds, spans) if all(t is not None for t in sp)}
+            self._run_spans = {float(w): sp for w, sp in zip(speeds, spans)}     # per required run
             probes = rows[0][0][3]
             ns, nr = len(speeds), len(req)
             X = np.array([[rows[s][r][1] for s in range(ns)] for r in range(nr)], dtype=complex)
@@ -607,6 +610,13 @@ class IdentifierCore:
             opts.update({k: kf[k] for k in ('Q', 'R') if kf.get(k) is not None})
         if self.method in ('physical', 'auto') and self.warm_start and self._warm is not None and 'p0' not in opts:
             opts['p0'] = self._warm[1]
+        factors = None
+        if self.method in ('physical', 'auto'):   # each speed's viscosity from its data's oil inlet temperature
+            factors = viscosity_factors(self.temperature, [[(self._run_spans.get(float(w)) or [None] * r)[r]
+                                                            for w in data.speeds] for r in range(len(data.runs))],
+                                        self.oil)
+            if factors is not None:
+                opts['viscosity_factors'] = factors
         if self.method == 'auto':          # its options are per method; the warm start is the physical fit's
             opts = {'physical': opts} if opts else {}
         todo = self._changed_speeds(data)
@@ -633,7 +643,7 @@ class IdentifierCore:
             if moved:
                 r.notes.append(moved)
             self.results[float(r.speed)] = r
-        self._with_oil_temperature(results)
+        self._with_oil_temperature(results, per_speed=factors is not None)
         if record:
             self.record_results(results)
         return results, data
@@ -642,7 +652,7 @@ class IdentifierCore:
         """Take an oil inlet temperature reading ``T`` [K] at ``stamp`` [s]; return why it was refused, or ''."""
         return self.temperature.add(float(stamp), float(T))
 
-    def _with_oil_temperature(self, results) -> None:
+    def _with_oil_temperature(self, results, per_speed: bool = False) -> None:
         """
         Add the oil inlet temperature over a global fit's data, and each viscosity against the oil law, to its results.
 
@@ -650,6 +660,8 @@ class IdentifierCore:
         and spread of the readings from the first to the last sample behind any of its speeds, and with an oil law
         (parameters ``oil_*``) each bearing's fitted viscosity over the law's at that mean
         (:func:`bearing_id.history.oil_temperature.compensated`), as parameters beside the fitted ones.
+        ``per_speed``: the fit took each speed's temperature (its viscosity is the one at that mean), so the spread
+        adds nothing to the ratio's 1-sigma.
         """
         spans = [r.extra['data_span'] for r in results if r.extra.get('data_span') and r.extra.get('parameters')]
         if not spans or not len(self.temperature):
@@ -657,7 +669,8 @@ class IdentifierCore:
         T, T_std, n = self.temperature.over(min(s[0] for s in spans), max(s[1] for s in spans))
         if not n:
             return
-        derived = compensated(results[0].extra['parameters'], T, T_std, self.oil)
+        derived = compensated(results[0].extra['parameters'], T, 0.0 if per_speed else T_std, self.oil)
+        derived[TEMPERATURE]['std'] = T_std             # the spread of the readings, as before
         ratios = ', '.join(f"{k.split('.')[0]} {v['value']:.4g} +- {v['std']:.2g}" for k, v in derived.items()
                            if k.endswith(RATIO))
         note = (f'oil inlet {T:.2f} K ({T - ZERO_CELSIUS:.1f} degC) +- {T_std:.2g} K over the data ({n} readings)'
