@@ -19,7 +19,7 @@ import time
 from bearing_id.bearings import viscosity as V
 from bearing_id.config.params import load_rig
 from bearing_id.history import HistoryStore, IdentificationRecord, Parameter, sqlite_url
-from bearing_id.history.oil_temperature import compensated, TemperatureLog
+from bearing_id.history.oil_temperature import compensated, TemperatureLog, viscosity_factors
 from bearing_id.history.trend import changes, parameter_series
 from bearing_id.io.record import Record
 from bearing_id.monitor.cusum import detect
@@ -158,3 +158,27 @@ def test_the_trend_page_shows_the_temperature_beside_each_viscosity(tmp_path):
     for ax in twins:
         (line,) = ax.get_lines()
         assert np.allclose(line.get_ydata(), oil.value - 273.15)
+
+
+def test_each_vector_s_temperature_and_viscosity_factor_from_the_readings():
+    # readings every 10 s on a ramp of 0.01 K/s, one arriving late; a span holding readings gets their mean, a span
+    # between two readings the ramp at its middle (linear interpolation is exact on a ramp), a span outside them none
+    log = TemperatureLog()
+    stamps = list(np.arange(0.0, 1000.0, 10.0))
+    stamps[5], stamps[6] = stamps[6], stamps[5]
+    for t in stamps:
+        assert log.add(1000.0 + t, 318.0 + 0.01 * t) == ''
+    assert log.mean_at(1100.0, 1200.0) == pytest.approx(318.0 + 0.01 * 150.0, abs=1e-9)
+    assert log.mean_at(1101.0, 1103.0) == pytest.approx(318.0 + 0.01 * 102.0, abs=1e-9)
+    assert math.isnan(log.mean_at(3000.0, 3001.0))
+    oil = VG46
+    spans = [[(1000.0, 1300.0), (1500.0, 1990.0)], [(1300.0, 1500.0), (1201.0, 1203.0)]]
+    f = viscosity_factors(log, spans, oil)
+    T_ref = np.mean([318.0 + 0.01 * t for t in stamps])      # every reading is within the spans' union
+    T = np.array([[318.0 + 0.01 * 150.0, 318.0 + 0.01 * 745.0], [318.0 + 0.01 * 400.0, 318.0 + 0.01 * 202.0]])
+    assert f.shape == (2, 2)
+    assert np.allclose(f, V.dynamic(oil, T) / V.dynamic(oil, T_ref), rtol=1e-12)
+    assert f[0, 0] > 1 > f[0, 1]                           # warmer oil is thinner
+    assert viscosity_factors(log, [[(1000.0, 1300.0), None]], oil) is None
+    assert viscosity_factors(log, spans, None) is None
+    assert viscosity_factors(log, [[(3000.0, 3001.0)]], oil) is None

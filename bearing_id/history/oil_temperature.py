@@ -60,6 +60,7 @@ class TemperatureLog:
         self._t: deque = deque(maxlen=int(max_readings))
         self._v: deque = deque(maxlen=int(max_readings))
         self._lock = threading.Lock()
+        self._arrays = None            # (t, v) arrays of the readings, until the next add
 
     def add(self, stamp: float, T: float) -> str:
         if not (math.isfinite(stamp) and math.isfinite(T)):
@@ -73,14 +74,23 @@ class TemperatureLog:
             while self._t and self._t[0] < stamp - self.keep:
                 self._t.popleft()
                 self._v.popleft()
+            self._arrays = None
         return ''
+
+    def readings(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the readings as arrays (stamps [s], T [K]) in time order, built once per change."""
+        with self._lock:
+            if self._arrays is None:
+                t, v = np.array(self._t, float), np.array(self._v, float)
+                order = np.argsort(t, kind='stable')        # a late reading may arrive after a later one
+                self._arrays = (t[order], v[order])
+            return self._arrays
 
     def __len__(self) -> int:
         return len(self._t)
 
     def over(self, t0: float, t1: float) -> tuple[float, float, int]:
-        with self._lock:
-            t, v = np.array(self._t, float), np.array(self._v, float)
+        t, v = self.readings()
         sel = (t >= t0) & (t <= t1)
         n = int(np.count_nonzero(sel))
         if not n:
@@ -90,14 +100,15 @@ class TemperatureLog:
 
     def mean_at(self, t0: float, t1: float) -> float:
         """
-        Return the inlet temperature [K] over [t0, t1]: the readings' mean there, else the linear interpolation
-        between the readings either side at its middle; NaN without a reading on both sides.
+        Return the inlet temperature [K] over [t0, t1], also between readings.
+
+        The readings' mean there, else the linear interpolation between the readings either side at its middle; NaN
+        without a reading on both sides.
         """
         T, _, n = self.over(t0, t1)
         if n:
             return T
-        with self._lock:
-            t, v = np.array(self._t, float), np.array(self._v, float)
+        t, v = self.readings()
         mid = 0.5 * (t0 + t1)
         if not t.size or not t[0] <= mid <= t[-1]:
             return math.nan

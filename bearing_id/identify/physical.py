@@ -360,7 +360,7 @@ def fit_physical(model, rig, data, *, params=('viscosity', 'clearance'), load=Fa
         return weigh[k](*responses[k](beta))
 
     def predicted(k, p):
-        """The augmented model's prediction of entry k's phasors."""
+        """Return the augmented model's prediction of entry k's phasors."""
         i, c, fk = entries[k]
         return augmented_response(model, speeds[i], c, par.coeffs(p, speeds[i], fk), augment)
 

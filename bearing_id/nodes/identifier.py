@@ -219,7 +219,7 @@ class Identifier(Node):
                     t_req = None
                     continue          # no new complete speed
                 t0 = time.perf_counter()
-                results, _ = self.core.solve(data, record=False)     # recorded once published
+                results, _ = self.core.solve(data, record=False)     # recorded before they are published
                 last_sig = sig
             except Exception as exc:              # reported, never published
                 self._problem(f'identification failed: {type(exc).__name__}: {exc}')
@@ -228,6 +228,11 @@ class Identifier(Node):
             self.solve_time = time.perf_counter() - t0
             # the latest result at every speed (a per-speed method returns only the speeds it solved again)
             self.last_results = sorted(self.core.results.values(), key=lambda r: r.speed)
+            # in the record and the history first: a kill after the publishing loses no published result
+            try:
+                self.core.record_results(results)
+            except (OSError, ValueError) as exc:
+                self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
             sent = 0
             for r in results:
                 if r.fully_determined or self.values['publish_undetermined']:
@@ -239,10 +244,6 @@ class Identifier(Node):
                 with self._shared:
                     self.latency.append(time.monotonic() - t_req)
             t_req = None
-            try:
-                self.core.record_results(results)
-            except (OSError, ValueError) as exc:
-                self._problem(f'results not recorded: {type(exc).__name__}: {exc}')
             self.publish_alarms()
 
     def publish_alarms(self):

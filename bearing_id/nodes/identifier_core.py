@@ -693,8 +693,9 @@ class IdentifierCore:
 
     def record_results(self, results) -> None:
         """
-        Append results to the record (a line each, fsync'ed together), write them to the history (one transaction),
-        look for changes.
+        Append results to the record, write them to the history and look for changes.
+
+        A line each in the record, fsync'ed together; one transaction in the history.
         """
         stamp = time.time()
         payloads = [{'stamp': stamp, **_result_payload(r)} for r in results]
@@ -745,9 +746,10 @@ class IdentifierCore:
 
     def _to_history(self, results: list[tuple]) -> int:
         """
-        Write recorded results [(result dict, stamp [s])] to the history in one transaction; return how many rows
-        were new.  A failure is kept for /diagnostics, never raised (the record keeps them; the next start writes
-        them); a result that does not make a history row is left out alone.
+        Write recorded results [(result dict, stamp [s])] to the history in one transaction; return the new rows.
+
+        A failure is kept for /diagnostics, never raised (the record keeps them; the next start writes them); a result
+        that does not make a history row is left out alone.
         """
         if self.history is None or not results:
             return 0
