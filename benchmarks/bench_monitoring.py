@@ -137,9 +137,14 @@ def main(argv=None) -> int:
             a = wear[0].alarm
             ta, to = a.time - t_first, a.onset_time - t_first
             true_mean = slope * (0.5 * (max(to, onset) + ta) - onset) if ta > onset else 0.0
-            print(f'wear alarm: bearing2 clearance {(ta - t2) / 3600:+.2f} h after that (target <= 6 h); size '
+            # the alarm point's data end at ta and span about one pass: the truth's mean change over that pass
+            true_now = slope * max(0.0, ta - 0.5 * plan - onset)
+            print(f'wear alarm: bearing2 clearance {(ta - t2) / 3600:+.2f} h after that (target <= 6 h); mean size '
                   f'{a.size:.3g} +- {a.size_sigma:.2g} m against the true mean change {true_mean:.3g} m over its '
-                  f'onset..alarm ({100 * (a.size / true_mean - 1) if true_mean else math.nan:+.0f} %; target 20 %)')
+                  f'onset..alarm ({100 * (a.size / true_mean - 1) if true_mean else math.nan:+.0f} %); the change '
+                  f'at the alarm {a.latest:.3g} +- {a.latest_sigma:.2g} m against the truth over that point\'s data '
+                  f'{true_now:.3g} m ({100 * (a.latest / true_now - 1) if true_now else math.nan:+.0f} %; '
+                  'target 20 %)')
         else:
             print('wear alarm: none on bearing2 clearance')
     return 0

@@ -13,6 +13,8 @@ compared with the requested value.
 """
 from __future__ import annotations
 
+import math
+
 from bearing_id.monitor.cusum import design, detect, siegmund_arl, statistics, threshold, two_sided_arl
 import cusum_oracle
 import numpy as np
@@ -175,3 +177,18 @@ def test_onset_and_size_of_a_two_sigma_shift():
           f'{100 * cover3:.1f} %')
     assert 0.0 <= t_size.mean() <= 0.5
     assert cover3 >= 0.95
+
+
+def test_a_ramp_is_sized_at_the_alarm_by_its_latest_point():
+    # a drift (wear): 40 in-control samples, then x grows by 0.5 sigma per sample; the mean since the onset lags the
+    # ramp, the alarm sample's own deviation is the ramp there (within its 1-sigma, which includes the reference's)
+    rng = np.random.default_rng(11)
+    n, sigma = 80, 1.0
+    truth = np.where(np.arange(n) < 40, 0.0, 0.5 * (np.arange(n) - 39))
+    x = 100.0 + truth + sigma * rng.standard_normal(n)
+    a = detect(x, sigma, arl0=1e4, delta=2.0, n_reference=20)[0]
+    assert a.index >= 40 and a.direction == 1
+    assert a.latest == pytest.approx(x[a.index] - a.reference, abs=1e-12)
+    assert a.latest_sigma == pytest.approx(math.hypot(sigma, a.reference_sigma), rel=1e-12)
+    assert abs(a.latest - truth[a.index]) <= 3 * a.latest_sigma
+    assert a.size < truth[a.index] - 2 * a.size_sigma              # the mean since the onset is behind the ramp

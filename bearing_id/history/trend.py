@@ -46,9 +46,11 @@ class Change:
         a = self.alarm
         rel = a.size / a.reference if a.reference else math.nan
         word = 'up' if a.direction > 0 else 'down'
-        return (f'{self.bearing} {self.name}: {word} by {a.size:.3g} ± {a.size_sigma:.2g} (x{1 + rel:.3f} of the '
-                f'reference {a.reference:.4g}, SI) from {_utc(a.onset_time)}, alarm at {_utc(a.time)} after {a.n} '
-                f'point(s) (CUSUM {a.statistic:.2f} > h = {a.h:.2f} sigma)')
+        now = a.latest / a.reference if a.reference else math.nan
+        return (f'{self.bearing} {self.name}: {word} by {a.size:.3g} ± {a.size_sigma:.2g} on average (x{1 + rel:.3f} '
+                f'of the reference {a.reference:.4g}, SI) from {_utc(a.onset_time)}, alarm at {_utc(a.time)} after '
+                f'{a.n} point(s), by then {a.latest:+.3g} ± {a.latest_sigma:.2g} (x{1 + now:.3f}) (CUSUM '
+                f'{a.statistic:.2f} > h = {a.h:.2f} sigma)')
 
 
 def _utc(t: float) -> str:

@@ -156,7 +156,9 @@ class Alarm:
     statistic was last zero); time / onset_time: the same in the unit of ``times`` (or the index); direction: +1 up,
     -1 down; size, size_sigma: the shift and its 1-sigma in the unit of x; statistic, h [sigma]: the evidence (the
     side's S at the alarm, the threshold); k [sigma]; reference, reference_sigma: the in-control value and its
-    1-sigma (0 when given) in the unit of x; n: samples from the onset to the alarm.
+    1-sigma (0 when given) in the unit of x; n: samples from the onset to the alarm; latest, latest_sigma: the alarm
+    sample's own x - reference and its 1-sigma (a drift's size when it is alarmed: ``size`` averages since the onset,
+    right for a step, behind for a ramp).
     """
 
     index: int
@@ -172,6 +174,8 @@ class Alarm:
     reference: float
     reference_sigma: float
     n: int
+    latest: float = math.nan
+    latest_sigma: float = math.nan
 
 
 def reference_from(x, sigma) -> tuple[float, float]:
@@ -228,7 +232,9 @@ def detect(x, sigma, *, arl0: float, delta: float = 1.0, reference: float | None
         alarms.append(Alarm(index=start + i, onset=start + onset, time=float(t[start + i]),
                             onset_time=float(t[start + onset]), direction=1 if up else -1, size=size,
                             size_sigma=size_sigma, statistic=float(s[i]), h=des.h, k=des.k,
-                            reference=float(reference), reference_sigma=ref_sigma, n=i - onset + 1))
+                            reference=float(reference), reference_sigma=ref_sigma, n=i - onset + 1,
+                            latest=float(x[start + i] - float(reference)),
+                            latest_sigma=math.hypot(float(sigma[start + i]), ref_sigma)))
         start += i + 1
     return alarms
 

@@ -795,7 +795,8 @@ def alarm_items(changes: list[Change]) -> list[DiagItem]:
     """
     Return one WARN item per change, for the alarm topic.
 
-    Values: bearing, parameter, direction, size with its 1-sigma (SI), reference, onset and alarm time (UNIX s and
+    Values: bearing, parameter, direction, size with its 1-sigma (SI; the mean since the onset, and the change at the
+    alarm), reference, onset and alarm time (UNIX s and
     UTC; the UNIX stamps as text to the millisecond, not to /diagnostics' 6 digits), and the evidence (CUSUM statistic,
     threshold, points).
     """
@@ -804,7 +805,8 @@ def alarm_items(changes: list[Change]) -> list[DiagItem]:
         a = c.alarm
         out.append(DiagItem(f'{NAME}: alarm: {c.bearing} {c.name}', WARN, c.sentence(), {
             'bearing': c.bearing, 'parameter': c.name, 'direction': 'up' if a.direction > 0 else 'down',
-            'size': a.size, 'size_sigma': a.size_sigma, 'reference': a.reference,
+            'size': a.size, 'size_sigma': a.size_sigma, 'change_at_alarm': a.latest,
+            'change_at_alarm_sigma': a.latest_sigma, 'reference': a.reference,
             'reference_sigma': a.reference_sigma, 'onset_stamp': f'{a.onset_time:.3f}', 'onset_utc': _utc(a.onset_time),
             'alarm_stamp': f'{a.time:.3f}', 'alarm_utc': _utc(a.time), 'cusum_statistic_sigma': a.statistic,
             'threshold_sigma': a.h, 'points_since_onset': a.n}))

@@ -113,8 +113,10 @@ class KFEstimator(Node):
             self._problem(f'BearingCoefficients not used: {exc}')
             return
         self.coeff_used += 1
+        # one line a minute at most: an identifier tracking the machine sends every speed at every solve (the model
+        # in use is on /diagnostics all the time)
         self.get_logger().info(f"bearing model: identified coefficients at {d['speed'] * 30 / math.pi:.0f} rpm "
-                               f'({self.core.bearings.describe()})')
+                               f'({self.core.bearings.describe()})', throttle_duration_sec=60.0)
 
     def on_excitation(self, msg):
         try:
