@@ -142,7 +142,7 @@ def main(argv=None) -> int:
             print(f'wear alarm: bearing2 clearance {(ta - t2) / 3600:+.2f} h after that (target <= 6 h); mean size '
                   f'{a.size:.3g} +- {a.size_sigma:.2g} m against the true mean change {true_mean:.3g} m over its '
                   f'onset..alarm ({100 * (a.size / true_mean - 1) if true_mean else math.nan:+.0f} %); the change '
-                  f'at the alarm {a.latest:.3g} +- {a.latest_sigma:.2g} m against the truth over that point\'s data '
+                  f"at the alarm {a.latest:.3g} +- {a.latest_sigma:.2g} m against the truth over that point's data "
                   f'{true_now:.3g} m ({100 * (a.latest / true_now - 1) if true_now else math.nan:+.0f} %; '
                   'target 20 %)')
         else:

@@ -612,9 +612,10 @@ class IdentifierCore:
             opts['p0'] = self._warm[1]
         factors = None
         if self.method in ('physical', 'auto'):   # each speed's viscosity from its data's oil inlet temperature
-            factors = viscosity_factors(self.temperature, [[(self._run_spans.get(float(w)) or [None] * r)[r]
-                                                            for w in data.speeds] for r in range(len(data.runs))],
-                                        self.oil)
+            nr = len(data.runs)
+            spans = [self._run_spans.get(float(w)) or [None] * nr for w in data.speeds]   # (ns, nr)
+            factors = viscosity_factors(self.temperature, [[sp[r] if r < len(sp) else None for sp in spans]
+                                                           for r in range(nr)], self.oil)
             if factors is not None:
                 opts['viscosity_factors'] = factors
         if self.method == 'auto':          # its options are per method; the warm start is the physical fit's
