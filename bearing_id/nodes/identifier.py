@@ -38,7 +38,11 @@ from ..config.params import load_rig
 from ..history import HistoryStore, redacted_url
 from ..io import messages as M
 
-SOLVE_AFTER = 1.0      # s: a new complete speed is solved at the latest this long after its window closed
+# a new complete speed is solved at the latest SOLVE_AFTER [s] after its window closed, or, while windows queue, after
+# SOLVE_BACKLOG times the last solve's duration (a replay faster than the solves: every window fitted, one solve for
+# several, no blocks lost to a starved callback)
+SOLVE_AFTER = 1.0
+SOLVE_BACKLOG = 3.0
 
 
 class Identifier(Node):
@@ -210,7 +214,8 @@ class Identifier(Node):
                 t_req = job[1] if t_req is None else min(t_req, job[1])
             while self.core.notes:
                 self._problem(self.core.notes.popleft())
-            if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < SOLVE_AFTER):
+            hold = max(SOLVE_AFTER, SOLVE_BACKLOG * (self.solve_time or 0.0))
+            if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < hold):
                 continue              # more windows queued: fit them first, but never hold a result back long
             try:
                 data = self.core.assemble()
