@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from .oil_temperature import not_monitored
-from ..monitor.cusum import Alarm, design, detect, reference_from, statistics
+from ..monitor.cusum import Alarm, design, detect, reference_from, scatter_scale, statistics
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,7 @@ class Change:
     bearing: str
     name: str
     alarm: Alarm
+    scale: float = 1.0        # the fits' 1-sigma was widened by this (the reference points' scatter: scatter_scale)
 
     def sentence(self) -> str:
         a = self.alarm
@@ -50,7 +51,8 @@ class Change:
         return (f'{self.bearing} {self.name}: {word} by {a.size:.3g} ± {a.size_sigma:.2g} on average (x{1 + rel:.3f} '
                 f'of the reference {a.reference:.4g}, SI) from {_utc(a.onset_time)}, alarm at {_utc(a.time)} after '
                 f'{a.n} point(s), by then {a.latest:+.3g} ± {a.latest_sigma:.2g} (x{1 + now:.3f}) (CUSUM '
-                f'{a.statistic:.2f} > h = {a.h:.2f} sigma)')
+                f'{a.statistic:.2f} > h = {a.h:.2f} sigma' + (f", the fits' sigma x{self.scale:.2f} as the reference "
+                                                             f'points scatter' if self.scale > 1.0 else '') + ')')
 
 
 def _utc(t: float) -> str:
@@ -104,12 +106,14 @@ class Resume:
     Where a series' change detection goes on (:func:`series_changes`).
 
     Its points after ``t`` [s, UNIX] are the ones still to look at; ``reference`` (and its 1-sigma) the in-control
-    value found so far, None while the next ``n_reference`` points are to give it.
+    value found so far, None while the next ``n_reference`` points are to give it; ``scale`` the factor the points'
+    1-sigma is widened by (:func:`~bearing_id.monitor.cusum.scatter_scale` of the reference points).
     """
 
     t: float
     reference: float | None = None
     reference_sigma: float = 0.0
+    scale: float = 1.0
 
 
 def series_changes(s: Series, *, arl0: float, delta: float, n_reference: int,
@@ -119,7 +123,9 @@ def series_changes(s: Series, *, arl0: float, delta: float, n_reference: int,
 
     ``s`` holds the points after ``resume.t`` (all of them without ``resume``).  The reference is the weighted mean of
     the first ``n_reference`` points (not monitored themselves); after an alarm the ``n_reference`` points that follow
-    it (the new level) are the next one.  The returned :class:`Resume` is after the last point where both sides of
+    it (the new level) are the next one.  The points are standardised by their 1-sigma times the reference points'
+    scatter about it (``scatter_scale``, at least 1): a fit's sigma that understates the scatter between solves
+    would otherwise shorten the run length to a false alarm many times over.  The returned :class:`Resume` is after the last point where both sides of
     the statistic were zero: a run that restarts there from zero raises the alarms one from the first point would
     (the recursion max(0, S + ...) from a lower start stays at or below the true statistic until both meet at its
     zero), so a machine watched for months is re-read from there, not from its first solve.  Alarm indices are
@@ -127,7 +133,8 @@ def series_changes(s: Series, *, arl0: float, delta: float, n_reference: int,
     """
     start = 0
     before = -math.inf if resume is None else resume.t       # the time before the points of the current segment
-    ref, ref_sigma = (None, 0.0) if resume is None else (resume.reference, resume.reference_sigma)
+    ref, ref_sigma, scale = (None, 0.0, 1.0) if resume is None else (resume.reference, resume.reference_sigma,
+                                                                       resume.scale)
     out = []
     while True:
         if ref is None:
@@ -135,23 +142,25 @@ def series_changes(s: Series, *, arl0: float, delta: float, n_reference: int,
                 return out, Resume(before)                     # the reference is not complete: read it again
             seg = slice(start, start + n_reference)
             ref, ref_sigma = reference_from(s.value[seg], s.sigma[seg])
+            scale = scatter_scale(s.value[seg], s.sigma[seg], ref)
+            ref_sigma *= scale
             start += n_reference
             before = float(s.t[start - 1])
         seg = slice(start, None)
-        found = detect(s.value[seg], s.sigma[seg], arl0=arl0, delta=delta, reference=ref,
+        found = detect(s.value[seg], scale * s.sigma[seg], arl0=arl0, delta=delta, reference=ref,
                        reference_sigma=ref_sigma, times=s.t[seg])
         if not found:
             break
         a = found[0]
-        out.append(Change(s.bearing, s.name, replace(a, index=a.index + start, onset=a.onset + start)))
+        out.append(Change(s.bearing, s.name, replace(a, index=a.index + start, onset=a.onset + start), scale))
         start += a.index + 1              # the level after the change is the next reference: one alarm per change
         before = float(s.t[start - 1])
         ref = None
-    sp, sm = statistics((s.value[start:] - ref) / s.sigma[start:], design(arl0, delta).k)
+    sp, sm = statistics((s.value[start:] - ref) / (scale * s.sigma[start:]), design(arl0, delta).k)
     last = min(int(z[-1]) if z.size else -1 for z in (np.flatnonzero(sp == 0.0), np.flatnonzero(sm == 0.0)))
     if last >= 0:                         # both sides were zero at or after it: resume after the earlier zero
         before = float(s.t[start + last])
-    return out, Resume(before, ref, ref_sigma)
+    return out, Resume(before, ref, ref_sigma, scale)
 
 
 def changes(series: list[Series], *, arl0: float, delta: float = 2.0, n_reference: int = 10) -> list[Change]:

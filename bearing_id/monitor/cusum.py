@@ -36,9 +36,11 @@ import math
 
 import numpy as np
 from scipy.optimize import brentq
+from scipy.stats import chi2 as chi2_dist
 
 SIEGMUND_OFFSET = 1.166     # b = h + 1.166: Siegmund's correction for the overshoot of a normal random walk
 H_MAX = 200.0               # largest threshold searched [sigma]
+SCALE_QUANTILE = 0.16       # scatter_scale: the chi^2 quantile of its one-sided 1-sigma (84 %) upper bound
 
 
 def siegmund_arl(mu, k: float, h: float):
@@ -185,6 +187,27 @@ def reference_from(x, sigma) -> tuple[float, float]:
     return float(np.sum(w * x) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
 
 
+def scatter_scale(x, sigma, reference: float) -> float:
+    """
+    Return how much wider than their stated 1-sigma the in-control samples may scatter: an upper bound, at least 1.
+
+    chi^2 = sum(((x - reference) / sigma)^2) over ``x`` (n,) with 1-sigma ``sigma`` (n,) about their weighted mean
+    ``reference`` has n - 1 degrees of freedom; the scale is sqrt(chi^2 / q), q its ``SCALE_QUANTILE`` quantile: the
+    one-sided 1-sigma upper confidence bound of the scatter's ratio to the stated sigma (1 for n < 2).  Never below 1:
+    a scatter smaller than stated is taken as chance.  The bound, not the estimate: a CUSUM standardised by an
+    estimated scale alarms falsely far more often when the estimate happens to be low than it gains when high
+    (test/test_trend.py measures both: 20 reference points, scatter 1.5x the stated sigma, the estimate's false-alarm
+    rate is 2.4x the design's, the bound's within it).  A series standardised by scale * sigma keeps the stated
+    false-alarm rate when the fits' sigma is understated by a constant factor, as a fit that leaves out a slowly
+    varying effect (a temperature the viscosity law does not follow exactly) does.
+    """
+    x, sigma = _checked(x, sigma)
+    if x.size < 2:
+        return 1.0
+    chi2 = float(np.sum(((x - float(reference)) / sigma) ** 2))
+    return max(1.0, math.sqrt(chi2 / float(chi2_dist.ppf(SCALE_QUANTILE, x.size - 1))))
+
+
 def detect(x, sigma, *, arl0: float, delta: float = 1.0, reference: float | None = None,
            n_reference: int | None = None, times=None, reference_sigma: float = 0.0) -> list[Alarm]:
     """
@@ -249,5 +272,5 @@ def _checked(x, sigma) -> tuple[np.ndarray, np.ndarray]:
     return x, sigma
 
 
-__all__ = ['Alarm', 'Design', 'design', 'detect', 'reference_from', 'run_lengths', 'siegmund_arl', 'statistics',
-           'threshold', 'two_sided_arl']
+__all__ = ['Alarm', 'Design', 'design', 'detect', 'reference_from', 'run_lengths', 'scatter_scale', 'siegmund_arl',
+           'statistics', 'threshold', 'two_sided_arl']

@@ -9,7 +9,7 @@ Model cache
     The discretised FE model (:func:`bearing_id.estimation.kalman.rotor_kalman_model`, on the Craig-Bampton reduced
     rotor that keeps every mode below ``model_cutoff`` times the sample rate; its bearings are the identifier's latest
     fully determined coefficients where they cover the speed, else the theory's: :class:`IdentifiedBearings`) is
-    cached per speed band (relative width ``speed_band``) and bearing generation, at most ``MAX_MODELS`` of them, and
+    cached per speed band (relative width ``speed_band``) and the bearing results it uses, at most ``MAX_MODELS``, and
     built by a worker thread with the latest noise.  A block whose model is not built yet waits in an ordered queue (at
     most ``max_pending_blocks``) while the callback returns at once.  Expected speeds (``prebuild_speeds_rpm``) are
     built at start-up.  When a channel's noise moves by more than ``NOISE_STEP`` from the model's, or the process noise
@@ -95,6 +95,7 @@ Q_STEP = 2.0            # the process noise the innovations imply moving by more
 Q_RANGE = 1e6           # the fitted process noise stays within this factor of defaults.KF_PROCESS_NOISE either way
 DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
 MODEL_MOVE = 0.25       # an identified coefficient moving less than this times its 1-sigma keeps the models
+MODEL_TOL = 0.01        # ... or less than this fraction of its bearing's largest K (C) entry (IdentifiedBearings)
 MAX_MODELS = 64         # models kept in the cache (the least recently used goes first)
 REDUCTION_WARN = 1e-3   # a reduced model's relative 1X receptance error above this is a WARN (raise the cutoff)
 
@@ -141,11 +142,17 @@ class IdentifiedBearings:
     their 1-sigma in the same form); a result within ``tol_rel`` of a known speed replaces it.  Called with a speed, it
     returns the coefficients there: inside the range of identified speeds linearly interpolated between the two
     nearest (a single identified speed: within ``tol_rel`` of it), outside it the theory's (``theory_fn``).
-    ``generation`` counts the changes (the model cache is keyed by it).  A result at a known speed whose every
-    coefficient is within ``MODEL_MOVE`` of its 1-sigma of the values in use is no change: the identifier tracking a
-    steady machine sends a new result at every window, and re-solving every model for a move its own sigma disowns
-    would cost the filter's whole budget.  With one probe station the bearing-node motion is the model's
-    extrapolation: theory bearings 25 % off put it ~80 % off, identified ones within their accuracy (issue 23).
+
+    A result at a known speed is no change when every coefficient moved by less than MODEL_MOVE of its 1-sigma or
+    less than MODEL_TOL of its bearing's largest K (C) entry: the identifier tracking a machine sends a new result at
+    every window, and on a machine whose oil temperature cycles the coefficients drift by hundredths of a percent per
+    result with a sigma smaller still; re-solving every model for each would cost the filter's whole budget.  The
+    coefficients in use then stay, and their 1-sigma becomes sqrt(sigma^2 + move^2) per coefficient, so the stated
+    uncertainty of the bearing motion (:meth:`uncertainty`) covers the model's lag behind the latest result.
+    ``tag(speed)`` names the identified results a speed's coefficients come from (None: theory); the model cache is
+    keyed by it, so a changed result rebuilds the models between its neighbours only.  ``generation`` counts the
+    changes.  With one probe station the bearing-node motion is the model's extrapolation: theory bearings 25 % off
+    put it ~80 % off, identified ones within their accuracy (issue 23).
     """
 
     def __init__(self, theory_fn, tol_rel: float):
@@ -154,28 +161,39 @@ class IdentifiedBearings:
         self.speeds: list = []
         self.coeffs: list = []
         self.stds: list = []
+        self.ids: list = []           # one id per result in use (a new one at every change)
         self.generation = 0
         self.lock = threading.Lock()
 
     def add(self, speed: float, coeffs: dict, stds: dict | None = None) -> bool:
-        """Take a result; return whether the coefficients in use changed (False: within MODEL_MOVE sigma)."""
+        """Take a result; return whether the coefficients in use changed (False: within MODEL_MOVE sigma/MODEL_TOL)."""
         with self.lock:
             for i, w in enumerate(self.speeds):
                 if abs(w - speed) <= self.tol_rel * speed:
-                    if _within(self.coeffs[i], coeffs, stds):
-                        self.stds[i] = stds
+                    kept = _kept_stds(self.coeffs[i], coeffs, stds)
+                    if kept is not None:
+                        self.stds[i] = kept
                         return False
+                    self.generation += 1
                     self.speeds[i], self.coeffs[i], self.stds[i] = float(speed), coeffs, stds
+                    self.ids[i] = self.generation
                     break
             else:
+                self.generation += 1
                 self.speeds.append(float(speed))
                 self.coeffs.append(coeffs)
                 self.stds.append(stds)
+                self.ids.append(self.generation)
             order = np.argsort(self.speeds)
-            self.speeds, self.coeffs, self.stds = ([x[k] for k in order]
-                                                   for x in (self.speeds, self.coeffs, self.stds))
-            self.generation += 1
+            self.speeds, self.coeffs, self.stds, self.ids = ([x[k] for k in order]
+                                                             for x in (self.speeds, self.coeffs, self.stds, self.ids))
             return True
+
+    def tag(self, speed: float):
+        """Return the ids of the results the coefficients at ``speed`` [rad/s] come from, or None (theory)."""
+        with self.lock:
+            br = self._bracket(speed)
+            return None if br is None else (self.ids[br[0]], self.ids[br[1]])
 
     def source(self, speed: float) -> str:
         """Return what the model at ``speed`` [rad/s] uses: 'identified' or 'theory'."""
@@ -223,12 +241,25 @@ class IdentifiedBearings:
                     f'between them); theory outside')
 
 
-def _within(used: dict, new: dict, stds: dict | None) -> bool:
-    """Whether every coefficient of ``new`` is within MODEL_MOVE of its 1-sigma (``stds``) of ``used``."""
+def _kept_stds(used: dict, new: dict, stds: dict | None) -> dict | None:
+    """
+    Return the 1-sigma of the coefficients in use (``used``) once ``new`` arrived, or None when ``new`` must replace
+    them: some coefficient moved beyond both MODEL_MOVE of its 1-sigma (``stds``) and MODEL_TOL of its bearing's largest
+    K (C) entry.  Kept: sqrt(sigma^2 + move^2) per coefficient.
+    """
     if stds is None or set(used) != set(new):
-        return False
-    return all(np.all(np.abs(np.asarray(new[n][j]) - np.asarray(used[n][j])) <= MODEL_MOVE * np.asarray(stds[n][j]))
-               for n in new for j in (0, 1))
+        return None
+    out = {}
+    for n in new:
+        pair = []
+        for j in (0, 1):
+            u, v, s = (np.asarray(x[n][j], dtype=float) for x in (used, new, stds))
+            move = np.abs(v - u)
+            if np.any((move > MODEL_MOVE * s) & (move > MODEL_TOL * np.max(np.abs(u)))):
+                return None
+            pair.append(np.hypot(s, move))
+        out[n] = tuple(pair)
+    return out
 
 
 def _blend(items: list, a: int, b: int, t: float) -> dict:
@@ -387,9 +418,9 @@ class EstimatorCore:
         self._jobs.put(('threshold', speed_max, (), 0.0))
 
     def key(self, speed, probes, fs):
-        """Return a model's cache key: (speed band, probes, sample rate, bearing generation)."""
+        """Return a model's cache key: (speed band, probes, sample rate, the bearing results it uses)."""
         return (band_key(speed, self.band), tuple((p.node, p.direction) for p in probes), float(fs),
-                self.bearings.generation)
+                self.bearings.tag(speed))
 
     def set_coefficients(self, speed: float, coeffs: dict, stds: dict | None = None) -> None:
         """
@@ -405,10 +436,11 @@ class EstimatorCore:
                              f'{sorted(self.rotor.bearing_nodes)}')
         if not self.bearings.add(float(speed), coeffs, stds):
             return
-        queued = {p[4] for p in self._pending}
-        with self._lock:                     # older models no queued block needs are never asked for again
+        needed = {p[4] for p in self._pending} | ({self._active[0]} if self._active else set())
+        with self._lock:                     # models on replaced results no queued block needs: never asked again
+            live = set(self.bearings.ids)
             self._models = OrderedDict((k, v) for k, v in self._models.items()
-                                       if k[3] == self.bearings.generation or k in queued)
+                                       if k[3] is None or set(k[3]) <= live or k in needed)
 
     def ready(self, key) -> bool:
         with self._lock:
