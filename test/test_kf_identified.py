@@ -208,19 +208,21 @@ def test_blocks_queued_before_new_coefficients_are_still_filtered(case):
 
 def test_a_result_within_a_quarter_sigma_or_a_percent_keeps_the_models():
     """
+    A result within a quarter of its sigma or MODEL_TOL of the bearing's largest coefficient rebuilds no model.
+
     The identifier tracking a machine resends results that move within their sigma, or (oil temperature drift) by
-    less than MODEL_TOL of the bearing's largest coefficient: no model is rebuilt, and the 1-sigma of the kept
-    coefficients grows to cover how far the latest result is from them.
+    less than MODEL_TOL: the 1-sigma of the kept coefficients grows to cover how far the latest result is from them.
     """
     ib = IdentifiedBearings(lambda w: {}, 0.01)
     K, C = 1e8 * np.eye(2), 1e4 * np.eye(2)
     sig = {2: (1e5 * np.ones((2, 2)), 1.0 * np.ones((2, 2)))}         # 0.1 % and 0.01 %
     assert ib.add(100.0, {2: (K, C)}, sig)
-    g, tag = ib.generation, ib.tag(100.0)
-    I = np.eye(2)
-    assert not ib.add(100.0, {2: (K + 0.2e5 * I, C - 0.2 * I)}, sig)       # 0.2 sigma: the models stay
-    assert not ib.add(100.0, {2: (K + 0.5e6 * I, C - 50.0 * I)}, sig)      # 5 and 50 sigma, 0.5 %: they stay
+    g, tag, rev = ib.generation, ib.tag(100.0), ib.revision
+    eye = np.eye(2)
+    assert not ib.add(100.0, {2: (K + 0.2e5 * eye, C - 0.2 * eye)}, sig)       # 0.2 sigma: the models stay
+    assert not ib.add(100.0, {2: (K + 0.5e6 * eye, C - 50.0 * eye)}, sig)      # 5 and 50 sigma, 0.5 %: they stay
     assert ib.generation == g and ib.tag(100.0) == tag and np.array_equal(ib(100.0)[2][0], K)
+    assert ib.revision == rev + 2          # kept results are counted: the motion's 1-sigma is recomputed
     K_std, C_std = ib.uncertainty(100.0)[2]
     assert np.allclose(np.diag(K_std), np.hypot(1e5, 0.5e6)) and np.allclose(np.diag(C_std), np.hypot(1.0, 50.0))
     assert np.allclose(K_std[0, 1], 1e5)                                  # an off-diagonal that did not move
@@ -242,6 +244,7 @@ def test_a_changed_result_rebuilds_the_models_between_its_neighbours_only():
     assert [w for w in before if after[w] != before[w]] == [350.0]
     ib.add(500.0, {2: (K, C)})                                            # extends the range: 450 now identified
     assert ib.tag(450.0) is not None and ib.tag(150.0) == before[150.0]
+    assert ib.tags() == {ib.tag(w) for w in (150.0, 250.0, 350.0, 450.0)}   # what the cache keeps models for
 
 
 def test_the_reduced_filter_estimates_as_the_full_model(case):

@@ -21,6 +21,7 @@ from bearing_id.nodes.identifier_core import IdentifierCore
 from bearing_id.nodes.kf_estimator_core import EstimatorCore
 from bearing_id.nodes.monitor import StreamMonitor
 from bearing_id.nodes.specs import ParamSpec, validate_values, yaml_block
+from bearing_id.nodes.status import Throttle
 from bearing_id.rotor.assembly import RotorModel
 from bearing_id.signals.recording import Recording
 from bearing_id.simulation import rig as rigmod
@@ -365,3 +366,10 @@ def test_estimator_validity_flags_the_papers_unbalance_orbit_like_the_rig_check(
         st = core.validity_status(w)
         assert (st.level == 1 and 'orbit' in st.message and 'clearance' in st.message) == expect_warn, st
     core.close()
+
+
+def test_a_throttle_lets_one_event_through_per_period_and_counts_the_rest():
+    gate = Throttle(2.0)
+    assert gate.due(100.0) == 0
+    assert [gate.due(t) for t in (100.5, 101.0, 101.99)] == [None, None, None]
+    assert gate.due(102.0) == 3 and gate.due(103.0) is None and gate.due(104.5) == 1

@@ -182,3 +182,43 @@ def test_each_vector_s_temperature_and_viscosity_factor_from_the_readings():
     assert viscosity_factors(log, [[(1000.0, 1300.0), None]], oil) is None
     assert viscosity_factors(log, spans, None) is None
     assert viscosity_factors(log, [[(3000.0, 3001.0)]], oil) is None
+
+
+def test_the_log_answers_as_a_scan_of_all_readings_in_and_out_of_order():
+    """
+    The log's searches (O(log n) per query) against a scan of every reading kept (the oracle, here).
+
+    Readings mostly in time order with some late ones, a ``keep`` that drops the oldest: the mean, std and count over
+    spans, and the temperature between readings, as the scan gives them (within 1e-12 K; the count exactly).
+    """
+    rng = np.random.default_rng(7)
+    keep = 500.0
+    log = TemperatureLog(keep=keep)
+    kept = []
+    t = 0.0
+    for i in range(3000):
+        t += rng.uniform(0.5, 1.5)
+        stamp = t - (rng.uniform(0, 20) if i % 37 == 0 else 0.0)        # now and then a late reading
+        T = 318.0 + 3.0 * np.sin(t / 300.0) + 0.01 * rng.standard_normal()
+        assert log.add(stamp, T) == ''
+        kept.append((stamp, T))
+        newest = max(s for s, _ in kept)
+        kept = [(s, v) for s, v in kept if s >= newest - keep]
+        if i % 97 == 0 or i == 2999:
+            ts, vs = (np.array(x) for x in zip(*sorted(kept, key=lambda p: p[0])))
+            assert len(log) == ts.size
+            for _ in range(5):
+                t0 = rng.uniform(ts[0] - 10, ts[-1])
+                t1 = t0 + rng.uniform(0, 30)
+                sel = (ts >= t0) & (ts <= t1)
+                m, sd, n = log.over(t0, t1)
+                assert n == int(sel.sum())
+                if n:
+                    assert abs(m - vs[sel].mean()) < 1e-12 and abs(sd - vs[sel].std()) < 1e-12
+                else:
+                    assert math.isnan(m)
+                mid = 0.5 * (t0 + t1)
+                want = vs[sel].mean() if n else (float(np.interp(mid, ts, vs)) if ts[0] <= mid <= ts[-1]
+                                                 else math.nan)
+                got = log.mean_at(t0, t1)
+                assert (math.isnan(got) and math.isnan(want)) or abs(got - want) < 1e-12, (got, want)

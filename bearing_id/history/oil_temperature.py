@@ -19,7 +19,6 @@ SI throughout: T in kelvin (degC only at the node's edge, :func:`bearing_id.bear
 """
 from __future__ import annotations
 
-from collections import deque
 import math
 import threading
 
@@ -57,46 +56,63 @@ class TemperatureLog:
 
     def __init__(self, keep: float = 7 * 86400.0, max_readings: int = 200_000):
         self.keep = float(keep)
-        self._t: deque = deque(maxlen=int(max_readings))
-        self._v: deque = deque(maxlen=int(max_readings))
+        self.max_readings = int(max_readings)
+        self._t = np.empty(1024)       # stamps in time order: the readings are _t[_a:_b], _v[_a:_b]
+        self._v = np.empty(1024)
+        self._a = self._b = 0
         self._lock = threading.Lock()
-        self._arrays = None            # (t, v) arrays of the readings, until the next add
 
     def add(self, stamp: float, T: float) -> str:
+        """
+        Take a reading ``T`` [K] at ``stamp`` [s]; return why it was refused, or ''.
+
+        In time order the cost is O(1) amortised; a late reading is inserted in place.  Readings older than ``keep``
+        before the newest, and beyond ``max_readings``, go first.  Every query is O(log n) in the readings (a solve
+        asks one per vector: on a 72-hour stream rebuilding and scanning all of them made a tenth of the identifier's
+        work at 50x).
+        """
         if not (math.isfinite(stamp) and math.isfinite(T)):
             return f'oil temperature reading not finite ({T} K at {stamp})'
         if not T_RANGE[0] <= T <= T_RANGE[1]:
             return (f'oil temperature {T:.6g} K is outside {T_RANGE[0]:g}-{T_RANGE[1]:g} K (degC expected on '
                     f'sensor_msgs/Temperature)')
+        stamp, T = float(stamp), float(T)
         with self._lock:
-            self._t.append(float(stamp))
-            self._v.append(float(T))
-            while self._t and self._t[0] < stamp - self.keep:
-                self._t.popleft()
-                self._v.popleft()
-            self._arrays = None
+            if self._b == self._t.size:                     # full: drop what is out of reach, then grow
+                n = self._b - self._a
+                size = max(1024, 2 * n)
+                t, v = np.empty(size), np.empty(size)
+                t[:n], v[:n] = self._t[self._a:self._b], self._v[self._a:self._b]
+                self._t, self._v, self._a, self._b = t, v, 0, n
+            a, b = self._a, self._b
+            if b == a or stamp >= self._t[b - 1]:
+                self._t[b], self._v[b] = stamp, T
+            else:                                           # a late reading: in place, after equal stamps
+                k = a + int(np.searchsorted(self._t[a:b], stamp, side='right'))
+                self._t[k + 1:b + 1], self._v[k + 1:b + 1] = self._t[k:b].copy(), self._v[k:b].copy()
+                self._t[k], self._v[k] = stamp, T
+            self._b = b + 1
+            newest = self._t[self._b - 1]
+            self._a += int(np.searchsorted(self._t[self._a:self._b], newest - self.keep, side='left'))
+            self._a = max(self._a, self._b - self.max_readings)
         return ''
 
     def readings(self) -> tuple[np.ndarray, np.ndarray]:
-        """Return the readings as arrays (stamps [s], T [K]) in time order, built once per change."""
+        """Return copies of the readings (stamps [s], T [K]) in time order."""
         with self._lock:
-            if self._arrays is None:
-                t, v = np.array(self._t, float), np.array(self._v, float)
-                order = np.argsort(t, kind='stable')        # a late reading may arrive after a later one
-                self._arrays = (t[order], v[order])
-            return self._arrays
+            return self._t[self._a:self._b].copy(), self._v[self._a:self._b].copy()
 
     def __len__(self) -> int:
-        return len(self._t)
+        return self._b - self._a
 
     def over(self, t0: float, t1: float) -> tuple[float, float, int]:
-        t, v = self.readings()
-        sel = (t >= t0) & (t <= t1)
-        n = int(np.count_nonzero(sel))
-        if not n:
-            return math.nan, math.nan, 0
-        v = v[sel]
-        return float(np.mean(v)), float(np.std(v)), n
+        with self._lock:
+            t = self._t[self._a:self._b]
+            i0, i1 = np.searchsorted(t, t0, side='left'), np.searchsorted(t, t1, side='right')
+            if i1 <= i0:
+                return math.nan, math.nan, 0
+            v = self._v[self._a + i0:self._a + i1]
+            return float(np.mean(v)), float(np.std(v)), int(i1 - i0)
 
     def mean_at(self, t0: float, t1: float) -> float:
         """
@@ -108,11 +124,15 @@ class TemperatureLog:
         T, _, n = self.over(t0, t1)
         if n:
             return T
-        t, v = self.readings()
         mid = 0.5 * (t0 + t1)
-        if not t.size or not t[0] <= mid <= t[-1]:
-            return math.nan
-        return float(np.interp(mid, t, v))
+        with self._lock:
+            t, v = self._t[self._a:self._b], self._v[self._a:self._b]
+            if not t.size or not t[0] <= mid <= t[-1]:
+                return math.nan
+            if t.size == 1:
+                return float(v[0])
+            k = int(np.clip(np.searchsorted(t, mid), 1, t.size - 1))
+            return float(np.interp(mid, t[k - 1:k + 1], v[k - 1:k + 1]))
 
 
 def viscosity_factors(log: TemperatureLog, spans: list, oil: viscosity.Oil | None):

@@ -48,11 +48,11 @@ class Change:
         rel = a.size / a.reference if a.reference else math.nan
         word = 'up' if a.direction > 0 else 'down'
         now = a.latest / a.reference if a.reference else math.nan
+        wider = f", the fits' sigma x{self.scale:.2f} as the reference points scatter" if self.scale > 1.0 else ''
         return (f'{self.bearing} {self.name}: {word} by {a.size:.3g} ± {a.size_sigma:.2g} on average (x{1 + rel:.3f} '
                 f'of the reference {a.reference:.4g}, SI) from {_utc(a.onset_time)}, alarm at {_utc(a.time)} after '
                 f'{a.n} point(s), by then {a.latest:+.3g} ± {a.latest_sigma:.2g} (x{1 + now:.3f}) (CUSUM '
-                f'{a.statistic:.2f} > h = {a.h:.2f} sigma' + (f", the fits' sigma x{self.scale:.2f} as the reference "
-                                                             f'points scatter' if self.scale > 1.0 else '') + ')')
+                f'{a.statistic:.2f} > h = {a.h:.2f} sigma{wider})')
 
 
 def _utc(t: float) -> str:
@@ -125,16 +125,17 @@ def series_changes(s: Series, *, arl0: float, delta: float, n_reference: int,
     the first ``n_reference`` points (not monitored themselves); after an alarm the ``n_reference`` points that follow
     it (the new level) are the next one.  The points are standardised by their 1-sigma times the reference points'
     scatter about it (``scatter_scale``, at least 1): a fit's sigma that understates the scatter between solves
-    would otherwise shorten the run length to a false alarm many times over.  The returned :class:`Resume` is after the last point where both sides of
-    the statistic were zero: a run that restarts there from zero raises the alarms one from the first point would
-    (the recursion max(0, S + ...) from a lower start stays at or below the true statistic until both meet at its
-    zero), so a machine watched for months is re-read from there, not from its first solve.  Alarm indices are
-    within ``s``.
+    would otherwise shorten the run length to a false alarm many times over.  The returned :class:`Resume` is after
+    the last point where both sides of the statistic were zero: a run that restarts there from zero raises the alarms
+    one from the first point would (the recursion max(0, S + ...) from a lower start stays at or below the true
+    statistic until both meet at its zero), so a machine watched for months is re-read from there, not from its first
+    solve.  Alarm indices are within ``s``.
     """
     start = 0
     before = -math.inf if resume is None else resume.t       # the time before the points of the current segment
-    ref, ref_sigma, scale = (None, 0.0, 1.0) if resume is None else (resume.reference, resume.reference_sigma,
-                                                                       resume.scale)
+    ref, ref_sigma, scale = (None, 0.0, 1.0)
+    if resume is not None:
+        ref, ref_sigma, scale = resume.reference, resume.reference_sigma, resume.scale
     out = []
     while True:
         if ref is None:

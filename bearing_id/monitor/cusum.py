@@ -195,11 +195,12 @@ def scatter_scale(x, sigma, reference: float) -> float:
     ``reference`` has n - 1 degrees of freedom; the scale is sqrt(chi^2 / q), q its ``SCALE_QUANTILE`` quantile: the
     one-sided 1-sigma upper confidence bound of the scatter's ratio to the stated sigma (1 for n < 2).  Never below 1:
     a scatter smaller than stated is taken as chance.  The bound, not the estimate: a CUSUM standardised by an
-    estimated scale alarms falsely far more often when the estimate happens to be low than it gains when high
-    (test/test_trend.py measures both: 20 reference points, scatter 1.5x the stated sigma, the estimate's false-alarm
-    rate is 2.4x the design's, the bound's within it).  A series standardised by scale * sigma keeps the stated
-    false-alarm rate when the fits' sigma is understated by a constant factor, as a fit that leaves out a slowly
-    varying effect (a temperature the viscosity law does not follow exactly) does.
+    estimated scale alarms falsely far more often when the estimate happens to be low than it gains when high (20
+    reference points, scatter 1.5x the stated sigma: with the estimate the false-alarm rate was 2.4x the design's,
+    measured once in a Monte Carlo like test/test_trend.py's, which checks that the bound's is within it).  A series
+    standardised by scale * sigma keeps the stated false-alarm rate when the fits' sigma is understated by a constant
+    factor, as a fit that leaves out a slowly varying effect (a temperature the viscosity law does not follow
+    exactly) does.
     """
     x, sigma = _checked(x, sigma)
     if x.size < 2:

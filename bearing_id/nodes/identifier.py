@@ -30,7 +30,7 @@ from .oil import oil_law
 from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
-from .status import DiagItem, ERROR, OK, STALE, WARN
+from .status import DiagItem, ERROR, OK, STALE, Throttle, WARN, WARN_EVERY
 from .topics import (relative, TOPIC_ALARMS, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
                      TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE)
 from ..bearings.viscosity import celsius
@@ -50,6 +50,7 @@ class Identifier(Node):
 
     def __init__(self):
         super().__init__(NAME)
+        self._warn_gate = Throttle(WARN_EVERY)      # one problem line per WARN_EVERY s (the latest on /diagnostics)
         v = declare_parameters(self, SPECS)
         self.values = v
         rig = load_rig(v['rig_params'] or None)
@@ -117,7 +118,9 @@ class Identifier(Node):
     def _problem(self, text):
         with self._shared:
             self.problems.append(text)
-        self.get_logger().warn(text, throttle_duration_sec=2.0)
+        held = self._warn_gate.due(time.monotonic())
+        if held is not None:
+            self.get_logger().warn(text + (f' ({held} more problem(s) not logged since the last line)' if held else ''))
 
     def on_excitation(self, msg):
         try:

@@ -25,7 +25,7 @@ from .monitor import StreamMonitor
 from .process import run_node
 from .qos import qos_input, qos_stream, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
-from .status import DiagItem, ERROR, OK, STALE, WARN
+from .status import DiagItem, ERROR, OK, STALE, Throttle, WARN, WARN_EVERY
 from .topics import (relative, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION,
                      TOPIC_INNOVATION, TOPIC_SPEED)
 from ..config.params import load_rig
@@ -38,6 +38,8 @@ class KFEstimator(Node):
 
     def __init__(self):
         super().__init__(NAME)
+        self._warn_gate = Throttle(WARN_EVERY)      # one problem line per WARN_EVERY s (the latest on /diagnostics)
+        self._model_gate = Throttle(60.0)           # the bearing model in use: one line a minute at most
         v = declare_parameters(self, SPECS)
         self.values = v
         rig = load_rig(v['rig_params'] or None)
@@ -115,8 +117,9 @@ class KFEstimator(Node):
         self.coeff_used += 1
         # one line a minute at most: an identifier tracking the machine sends every speed at every solve (the model
         # in use is on /diagnostics all the time)
-        self.get_logger().info(f"bearing model: identified coefficients at {d['speed'] * 30 / math.pi:.0f} rpm "
-                               f'({self.core.bearings.describe()})', throttle_duration_sec=60.0)
+        if self._model_gate.due(time.monotonic()) is not None:
+            self.get_logger().info(f"bearing model: identified coefficients at {d['speed'] * 30 / math.pi:.0f} rpm "
+                                   f'({self.core.bearings.describe()})')
 
     def on_excitation(self, msg):
         try:
@@ -134,7 +137,9 @@ class KFEstimator(Node):
 
     def _problem(self, text):
         self.problems.append(text)
-        self.get_logger().warn(text, throttle_duration_sec=2.0)
+        held = self._warn_gate.due(time.monotonic())
+        if held is not None:
+            self.get_logger().warn(text + (f' ({held} more problem(s) not logged since the last line)' if held else ''))
 
     def on_block(self, msg):
         try:

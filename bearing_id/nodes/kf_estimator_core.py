@@ -162,12 +162,14 @@ class IdentifiedBearings:
         self.coeffs: list = []
         self.stds: list = []
         self.ids: list = []           # one id per result in use (a new one at every change)
-        self.generation = 0
+        self.generation = 0           # changes of the coefficients in use
+        self.revision = 0             # results taken (kept ones too: their 1-sigma changes)
         self.lock = threading.Lock()
 
     def add(self, speed: float, coeffs: dict, stds: dict | None = None) -> bool:
         """Take a result; return whether the coefficients in use changed (False: within MODEL_MOVE sigma/MODEL_TOL)."""
         with self.lock:
+            self.revision += 1
             for i, w in enumerate(self.speeds):
                 if abs(w - speed) <= self.tol_rel * speed:
                     kept = _kept_stds(self.coeffs[i], coeffs, stds)
@@ -194,6 +196,12 @@ class IdentifiedBearings:
         with self.lock:
             br = self._bracket(speed)
             return None if br is None else (self.ids[br[0]], self.ids[br[1]])
+
+    def tags(self) -> set:
+        """Return every tag a speed can have now (None, the theory's, aside)."""
+        with self.lock:
+            ids = self.ids
+            return set(zip(ids, ids[1:])) if len(ids) > 1 else {(i, i) for i in ids}
 
     def source(self, speed: float) -> str:
         """Return what the model at ``speed`` [rad/s] uses: 'identified' or 'theory'."""
@@ -243,9 +251,10 @@ class IdentifiedBearings:
 
 def _kept_stds(used: dict, new: dict, stds: dict | None) -> dict | None:
     """
-    Return the 1-sigma of the coefficients in use (``used``) once ``new`` arrived, or None when ``new`` must replace
-    them: some coefficient moved beyond both MODEL_MOVE of its 1-sigma (``stds``) and MODEL_TOL of its bearing's largest
-    K (C) entry.  Kept: sqrt(sigma^2 + move^2) per coefficient.
+    Return the 1-sigma of the coefficients in use once ``new`` arrived, or None when ``new`` must replace them.
+
+    None: some coefficient moved from ``used`` beyond both MODEL_MOVE of its 1-sigma (``stds``) and MODEL_TOL of its
+    bearing's largest K (C) entry.  Kept: sqrt(sigma^2 + move^2) per coefficient.
     """
     if stds is None or set(used) != set(new):
         return None
@@ -348,7 +357,7 @@ class EstimatorCore:
         self.threshold = None        # stability threshold [rad/s] (computed by the worker)
         self.last_orbit: dict = {}
         self._last_motion = None      # (model key, speed, run, estimates (n, k), angle (n,), Kalman model): last block
-        self._coef_sigma = None       # ((model key, run id), 1X 1-sigma radius (k,) from the coefficients): the last
+        self._coef_sigma = None       # ((model key, run id, bearings.revision), the 1X 1-sigma radius (k,) it gives)
         self.resets = 0               # filter restarts from a steady state (new run, lost data)
         self.switches = 0             # model changes the state carried over (speed band, bearings, noise)
         self._dc: deque = deque(maxlen=NOISE_BLOCKS)
@@ -437,10 +446,10 @@ class EstimatorCore:
         if not self.bearings.add(float(speed), coeffs, stds):
             return
         needed = {p[4] for p in self._pending} | ({self._active[0]} if self._active else set())
+        live = self.bearings.tags()
         with self._lock:                     # models on replaced results no queued block needs: never asked again
-            live = set(self.bearings.ids)
             self._models = OrderedDict((k, v) for k, v in self._models.items()
-                                       if k[3] is None or set(k[3]) <= live or k in needed)
+                                       if k[3] is None or k[3] in live or k in needed)
 
     def ready(self, key) -> bool:
         with self._lock:
@@ -658,7 +667,7 @@ class EstimatorCore:
         stds = self.bearings.uncertainty(speed)
         sig = None
         if stds is not None:
-            ck = (key, run.id)
+            ck = (key, run.id, self.bearings.revision)
             if self._coef_sigma is None or self._coef_sigma[0] != ck:
                 F = harmonic_forces(run.excitation, speed, self.rotor.n_nodes, self.rotor.ndof).get(1.0)
                 rows = probe_matrix(self.rotor, self.outputs_probes)
