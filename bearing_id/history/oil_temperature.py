@@ -98,7 +98,7 @@ class TemperatureLog:
         return ''
 
     def readings(self) -> tuple[np.ndarray, np.ndarray]:
-        """Return copies of the readings (stamps [s], T [K]) in time order."""
+        """Return copies of the stamps [s] and temperatures [K] kept, in time order."""
         with self._lock:
             return self._t[self._a:self._b].copy(), self._v[self._a:self._b].copy()
 
