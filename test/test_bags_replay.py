@@ -53,7 +53,7 @@ def wait_for_results(record_dir: Path, n_speeds: int, timeout: float = 60.0, set
 
     Settled: a result at ``n_speeds`` distinct speeds and no new result for ``settle`` s.  The node solves as windows
     close, so a speed's first result may come from some of the runs only (its later solves, with every run, follow
-    within ``SOLVE_AFTER`` plus the solve); the settle period waits for those.
+    within a few solve durations: identifier.py SOLVE_BACKLOG); the settle period waits for those.
     """
     t_end = time.monotonic() + timeout
     last_n, last_change = -1, time.monotonic()

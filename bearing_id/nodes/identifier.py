@@ -11,6 +11,7 @@ for call); this module only moves messages, runs the fits and solves in a worker
 from __future__ import annotations
 
 from collections import deque
+import math
 import queue
 import sys
 import threading
@@ -38,10 +39,12 @@ from ..config.params import load_rig
 from ..history import HistoryStore, redacted_url
 from ..io import messages as M
 
-# a new complete speed is solved at the latest SOLVE_AFTER [s] after its window closed, or, while windows queue, after
-# SOLVE_BACKLOG times the last solve's duration (a replay faster than the solves: every window fitted, one solve for
-# several, no blocks lost to a starved callback)
-SOLVE_AFTER = 1.0
+# while windows queue, a solve starts no sooner than SOLVE_BACKLOG times the last solve's duration after it ended; the
+# worker fits the queued windows in between (a replay faster than the solves: one solve for several windows, every
+# window fitted).  With none queued a pending solve starts at once (at real time: every new window, solved at once).
+# Before, the hold was counted from the window's closing: a worker that had fallen behind found every hold expired,
+# solved after every window and fell further behind (a 72-hour stream at 50x: ~60 solves per stream hour, then 1,052
+# in one hour, the window queue at 5.3 GB).
 SOLVE_BACKLOG = 3.0
 
 
@@ -196,30 +199,33 @@ class Identifier(Node):
     def _work(self):
         t_req = None              # when the oldest window not yet solved closed (latency reference)
         last_sig = None
+        last_end = -math.inf      # when the last solve ended (monotonic)
         try:
             self.core.prepare()   # before the first window has closed (>= min_window of data away)
         except Exception as exc:  # reported; each solve then computes what it needs itself
             self._problem(f'preparing the solves failed: {type(exc).__name__}: {exc}')
         while True:
-            job = self._jobs.get()
-            if job is None:
-                return
-            if job[0] == 'window':                 # fit and accumulate it
-                _, win, closed_at = job
-                try:
-                    added = self.core.add_window(win)
-                except Exception as exc:          # reported; the window is lost, nothing else is
-                    self._problem(f'harmonic fit failed on a measured window: {type(exc).__name__}: {exc}')
-                    added = []
-                if added:
-                    t_req = closed_at if t_req is None else min(t_req, closed_at)
-            else:                                  # a solve request (e.g. resumed from the record)
-                t_req = job[1] if t_req is None else min(t_req, job[1])
-            while self.core.notes:
-                self._problem(self.core.notes.popleft())
-            hold = max(SOLVE_AFTER, SOLVE_BACKLOG * (self.solve_time or 0.0))
-            if t_req is None or (not self._jobs.empty() and time.monotonic() - t_req < hold):
-                continue              # more windows queued: fit them first, but never hold a result back long
+            due = None if t_req is None else last_end + SOLVE_BACKLOG * (self.solve_time or 0.0)
+            if due is None or (time.monotonic() < due and not self._jobs.empty()):
+                # a window or a request: wait for one when no solve is pending, else take the queued ones until
+                # the solve is due (the worker is the only consumer: a non-empty queue stays non-empty)
+                job = self._jobs.get() if due is None else self._jobs.get_nowait()
+                if job is None:
+                    return
+                if job[0] == 'window':             # fit and accumulate it
+                    _, win, closed_at = job
+                    try:
+                        added = self.core.add_window(win)
+                    except Exception as exc:      # reported; the window is lost, nothing else is
+                        self._problem(f'harmonic fit failed on a measured window: {type(exc).__name__}: {exc}')
+                        added = []
+                    if added:
+                        t_req = closed_at if t_req is None else min(t_req, closed_at)
+                else:                              # a solve request (e.g. resumed from the record)
+                    t_req = job[1] if t_req is None else min(t_req, job[1])
+                while self.core.notes:
+                    self._problem(self.core.notes.popleft())
+                continue                           # the solve may be due now, or later
             try:
                 data = self.core.assemble()
                 sig = self.core.signature(data)
@@ -232,8 +238,10 @@ class Identifier(Node):
             except Exception as exc:              # reported, never published
                 self._problem(f'identification failed: {type(exc).__name__}: {exc}')
                 t_req = None
+                last_end = time.monotonic()
                 continue
             self.solve_time = time.perf_counter() - t0
+            last_end = time.monotonic()
             # the latest result at every speed (a per-speed method returns only the speeds it solved again)
             self.last_results = sorted(self.core.results.values(), key=lambda r: r.speed)
             # in the record and the history first: a kill after the publishing loses no published result
