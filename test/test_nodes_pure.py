@@ -373,3 +373,5 @@ def test_a_throttle_lets_one_event_through_per_period_and_counts_the_rest():
     assert gate.due(100.0) == 0
     assert [gate.due(t) for t in (100.5, 101.0, 101.99)] == [None, None, None]
     assert gate.due(102.0) == 3 and gate.due(103.0) is None and gate.due(104.5) == 1
+    assert gate.line('gap', 107.0) == 'gap' and gate.line('gap', 108.0) is None
+    assert gate.line('gap', 109.5) == 'gap (1 more problem(s) not logged since the last line)'

@@ -97,11 +97,6 @@ class TemperatureLog:
             self._a = max(self._a, self._b - self.max_readings)
         return ''
 
-    def readings(self) -> tuple[np.ndarray, np.ndarray]:
-        """Return copies of the stamps [s] and temperatures [K] kept, in time order."""
-        with self._lock:
-            return self._t[self._a:self._b].copy(), self._v[self._a:self._b].copy()
-
     def __len__(self) -> int:
         return self._b - self._a
 

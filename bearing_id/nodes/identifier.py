@@ -121,9 +121,9 @@ class Identifier(Node):
     def _problem(self, text):
         with self._shared:
             self.problems.append(text)
-        held = self._warn_gate.due(time.monotonic())
-        if held is not None:
-            self.get_logger().warn(text + (f' ({held} more problem(s) not logged since the last line)' if held else ''))
+        line = self._warn_gate.line(text, time.monotonic())
+        if line is not None:
+            self.get_logger().warn(line)
 
     def on_excitation(self, msg):
         try:

@@ -137,9 +137,9 @@ class KFEstimator(Node):
 
     def _problem(self, text):
         self.problems.append(text)
-        held = self._warn_gate.due(time.monotonic())
-        if held is not None:
-            self.get_logger().warn(text + (f' ({held} more problem(s) not logged since the last line)' if held else ''))
+        line = self._warn_gate.line(text, time.monotonic())
+        if line is not None:
+            self.get_logger().warn(line)
 
     def on_block(self, msg):
         try:

@@ -24,7 +24,8 @@ class Throttle:
     At most one event per ``period`` [s] let through: the nodes' problem lines (the latest are on /diagnostics).
 
     ``due(now)`` [s, monotonic] returns None when this event is held back, else how many were held back since the last
-    one let through.  Cheaper than rclpy's ``throttle_duration_sec``, which inspects the caller's frame on every call
+    one let through; ``line(text, now)`` the log line for a problem ``text`` (None: held back), naming how many
+    were.  Cheaper than rclpy's ``throttle_duration_sec``, which inspects the caller's frame on every call
     (10 % of the identifier's samples when kf_estimator's stream had a gap storm at 50x).
     """
 
@@ -39,3 +40,9 @@ class Throttle:
             return None
         held, self._held, self._last = self._held, 0, float(now)
         return held
+
+    def line(self, text: str, now: float) -> str | None:
+        held = self.due(now)
+        if held is None:
+            return None
+        return text + (f' ({held} more problem(s) not logged since the last line)' if held else '')
