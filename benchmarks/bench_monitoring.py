@@ -14,7 +14,7 @@ to the wear alarm (issue 25: within 6 hours), the size against the true mean cha
 alarm (within 20 %); the viscosity's swing and the compensated ratio's; the wall time and so the rate achieved.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_monitoring.py [--hours 72] [--rate 50] [--onset 36]
-      [--wear 1.08] [--dwell S] [--no-kf]          (the control: --wear 1.0)
+      [--wear 1.08] [--dwell S] [--block-size N] [--no-kf]          (the control: --wear 1.0)
 """
 import os
 
@@ -24,6 +24,7 @@ import argparse  # noqa: E402, I100  (after the thread setting above)
 import contextlib  # noqa: E402
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
+import re  # noqa: E402
 import sqlite3  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -55,6 +56,9 @@ def main(argv=None) -> int:
     ap.add_argument('--amplitude', type=float, default=3.5, help='its daily cycle [K] (default 3.5)')
     ap.add_argument('--dwell', type=float, default=None,
                     help="[s] time at each speed of the plan (default: the rig's, 2 s); a plant dwells far longer")
+    ap.add_argument('--block-size', type=int, default=None,
+                    help="samples per published block (default: sensor_driver's, 1024); the nodes' CPU goes mostly "
+                         'per message')
     ap.add_argument('--no-kf', action='store_true', help='without kf_estimator')
     ap.add_argument('--keep', help="keep the nodes' logs, record and history in this directory")
     args = ap.parse_args(argv)
@@ -74,6 +78,8 @@ def main(argv=None) -> int:
                   '-p', 'wait_for_subscribers:=' + ('1' if args.no_kf else '2'), *OIL]
         if args.dwell is not None:
             driver += ['-p', f'dwell:={args.dwell}']
+        if args.block_size is not None:
+            driver += ['-p', f'block_size:={args.block_size}']
         if args.wear != 1.0:
             driver += ['-p', 'wear_bearing:=bearing2', '-p', f'wear_onset:={onset}', '-p', f'wear_end:={total}',
                        '-p', f'wear_clearance:={args.wear}']
@@ -83,9 +89,11 @@ def main(argv=None) -> int:
             procs['kf_estimator'] = start('kf_estimator', [], env, out)
         procs['sensor_driver'] = start('sensor_driver', driver, env, out)
         t0 = time.monotonic()
+        cpu: dict = {}
         try:
             t_end = t0 + 300 + 3 * total / args.rate
             while procs['sensor_driver'].poll() is None and time.monotonic() < t_end:
+                _sample_cpu(procs, cpu)
                 time.sleep(5.0)
             streamed = time.monotonic() - t0
             # the run ends when the identifier has solved on the last pass's data (or has stopped progressing for a
@@ -97,17 +105,17 @@ def main(argv=None) -> int:
                     break
                 if covered > last:
                     last, still = covered, time.monotonic()
+                _sample_cpu(procs, cpu)
                 time.sleep(2.0)
         finally:
+            _sample_cpu(procs, cpu)
             codes = stop_processes(procs)
         wall = time.monotonic() - t0
         covered = _data_covered(db)
         published = [ln.split('bearing change: ', 1)[1].strip() for ln in
                      (out / 'identifier.log').read_text(errors='replace').splitlines() if 'bearing change: ' in ln]
         late = [ln for ln in (out / 'sensor_driver.log').read_text(errors='replace').splitlines() if 'late' in ln]
-        lines = [ln for ln in (out / 'identifier.log').read_text(errors='replace').splitlines() if 'sequence gap' in ln]
-        gaps = {k: sum(f'at {topic} ' in ln for ln in lines) for k, topic in
-                (('measured', '/rotor/displacement'), ('estimated', '/bearing_id/bearing_displacement'))}
+        gaps = {node: _gaps_logged(out / f'{node}.log') for node in ('identifier', 'kf_estimator')}
         with HistoryStore(sqlite_url(db)) as store:
             machines = store.machines()
             series = parameter_series(store, machines[0].machine_id) if machines else []
@@ -116,9 +124,11 @@ def main(argv=None) -> int:
     print(f'{total / 3600:.1f} h of stream ({passes} passes of {plan:.1f} s) published in {streamed / 60:.1f} min '
           f'({total / streamed:.1f}x, asked {args.rate:g}x); the identifier had solved on {covered / 3600:.2f} h of '
           f'it after {wall / 60:.1f} min: {covered / wall:.1f}x real time end to end; node exits {codes}')
-    print(f"sensor_driver: {late[-1] if late else 'no report'}; the identifier logged sequence gaps on the measured "
-          f"stream {gaps['measured']}, on kf_estimator's {gaps['estimated']} (at most one line per 2 s: a lower bound; "
-          'a measured gap restarts the windows, an estimated one is only monitored)')
+    print(f"sensor_driver: {late[-1] if late else 'no report'}; sequence gaps on /rotor/displacement logged by "
+          + ', '.join(f'{node} {n} ({lost} blocks)' for node, (n, lost) in gaps.items())
+          + ' (at most one line per 2 s: lower bounds; a gap restarts the windows there)')
+    print('CPU per hour of stream (user + system, sampled every 2-5 s): '
+          + ', '.join(f'{name} {3600.0 * sec / total:.1f} s' for name, sec in cpu.items()))
     by = {(s.bearing, s.name): s for s in series}
     for key in sorted(by):
         s = by[key]
@@ -163,6 +173,24 @@ def _data_covered(db: Path) -> float:
     except sqlite3.Error:            # not created yet, or busy: no progress seen this time
         return 0.0
     return 0.0 if t0 is None else float(t1 - t0)
+
+
+def _sample_cpu(procs: dict, cpu: dict) -> None:
+    """Update ``cpu`` [s] (user + system) of each running process in ``procs`` from /proc (Linux; else nothing)."""
+    tick = os.sysconf('SC_CLK_TCK')
+    for name, p in procs.items():
+        try:
+            fields = Path(f'/proc/{p.pid}/stat').read_text().rsplit(')', 1)[1].split()
+        except (OSError, IndexError):            # exited (or not Linux): its last sample stands
+            continue
+        cpu[name] = (int(fields[11]) + int(fields[12])) / tick
+
+
+def _gaps_logged(log: Path) -> tuple[int, int]:
+    """Return (sequence-gap lines, blocks they report lost) in a node's log (its problem lines are throttled)."""
+    text = log.read_text(errors='replace') if log.exists() else ''
+    lost = [int(m) for m in re.findall(r'sequence gap: (\d+) block\(s\) lost', text)]
+    return len(lost), sum(lost)
 
 
 if __name__ == '__main__':

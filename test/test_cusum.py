@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from bearing_id.monitor.cusum import design, detect, siegmund_arl, statistics, threshold, two_sided_arl
+from bearing_id.monitor.cusum import design, detect, level_at_end, siegmund_arl, statistics, threshold, two_sided_arl
 import cusum_oracle
 import numpy as np
 import pytest
@@ -179,16 +179,40 @@ def test_onset_and_size_of_a_two_sigma_shift():
     assert cover3 >= 0.95
 
 
-def test_a_ramp_is_sized_at_the_alarm_by_its_latest_point():
-    # a drift (wear): 40 in-control samples, then x grows by 0.5 sigma per sample; the mean since the onset lags the
-    # ramp, the alarm sample's own deviation is the ramp there (within its 1-sigma, which includes the reference's)
+def test_level_at_end_is_the_weighted_line_numpy_fits():
+    # oracle: numpy.polyfit (weights 1/sigma on the residuals, unscaled covariance) evaluated at the last time
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 50.0, 9))
+    sigma = rng.uniform(0.5, 2.0, 9)
+    x = 3.0 + 0.2 * t + sigma * rng.standard_normal(9)
+    p, cov = np.polyfit(t - t[-1], x, 1, w=1.0 / sigma, cov='unscaled')
+    level, level_sigma = level_at_end(t, x, sigma)
+    assert level == pytest.approx(p[1], rel=1e-9)
+    assert level_sigma == pytest.approx(math.sqrt(cov[1, 1]), rel=1e-9)
+    assert level_at_end(t[:2], x[:2], sigma[:2]) == (x[1], sigma[1])      # two points: the last one as it is
+
+
+def test_a_ramp_is_sized_at_the_alarm_by_the_line_since_its_onset():
+    # a drift (wear): 40 in-control samples, then x grows by 0.5 sigma per sample.  The mean since the onset lags the
+    # ramp; the alarm sample's own deviation is biased up (the alarm fires on a high sample: measured +0.53 sigma);
+    # the line through the onset..alarm samples removes most of that bias and its stated 1-sigma covers its error
     rng = np.random.default_rng(11)
-    n, sigma = 80, 1.0
+    n, sigma, trials = 80, 1.0, 300
     truth = np.where(np.arange(n) < 40, 0.0, 0.5 * (np.arange(n) - 39))
-    x = 100.0 + truth + sigma * rng.standard_normal(n)
-    a = detect(x, sigma, arl0=1e4, delta=2.0, n_reference=20)[0]
-    assert a.index >= 40 and a.direction == 1
-    assert a.latest == pytest.approx(x[a.index] - a.reference, abs=1e-12)
-    assert a.latest_sigma == pytest.approx(math.hypot(sigma, a.reference_sigma), rel=1e-12)
-    assert abs(a.latest - truth[a.index]) <= 3 * a.latest_sigma
-    assert a.size < truth[a.index] - 2 * a.size_sigma              # the mean since the onset is behind the ramp
+    z_line, z_point, lag = [], [], []
+    for _ in range(trials):
+        x = 100.0 + truth + sigma * rng.standard_normal(n)
+        a = [a for a in detect(x, sigma, arl0=1e4, delta=2.0, n_reference=20) if a.index >= 40][0]
+        assert a.direction == 1
+        z_line.append((a.latest - truth[a.index]) / a.latest_sigma)
+        z_point.append((x[a.index] - a.reference - truth[a.index]) / math.hypot(sigma, a.reference_sigma))
+        lag.append((a.size - truth[a.index]) / a.size_sigma)
+    z_line, z_point, lag = np.array(z_line), np.array(z_point), np.array(lag)
+    cover = float(np.mean(np.abs(z_line) <= 2.0))
+    p2 = 2 * norm.cdf(2.0) - 1
+    print(f'(size at the alarm - truth) / sigma: line mean {z_line.mean():+.3f} (2-sigma cover {100 * cover:.1f} %), '
+          f'alarm sample {z_point.mean():+.3f}, mean since the onset {lag.mean():+.3f}')
+    assert z_point.mean() > 3 * z_point.std() / math.sqrt(trials)       # the selection bias is there
+    assert z_line.mean() < 0.5 * z_point.mean()                          # the line removes at least half of it
+    assert cover >= p2 - 3 * math.sqrt(p2 * (1 - p2) / trials)
+    assert lag.mean() < -3 * lag.std() / math.sqrt(trials)              # the mean since the onset lags

@@ -158,9 +158,10 @@ class Alarm:
     statistic was last zero); time / onset_time: the same in the unit of ``times`` (or the index); direction: +1 up,
     -1 down; size, size_sigma: the shift and its 1-sigma in the unit of x; statistic, h [sigma]: the evidence (the
     side's S at the alarm, the threshold); k [sigma]; reference, reference_sigma: the in-control value and its
-    1-sigma (0 when given) in the unit of x; n: samples from the onset to the alarm; latest, latest_sigma: the alarm
-    sample's own x - reference and its 1-sigma (a drift's size when it is alarmed: ``size`` averages since the onset,
-    right for a step, behind for a ramp).
+    1-sigma (0 when given) in the unit of x; n: samples from the onset to the alarm; latest, latest_sigma: the shift
+    at the alarm and its 1-sigma: the value at the alarm's time of a weighted straight line through the onset..alarm
+    samples less the reference (:func:`level_at_end`; a drift's size when it is alarmed, a step's too: ``size``
+    averages since the onset, right for a step, behind for a ramp).
     """
 
     index: int
@@ -185,6 +186,26 @@ def reference_from(x, sigma) -> tuple[float, float]:
     x, sigma = _checked(x, sigma)
     w = 1.0 / sigma ** 2
     return float(np.sum(w * x) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
+
+
+def level_at_end(t, x, sigma) -> tuple[float, float]:
+    """
+    Return the value at ``t[-1]`` of the weighted least-squares line through ``x`` (n,) at ``t`` (n,), and its 1-sigma.
+
+    ``sigma`` (n,): the samples' 1-sigma (unit of x).  With fewer than 3 samples, the last sample and its sigma (a
+    line through two points has no scatter to check).  The level of a drift where it was last seen: unbiased for a
+    ramp and a step alike, where the last sample alone is biased up by the selection an alarm makes (it is the one
+    that crossed the threshold), and the mean since the onset lags a ramp.
+    """
+    t = np.asarray(t, dtype=float).reshape(-1)
+    x, sigma = _checked(x, sigma)
+    if x.size < 3 or np.ptp(t) == 0.0:
+        return float(x[-1]), float(sigma[-1])
+    w = 1.0 / sigma ** 2
+    a = np.column_stack([np.ones_like(t), t - t[-1]])
+    cov = np.linalg.inv(a.T @ (w[:, None] * a))
+    beta = cov @ (a.T @ (w * x))
+    return float(beta[0]), float(math.sqrt(cov[0, 0]))
 
 
 def scatter_scale(x, sigma, reference: float) -> float:
@@ -253,12 +274,12 @@ def detect(x, sigma, *, arl0: float, delta: float = 1.0, reference: float | None
         w = 1.0 / sigma[sl] ** 2
         size = float(np.sum(w * (x[sl] - float(reference))) / np.sum(w))
         size_sigma = math.sqrt(1.0 / float(np.sum(w)) + ref_sigma ** 2)
+        level, level_sigma = level_at_end(t[sl], x[sl] - float(reference), sigma[sl])
         alarms.append(Alarm(index=start + i, onset=start + onset, time=float(t[start + i]),
                             onset_time=float(t[start + onset]), direction=1 if up else -1, size=size,
                             size_sigma=size_sigma, statistic=float(s[i]), h=des.h, k=des.k,
                             reference=float(reference), reference_sigma=ref_sigma, n=i - onset + 1,
-                            latest=float(x[start + i] - float(reference)),
-                            latest_sigma=math.hypot(float(sigma[start + i]), ref_sigma)))
+                            latest=level, latest_sigma=math.hypot(level_sigma, ref_sigma)))
         start += i + 1
     return alarms
 
@@ -273,5 +294,5 @@ def _checked(x, sigma) -> tuple[np.ndarray, np.ndarray]:
     return x, sigma
 
 
-__all__ = ['Alarm', 'Design', 'design', 'detect', 'reference_from', 'run_lengths', 'scatter_scale', 'siegmund_arl',
-           'statistics', 'threshold', 'two_sided_arl']
+__all__ = ['Alarm', 'Design', 'design', 'detect', 'level_at_end', 'reference_from', 'run_lengths', 'scatter_scale',
+           'siegmund_arl', 'statistics', 'threshold', 'two_sided_arl']

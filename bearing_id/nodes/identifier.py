@@ -1,8 +1,9 @@
 """
 ``identifier``: accumulates 1X harmonic vectors per (run, speed) and publishes identified bearing coefficients.
 
-Consumes ``/rotor/displacement`` (measured) and ``/rotor/excitation``; monitors ``/bearing_id/bearing_displacement``
-(the kf_estimator's bearing-node estimates: their rate and health only); publishes ``/bearing_id/coefficients``
+Consumes ``/rotor/displacement`` (measured), ``/rotor/excitation`` and the optional oil inlet temperature (every method
+identifies from the measured vectors: the kf_estimator's bearing-node estimates are its own output, reported on its own
+/diagnostics, and not read here); publishes ``/bearing_id/coefficients``
 (BearingCoefficients, latched), ``/bearing_id/alarms`` (a DiagnosticArray per change the history's change detection
 finds: bearing, parameter, size with its 1-sigma, onset, evidence; latched) and /diagnostics.  The data path, the
 record and the solve are :class:`bearing_id.nodes.identifier_core.IdentifierCore` (the offline route's functions, call
@@ -32,8 +33,8 @@ from .process import run_node
 from .qos import qos_input, qos_latched, subscribe_latched
 from .runs import excitation_of, MALFORMED, RunResolver
 from .status import DiagItem, ERROR, OK, STALE, Throttle, WARN, WARN_EVERY
-from .topics import (relative, TOPIC_ALARMS, TOPIC_BEARING_DISPLACEMENT, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT,
-                     TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE)
+from .topics import (relative, TOPIC_ALARMS, TOPIC_COEFFICIENTS, TOPIC_DISPLACEMENT, TOPIC_EXCITATION,
+                     TOPIC_OIL_TEMPERATURE)
 from ..bearings.viscosity import celsius
 from ..config.params import load_rig
 from ..history import HistoryStore, redacted_url
@@ -81,7 +82,6 @@ class Identifier(Node):
                                    alarms={'arl0': v['alarm_arl0'], 'delta': v['alarm_shift'],
                                            'n_reference': v['alarm_reference']}, oil=oil)
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
-        self.monitor_est = StreamMonitor(TOPIC_BEARING_DISPLACEMENT, None, v['max_displacement'])
         self.resolver = RunResolver(v['max_waiting_blocks'])     # the run of each measured block
         for stamp, run in self.core.run_starts:      # resumed: the runs (and the current one) are known
             self.resolver.announce(stamp, run)
@@ -103,10 +103,7 @@ class Identifier(Node):
         # the excitation subscription first: when a run's announcement and its first block are ready together,
         # the executor takes the announcement first (a block of a run not yet announced waits for it)
         subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
-        self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
-                                 lambda m: self.on_block(m, 'measured'), qos_input(self))
-        self.create_subscription(M.DisplacementBlock, relative(TOPIC_BEARING_DISPLACEMENT),
-                                 lambda m: self.on_block(m, 'estimated'), qos_input(self))
+        self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
         self.create_subscription(Temperature, relative(TOPIC_OIL_TEMPERATURE), self.on_temperature, qos_input(self, 50))
         # a pause is seen within half a segment_timeout of its end (a timer wake costs ~1 ms of CPU: no faster)
         self.create_timer(0.5 * v['segment_timeout'], self.tick)
@@ -148,28 +145,25 @@ class Identifier(Node):
         if problem:
             self._problem(problem)
 
-    def on_block(self, msg, source):
+    def on_block(self, msg):
         try:
             b = M.block_from_msg(msg)
         except MALFORMED as exc:
-            self._problem(f'malformed DisplacementBlock on the {source} stream: {exc}')
+            self._problem(f'malformed DisplacementBlock on the measured stream: {exc}')
             return
-        mon = self.monitor if source == 'measured' else self.monitor_est
-        chk = mon.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
+        chk = self.monitor.check(b.seq, b.stamp, b.sample_rate, b.channels, b.samples)
         for p in chk.problems:
             self._problem(p)
         now = time.monotonic()
         bad = [] if not chk.usable else M.validate_block(b, self.values['max_displacement'],
                                                          self.core.model.n_nodes)
         for p in bad:
-            self._problem(f'{source} block seq {b.seq} rejected: {p}')
+            self._problem(f'measured block seq {b.seq} rejected: {p}')
         if not chk.usable or bad:
-            self._gap = self._gap or source == 'measured'    # rejected data ends the open window there
+            self._gap = True                   # rejected data ends the open window there
             return
         if not b.has_sample_angles:
             self.skipped['no_angles'] += 1
-        if source == 'estimated':
-            return                         # monitored only: every method identifies from the measured vectors
         contiguous = chk.contiguous and not self._gap
         self._gap = False
         run = self.resolver.resolve(b, contiguous)
@@ -277,11 +271,7 @@ class Identifier(Node):
 
     def diagnostics(self):
         disp = self.monitor.status(f'{NAME}: input {TOPIC_DISPLACEMENT}', self.values['stale_after'])
-        items = [flag_best_effort(self, TOPIC_DISPLACEMENT, flag_publishers(self, TOPIC_DISPLACEMENT, disp)),
-                 self.monitor_est.status(f'{NAME}: input {TOPIC_BEARING_DISPLACEMENT}', self.values['stale_after'])]
-        if items[1].level == STALE:
-            items[1].level = OK
-            items[1].message += ' (monitored only: no method needs it)'
+        items = [flag_best_effort(self, TOPIC_DISPLACEMENT, flag_publishers(self, TOPIC_DISPLACEMENT, disp))]
         rs = self.resolver
         ex = DiagItem(f'{NAME}: input {TOPIC_EXCITATION}', OK, f'runs known: {list(self.core.runs)}',
                       {'runs': len(self.core.runs), 'required': ','.join(self.core.required_runs()),

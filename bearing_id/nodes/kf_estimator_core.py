@@ -88,7 +88,8 @@ SPECS = [
 ]
 
 
-NOISE_BLOCKS = 8         # blocks whose median DC and noise the filter uses
+NOISE_BLOCKS = 8         # fitted blocks whose median DC and noise the filter uses
+NOISE_EVERY = 4          # once NOISE_BLOCKS are fitted, every this many blocks of a stream is fitted (the rest reuse)
 NOISE_STEP = 1.25       # a channel's noise std moving by more than this factor re-solves the filter's gain
 NOISE_FLOOR = 1e-12     # m: the smallest noise std used (a noise-free signal still needs R > 0)
 Q_STEP = 2.0            # the process noise the innovations imply moving by more than this factor re-solves the gain
@@ -362,6 +363,7 @@ class EstimatorCore:
         self.switches = 0             # model changes the state carried over (speed band, bearings, noise)
         self._dc: deque = deque(maxlen=NOISE_BLOCKS)
         self._noise: deque = deque(maxlen=NOISE_BLOCKS)
+        self._dc_used = (0, 0.0, 0.0)  # (blocks since the last fit, the DC [m] used, the speed [rad/s] of that fit)
         self.errors: list = []
         self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
         self._worker.start()
@@ -492,7 +494,8 @@ class EstimatorCore:
             if not same_stream:
                 self._dc.clear()
                 self._noise.clear()
-            z, dc = self._clean(block.samples, angle)
+                self._dc_used = (0, 0.0, 0.0)
+            z, dc = self._clean(block.samples, angle, speed)
             R = None if self.R_fixed else np.broadcast_to(self.R, (block.samples.shape[1],))
             if (not same_stream or act[0] != key or (R is not None and _noise_moved(R, np.diag(act[2].km.R)))
                     or self._q_moved(act[2].km)):
@@ -586,28 +589,38 @@ class EstimatorCore:
             for k in [k for k in self._models if k not in needed][:len(self._models) - MAX_MODELS]:
                 del self._models[k]
 
-    def _clean(self, samples, angle):
+    def _clean(self, samples, angle, speed: float):
         """
         Return (samples with their DC removed, the DC removed (m,) [m]) for the filter; update the noise ``R``.
 
-        Each block's DC and noise are those of a DC + 1X + 2X least-squares fit
+        A block's DC and noise are those of a DC + 1X + 2X least-squares fit
         (:func:`bearing_id.signals.harmonics.harmonic_vectors`; noise = its residual RMS); the values used are the
-        medians over the last ``NOISE_BLOCKS`` blocks of the stream (a probe gap offset never reaches the filter).
-        Unless ``measurement_noise`` is fixed, ``R`` [m^2] per channel becomes that noise: the filter's gain is
-        re-solved when it moves by more than ``NOISE_STEP`` (in std), so R follows the real noise of each channel.
+        medians over the last ``NOISE_BLOCKS`` fitted blocks of the stream (a probe gap offset never reaches the
+        filter).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted, and every block whose ``speed``
+        [rad/s] is more than the band width from the last fitted one's (a ramp: the fit's residual grows with the
+        speed's change); at a steady speed every ``NOISE_EVERY``-th (the fit is a sixth of the node's CPU per block;
+        DC and noise move over seconds, a step in them is followed within ``NOISE_BLOCKS * NOISE_EVERY / 2`` blocks).  Unless ``measurement_noise`` is fixed, ``R`` [m^2] per channel
+        becomes that noise: the filter's gain is re-solved when it moves by more than ``NOISE_STEP`` (in std), so R
+        follows the real noise of each channel.
         """
-        try:
-            fit = harmonic_vectors(samples, angle, (1, 2), whole_revs=False)
-        except ValueError:            # too few samples for the fit: the previous blocks' values
-            fit = None
-        if fit is not None:
-            self._dc.append(np.asarray(fit.offset, float))
-            self._noise.append(np.asarray(fit.residual_rms, float))
-        dc = np.median(np.array(self._dc), axis=0) if self._dc else 0.0
-        z = np.asarray(samples, float) - dc
-        if not self.R_fixed and self._noise:
-            self.R = np.maximum(np.median(np.array(self._noise), axis=0), NOISE_FLOOR) ** 2
-        return z, dc
+        since, dc, fitted_at = self._dc_used
+        if (len(self._dc) < NOISE_BLOCKS or since + 1 >= NOISE_EVERY
+                or abs(speed - fitted_at) > self.band * abs(fitted_at)):
+            try:
+                fit = harmonic_vectors(samples, angle, (1, 2), whole_revs=False)
+            except ValueError:            # too few samples for the fit: the previous blocks' values
+                fit = None
+            if fit is not None:
+                self._dc.append(np.asarray(fit.offset, float))
+                self._noise.append(np.asarray(fit.residual_rms, float))
+                dc = np.median(np.array(self._dc), axis=0)
+                if not self.R_fixed:
+                    self.R = np.maximum(np.median(np.array(self._noise), axis=0), NOISE_FLOOR) ** 2
+            since, fitted_at = 0, speed
+        else:
+            since += 1
+        self._dc_used = (since, dc, fitted_at)
+        return np.asarray(samples, float) - dc, dc
 
     # ---- health
     def nis_status(self) -> DiagItem:
