@@ -598,10 +598,10 @@ class EstimatorCore:
         medians over the last ``NOISE_BLOCKS`` fitted blocks of the stream (a probe gap offset never reaches the
         filter).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted, and every block whose ``speed``
         [rad/s] is more than the band width from the last fitted one's (a ramp: the fit's residual grows with the
-        speed's change); at a steady speed every ``NOISE_EVERY``-th (the fit is a sixth of the node's CPU per block;
-        DC and noise move over seconds, a step in them is followed within ``NOISE_BLOCKS * NOISE_EVERY / 2`` blocks).  Unless ``measurement_noise`` is fixed, ``R`` [m^2] per channel
-        becomes that noise: the filter's gain is re-solved when it moves by more than ``NOISE_STEP`` (in std), so R
-        follows the real noise of each channel.
+        speed's change); at a steady speed every ``NOISE_EVERY``-th (DC and noise move over seconds; a step in them
+        is followed within ``NOISE_BLOCKS * NOISE_EVERY / 2`` blocks).  Unless ``measurement_noise`` is fixed, ``R``
+        [m^2] per channel becomes that noise: the filter's gain is re-solved when it moves by more than ``NOISE_STEP``
+        (in std), so R follows the real noise of each channel.
         """
         since, dc, fitted_at = self._dc_used
         if (len(self._dc) < NOISE_BLOCKS or since + 1 >= NOISE_EVERY
