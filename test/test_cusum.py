@@ -194,8 +194,9 @@ def test_level_at_end_is_the_weighted_line_numpy_fits():
 
 def test_a_ramp_is_sized_at_the_alarm_by_the_line_since_its_onset():
     # a drift (wear): 40 in-control samples, then x grows by 0.5 sigma per sample.  The mean since the onset lags the
-    # ramp; the alarm sample's own deviation is biased up (the alarm fires on a high sample: measured +0.53 sigma);
-    # the line through the onset..alarm samples removes most of that bias and its stated 1-sigma covers its error
+    # ramp; the alarm sample's own deviation is biased up (the alarm fires on a high sample: +0.57 sigma on average
+    # over these 300 series); the line through the onset..alarm samples removes most of that bias and its stated
+    # 1-sigma covers its error
     rng = np.random.default_rng(11)
     n, sigma, trials = 80, 1.0, 300
     truth = np.where(np.arange(n) < 40, 0.0, 0.5 * (np.arange(n) - 39))
