@@ -64,7 +64,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     values = {s.name: s.default for s in sensor_driver_core.SPECS}
     values['dwell'] = args.dwell
-    plan = sum(s.n_samples / s.sample_rate for s in sensor_driver_core.load_sources(values))
+    one_pass = sensor_driver_core.load_sources(values)
+    plan = one_pass.start(len(one_pass))          # [s] of stream per pass of the plan
     passes = max(1, math.ceil(args.hours * 3600.0 / plan))
     total = passes * plan
     onset = 3600.0 * (args.hours / 2 if args.onset is None else args.onset)
@@ -132,8 +133,12 @@ def main(argv=None) -> int:
     by = {(s.bearing, s.name): s for s in series}
     for key in sorted(by):
         s = by[key]
-        print(f'  {key[0]}.{key[1]}: {s.t.size} independent points, value {np.min(s.value):.4g}..{np.max(s.value):.4g}'
-              f' (swing {100 * np.ptp(s.value) / np.mean(s.value):.1f} %), median 1-sigma {np.median(s.sigma):.3g}')
+        ok = s.sigma <= 100.0 * np.median(s.sigma)     # a first solve before every speed is in: prior-dominated
+        v = s.value[ok]
+        print(f'  {key[0]}.{key[1]}: {s.t.size} independent points, value {np.min(v):.4g}..{np.max(v):.4g}'
+              f' (swing {100 * np.ptp(v) / np.mean(v):.2f} %), median 1-sigma {np.median(s.sigma):.3g}'
+              + (f'; {np.sum(~ok)} point(s) with a 1-sigma over 100x the median left out of the range'
+                 if not ok.all() else ''))
     print(f'alarms (history, ARL0 1e4 points per series): {len(found)}; published by the node: {len(published)}')
     for c in found:
         print(f'  {c.sentence()}  [onset {(c.alarm.onset_time - t_first) / 3600:.2f} h, alarm '

@@ -93,8 +93,8 @@ def main(argv=None) -> int:
     values = {s.name: s.default for s in sensor_driver_core.SPECS}
     values.update(speeds_rpm=speeds, dwell=args.dwell, passes=args.passes)
     sources = sensor_driver_core.load_sources(values)
-    change = sum(s.n_samples / s.sample_rate for s in sources[:len(rig.simulation.runs) * (args.passes // 2)])
-    total = sum(s.n_samples / s.sample_rate for s in sources)
+    change = sources.start(len(rig.simulation.runs) * (args.passes // 2))
+    total = sources.start(len(sources))
     env = ros_env(_domain_id())
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)

@@ -1,8 +1,8 @@
 """
 The sensor_driver streams (issue 23 item 5).
 
-Its first block goes out at once and memory stays bounded for any stream length, and DAQ files are read one at a time
-when their turn comes.
+Its first block goes out at once and memory stays bounded for any stream length (a run already streamed is not kept),
+and DAQ files are read one at a time when their turn comes.
 
 Oracle for the pieces: the whole-run arrays of :func:`bearing_id.simulation.rig.simulate` are not an independent
 physics oracle, so the sim's steady state is checked against the frequency response of the nominal model written
@@ -11,6 +11,7 @@ and the stream's blocks against the collected Recording sample by sample within 
 """
 from __future__ import annotations
 
+import gc
 import time
 import tracemalloc
 
@@ -91,6 +92,56 @@ def test_the_streamed_blocks_are_the_collected_recording_and_its_steady_state_is
         want = S @ q[:S.shape[1]]
         # residual transient of the 0.3 s ramp after 7 s at zeta >= 0.005: below 1e-3 of the response
         np.testing.assert_allclose(meas, want, rtol=2e-3, atol=0)
+
+
+def test_a_sim_plan_keeps_no_streamed_run_and_times_and_seeds_every_run_as_a_list_would():
+    """
+    The plan builds run i when asked for, and after streaming no SimulatedRun is alive.
+
+    The 72-hour bench's driver grew ~220 MB holding 478 streamed runs and their truths.  Oracle: the runs listed one
+    by one as ``simulate_stream`` documents them (each run's start the sum of the durations before it, the seed of
+    ``run_seed``), and the blocks counted off the stream.
+    """
+    rig = load_rig()
+    runs, speeds = rig.simulation.runs, [900.0, 1500.0]
+    plan = core.load_sources(_values(speeds_rpm=speeds, dwell=0.05, passes=3))
+    assert len(plan) == 3 * len(runs)
+    t0 = 0.0
+    for i in range(len(plan)):
+        k, r = divmod(i, len(runs))
+        src = plan[i]
+        twin = rigmod.simulate_stream(rig, runs[r], rigmod.run_schedule(rig, speeds, 0.05),
+                                      seed=rigmod.run_seed(rig.simulation.seed, runs[r].id, k))
+        first, want = next(src.pieces())[3], next(twin.pieces())[3]
+        assert src.run.id == runs[r].id
+        np.testing.assert_allclose(first, want, rtol=0, atol=1e-12 * np.abs(want).max())
+        assert plan.start(i) == pytest.approx(t0, rel=1e-12, abs=0)
+        t0 += src.n_samples / src.sample_rate
+    assert plan.start(len(plan)) == pytest.approx(t0, rel=1e-12)
+    assert plan[-1].run.id == runs[-1].id
+    assert [s.run.id for s in plan[1:3]] == [runs[1 % len(runs)].id, runs[2 % len(runs)].id]
+    with pytest.raises(IndexError):
+        plan[len(plan)]
+    # the machine changed from the start of run 2: its first segment is changed, run 1's last is not
+    changed = core.load_sources(_values(speeds_rpm=speeds, dwell=0.05, passes=3, truth_change_after=plan.start(2),
+                                        truth_change_clearance=1.2))
+    before, after = changed[1], changed[2]
+    for src in (before, after):
+        for _ in src.pieces():
+            pass
+    ref = rigmod.changed_truth(rig, clearance=1.2)(after.segments[0][2])
+    node = sorted(ref)[0]
+    np.testing.assert_allclose(after.truth_coefficients[after.segments[0][2]][node][0], ref[node][0], rtol=1e-12)
+    assert not np.allclose(before.truth_coefficients[before.segments[-1][2]][node][0],
+                           rigmod.changed_truth(rig, clearance=1.2)(before.segments[-1][2])[node][0], rtol=1e-3)
+    del src, twin, before, after
+    gc.collect()
+    blocks = 0
+    for topic, *_ in core.stream_messages(plan, BLOCK, 0, 'rig'):
+        blocks += topic == TOPIC_DISPLACEMENT
+    gc.collect()
+    assert sum(isinstance(o, rigmod.SimulatedRun) for o in gc.get_objects()) == 0
+    assert core.blocks_total(plan, BLOCK) == blocks
 
 
 def test_files_are_read_one_at_a_time_and_a_bad_one_is_skipped_and_named(tmp_path, monkeypatch):

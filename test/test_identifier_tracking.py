@@ -203,7 +203,7 @@ def test_a_machine_that_wears_while_it_streams_is_followed(tmp_path):
     values = {s.name: s.default for s in sensor_driver_core.SPECS}
     values.update(speeds_rpm=SPEEDS, dwell=1.5, passes=4)
     n_runs = len(rig.simulation.runs)
-    half = sum(s.n_samples / s.sample_rate for s in sensor_driver_core.load_sources(values)[:2 * n_runs])
+    half = sensor_driver_core.load_sources(values).start(2 * n_runs)     # the third pass's start [s]
     values.update(truth_change_after=half, truth_change_clearance=1.1)
     sources = sensor_driver_core.load_sources(values)
     core = IdentifierCore(rig, 'physical', tmp_path)

@@ -27,7 +27,7 @@ from .diagnostics import diagnostics_msg
 from .machine import label, machine_id
 from .process import run_node
 from .qos import qos_latched, qos_stream
-from .sensor_driver_core import (load_sources, n_blocks, NAME, opened, Prefetch, sim_temperature, SPECS,
+from .sensor_driver_core import (blocks_total, load_sources, NAME, opened, Prefetch, sim_temperature, SPECS,
                                  stream_messages)
 from .status import DiagItem, ERROR, OK, WARN
 from .topics import relative, TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
@@ -44,15 +44,15 @@ class SensorDriver(Node):
         super().__init__(NAME)
         v = declare_parameters(self, SPECS)
         self.values = v
-        self.sources = load_sources(v)
-        self.sources[0] = opened(self.sources[0])    # a first file that cannot be read: a clear error, exit 2
-        self.sample_rate = self.sources[0].sample_rate
+        self.sources = load_sources(v)       # files: a list; sim: a plan that builds each run when its turn comes
+        first = opened(self.sources[0])      # a first file that cannot be read: a clear error, exit 2
+        if isinstance(self.sources, list):
+            self.sources[0] = first          # the file just read streams from memory, not read twice
+        self.sample_rate = first.sample_rate
         self._prefetch = None
         self.machine = machine_id(v['machine_id'], self.get_namespace())
-        known = [src for src in self.sources if hasattr(src, 'n_samples')]     # files: known once read
-        self.frame_id = v['frame_id'] or label(self.machine, known[0].rig_name if known else 'daq')
-        self.blocks_total = (sum(n_blocks(src.n_samples, v['block_size']) for src in known)
-                             if len(known) == len(self.sources) else None)
+        self.frame_id = v['frame_id'] or label(self.machine, first.rig_name)
+        self.blocks_total = blocks_total(self.sources, v['block_size'])
         self.skipped = []        # (source, reason) of runs that could not be streamed
         self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
         self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))

@@ -10,6 +10,7 @@ Sources
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 import queue
 import threading
@@ -108,12 +109,12 @@ class DaqFile:
         return RecordingRun(read_daq(self.path))
 
 
-def load_sources(values: dict) -> list:
+def load_sources(values: dict) -> Sequence:
     """
     Return the source's runs from validated parameter ``values``, none of them computed or read yet.
 
-    ``sim``: a :class:`bearing_id.simulation.rig.SimulatedRun` per run and pass (computed piece by piece as it
-    streams; the truth changed from ``truth_change_after`` on);
+    ``sim``: a :class:`SimulatedPlan`, a :class:`bearing_id.simulation.rig.SimulatedRun` per run and pass (each
+    computed piece by piece as it streams; the truth changed from ``truth_change_after`` on);
     ``file``: a :class:`DaqFile` per file and pass (read when its turn comes; each must exist).  Raises ParamError.
     """
     if values['source'] == 'file':
@@ -129,6 +130,9 @@ def load_sources(values: dict) -> list:
         raise ParamError(f"parameter 'rig_params': {values['rig_params'] or 'the packaged rig'} has no simulation "
                          f'section')
     runs = rig.simulation.runs if values['scenario'] == 'default' else rigmod.scenario(values['scenario'])
+    if not runs:
+        raise ParamError(f"parameter 'rig_params': {values['rig_params'] or 'the packaged rig'} has no excitation "
+                         f'runs in its simulation section')
     probes = None
     if values['probes']:
         try:
@@ -146,14 +150,48 @@ def load_sources(values: dict) -> list:
     if values['truth_change_after'] is not None:
         changed = rigmod.changed_truth(rig, values['truth_change_clearance'], values['truth_change_viscosity'])
         changes = ((values['truth_change_after'], changed),)
-    out, t_off = [], 0.0
-    for k in range(values['passes']):
-        for r in runs:
-            out.append(rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model,
-                                              seed=rigmod.run_seed(rig.simulation.seed, r.id, k), t0=t_off,
-                                              truth_changes=changes, truth_at=truth_at))
-            t_off += out[-1].n_samples / out[-1].sample_rate
-    return out
+
+    def make(k, r, t0):
+        return rigmod.simulate_stream(rig, r, schedule, noise=values['noise'], probes=probes, model=model,
+                                      seed=rigmod.run_seed(rig.simulation.seed, r.id, k), t0=t0,
+                                      truth_changes=changes, truth_at=truth_at)
+    return SimulatedPlan(make, runs, values['passes'])
+
+
+class SimulatedPlan(Sequence):
+    """
+    The sim source's runs, pass after pass, as a sequence: run ``i`` is built when it is asked for and not kept.
+
+    Building a :class:`bearing_id.simulation.rig.SimulatedRun` computes no physics; keeping them all would hold every
+    run's segments and the truth it fills in as it streams (a 72-hour plan of 478 runs grew the driver by ~220 MB),
+    and a plan of ``passes`` up to 100,000 would not fit at all.  Every run has the same schedule, so run ``i``
+    starts at stream time :meth:`start` = ``i`` x the run's samples / the sample rate [s].
+    """
+
+    def __init__(self, make, runs, passes: int):
+        self._make, self._runs, self._passes = make, tuple(runs), int(passes)
+        first = make(0, self._runs[0], 0.0)
+        self.n_samples_per_run, self.sample_rate = first.n_samples, first.sample_rate
+
+    def __len__(self) -> int:
+        return len(self._runs) * self._passes
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        if not -len(self) <= i < len(self):
+            raise IndexError(f'run {i} of a plan of {len(self)}')
+        i %= len(self)
+        k, j = divmod(i, len(self._runs))
+        return self._make(k, self._runs[j], self.start(i))
+
+    def start(self, i: int) -> float:
+        """Return the stream time [s] at which run ``i`` starts (``i`` = len: the plan's end)."""
+        return i * self.n_samples_per_run / self.sample_rate
+
+    def n_blocks(self, block_size: int) -> int:
+        """Return the blocks of ``block_size`` the whole plan is cut into (blocks never span two runs)."""
+        return len(self) * n_blocks(self.n_samples_per_run, block_size)
 
 
 def operation_of(values: dict, rig=None):
@@ -206,6 +244,14 @@ def opened(source):
 def n_blocks(n_samples: int, block_size: int) -> int:
     """Return how many blocks of ``block_size`` a run of ``n_samples`` is cut into (the last may be shorter)."""
     return -(-int(n_samples) // int(block_size))
+
+
+def blocks_total(sources, block_size: int):
+    """Return the blocks of ``block_size`` the whole stream of ``sources`` is cut into; None while a file is unread."""
+    if isinstance(sources, SimulatedPlan):
+        return sources.n_blocks(block_size)
+    known = [src for src in sources if hasattr(src, 'n_samples')]     # files: known once read
+    return sum(n_blocks(src.n_samples, block_size) for src in known) if len(known) == len(sources) else None
 
 
 def run_blocks(src, block_size: int):

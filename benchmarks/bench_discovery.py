@@ -1,0 +1,121 @@
+#!/usr/bin/env python
+"""
+Discovery time on this machine: how long a new node takes to match a node already up, with the project's Fast DDS
+profile (``params/fastdds_localhost.xml``) and without it.
+
+Issue 23 asks discovery with the shipped profile within 0.5 s of the default.  Both variants run with
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule) on a domain id of their own.  A trial starts one
+process with a reliable ``std_msgs/String`` publisher, waits ``--lead`` s and starts a subscriber process; the
+later process measures, from its node's creation, the time to its first matched endpoint and to its first message.
+Then the same with the subscriber first (a publisher joining a subscriber that is already up: the sensor_driver
+waiting for its subscribers).  Printed per variant and order: min / median / max over ``--trials``.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_discovery.py [--trials 8] [--lead 2]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import statistics
+import subprocess
+import sys
+import time
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / 'benchmarks'))
+
+from bearing_id.demo import ros_env, stop_processes  # noqa: E402, I100
+from bench_streaming import _domain_id  # noqa: E402
+
+TOPIC = 'bench_discovery'
+WAIT = 15.0          # [s] a trial that has not matched by then counts as this long
+
+
+def child(role: str) -> int:
+    """Run one side: ``pub`` publishes at 50 Hz; ``sub`` listens.  The joining side prints its match times [s]."""
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    rclpy.init()
+    node = rclpy.create_node(f'bench_discovery_{role}')
+    t0 = time.monotonic()
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    got = []
+    if role == 'pub':
+        ep = node.create_publisher(String, TOPIC, qos)
+        count = ep.get_subscription_count
+        node.create_timer(0.02, lambda: ep.publish(String(data='x')))
+    else:
+        ep = node.create_subscription(String, TOPIC, lambda m: got.append(time.monotonic()), qos)
+        count = ep.get_publisher_count
+    matched = None
+    joining = os.environ.get('BENCH_DISCOVERY_JOINING') == '1'
+    try:
+        while rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.005)
+            now = time.monotonic()
+            if matched is None and count() > 0:
+                matched = now - t0
+            if joining and matched is not None and (role == 'pub' or got):
+                first = got[0] - t0 if got else float('nan')
+                print(f'{matched:.4f} {first:.4f}', flush=True)
+                return 0
+            if joining and now - t0 > WAIT:
+                print(f'{WAIT:.4f} nan', flush=True)
+                return 0
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def trial(env: dict, first: str, lead: float) -> float:
+    """Return the joining side's time to its first match [s] (``first``: the role started ``lead`` s before)."""
+    second = 'sub' if first == 'pub' else 'pub'
+    cmd = [sys.executable, str(Path(__file__).resolve()), '--child']
+    up = subprocess.Popen(cmd + [first], env={**env, 'BENCH_DISCOVERY_JOINING': '0'}, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        time.sleep(lead)
+        out = subprocess.run(cmd + [second], env={**env, 'BENCH_DISCOVERY_JOINING': '1'}, capture_output=True,
+                             text=True, timeout=WAIT + 30)
+    finally:
+        stop_processes({first: up}, timeout=10.0)
+    return float(out.stdout.split()[0])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--trials', type=int, default=8, help='trials per variant and order (default 8)')
+    ap.add_argument('--lead', type=float, default=2.0, help='[s] the first process runs this long alone (default 2)')
+    ap.add_argument('--child', choices=('pub', 'sub'), help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        return child(args.child)
+    base = ros_env(_domain_id())
+    variants = {'shipped profile': base,
+                'no profile': {k: v for k, v in base.items()
+                               if k not in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')}}
+    print(f'time to the first match of a joining node [s], {args.trials} trials, lead {args.lead:g} s, load '
+          f'{os.getloadavg()[0]:.2f}')
+    print(f"{'variant':<18} {'joining':<28} {'min':>7} {'median':>7} {'max':>7}")
+    medians = {}
+    for first in ('pub', 'sub'):
+        for name, env in variants.items():
+            t = [trial(env, first, args.lead) for _ in range(args.trials)]
+            medians[name, first] = statistics.median(t)
+            joining = 'subscriber (publisher up)' if first == 'pub' else 'publisher (subscriber up)'
+            print(f'{name:<18} {joining:<28} {min(t):7.3f} {statistics.median(t):7.3f} {max(t):7.3f}', flush=True)
+    for first in ('pub', 'sub'):
+        gap = medians['shipped profile', first] - medians['no profile', first]
+        print(f'median gap, {first} first: {gap:+.3f} s (issue 23: within 0.5 s)')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
