@@ -1,13 +1,12 @@
 #!/usr/bin/env python
 """
-Discovery time on this machine: how long a new node takes to match a node already up, with the project's Fast DDS
-profile (``params/fastdds_localhost.xml``) and without it.
+Discovery time on this machine: a new node's time to match a node already up, with and without the shipped profile.
 
-Issue 23 asks discovery with the shipped profile within 0.5 s of the default.  Both variants run with
-``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule) on a domain id of their own.  A trial starts one
-process with a reliable ``std_msgs/String`` publisher, waits ``--lead`` s and starts a subscriber process; the
-later process measures, from its node's creation, the time to its first matched endpoint and to its first message.
-Then the same with the subscriber first (a publisher joining a subscriber that is already up: the sensor_driver
+The profile is ``params/fastdds_localhost.xml``; issue 23 asks discovery with it within 0.5 s of the default.  Every
+process runs with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (the project's rule) on this benchmark's own domain id,
+one trial after the other.  A trial starts one process with a reliable ``std_msgs/String`` publisher, waits
+``--lead`` s and starts a subscriber process, which measures the time from its node's creation to its first matched
+publisher; then the same with the subscriber first (a publisher joining a subscriber already up: the sensor_driver
 waiting for its subscribers).  Printed per variant and order: min / median / max over ``--trials``.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_discovery.py [--trials 8] [--lead 2]
@@ -93,6 +92,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--trials', type=int, default=8, help='trials per variant and order (default 8)')
     ap.add_argument('--lead', type=float, default=2.0, help='[s] the first process runs this long alone (default 2)')
+    ap.add_argument('--profile', help="also time this Fast DDS profile (XML), e.g. a plant's own")
     ap.add_argument('--child', choices=('pub', 'sub'), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -101,6 +101,9 @@ def main(argv=None) -> int:
     variants = {'shipped profile': base,
                 'no profile': {k: v for k, v in base.items()
                                if k not in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')}}
+    if args.profile:
+        path = str(Path(args.profile).resolve())
+        variants['--profile'] = {**base, 'FASTRTPS_DEFAULT_PROFILES_FILE': path, 'FASTDDS_DEFAULT_PROFILES_FILE': path}
     print(f'time to the first match of a joining node [s], {args.trials} trials, lead {args.lead:g} s, load '
           f'{os.getloadavg()[0]:.2f}')
     print(f"{'variant':<18} {'joining':<28} {'min':>7} {'median':>7} {'max':>7}")

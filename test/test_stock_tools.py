@@ -511,6 +511,46 @@ def test_node_receives_dds_traffic_on_loopback_only(tmp_path):
     assert any(not _is_loopback(s[1]) for s in control), f'control: {control}'
 
 
+_MANY_PARTICIPANTS = """
+import sys, time
+import rclpy
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
+n = int(sys.argv[1])
+ctxs = [rclpy.Context() for _ in range(n)]
+nodes = []
+for k, c in enumerate(ctxs):
+    rclpy.init(context=c)
+    nodes.append(rclpy.create_node(f'participant{k}', context=c))
+qos = QoSProfile(depth=1)
+pubs = [nodes[0].create_publisher(String, 'many', qos), nodes[-2].create_publisher(String, 'many', qos)]
+sub = nodes[-1].create_subscription(String, 'many', lambda m: None, qos)
+t0 = time.monotonic()
+while sub.get_publisher_count() < 2 and time.monotonic() - t0 < 20.0:
+    time.sleep(0.1)
+print(sub.get_publisher_count(), round(time.monotonic() - t0, 2))
+for node, c in zip(nodes, ctxs):
+    node.destroy_node()
+    rclpy.shutdown(context=c)
+"""
+
+
+@pytest.mark.ros
+def test_the_last_of_many_participants_on_one_domain_discover_each_other():
+    """
+    40 participants on one domain with the shipped profile: the last two still match (and the first one).
+
+    Discovery is by unicast to the initial peers' ports only, one per participant id up to ``maxInitialPeersRange``;
+    with the former range of 32, participants 38 and 39 never found each other (their publisher count stayed 1 of 2
+    for 12 s), so a box with more than ten machines' three nodes on one domain would have lost its later machines.
+    The range is 120, the participants one domain holds on one host (2 ports each within the domain's 250).
+    """
+    r = rosutil.run_python(_MANY_PARTICIPANTS, timeout=120.0, args=(40,), env=rosutil.ros_env())
+    assert r.returncode == 0, r.stderr[-2000:]
+    count, seconds = r.stdout.split()
+    assert int(count) == 2, f'publishers matched by participant 39: {count} of 2 after {seconds} s'
+
+
 @pytest.mark.ros
 def test_namespace_params_file_and_param_dump_round_trip(tmp_path):
     """
