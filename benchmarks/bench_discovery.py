@@ -33,7 +33,7 @@ WAIT = 15.0          # [s] a trial that has not matched by then counts as this l
 
 
 def child(role: str) -> int:
-    """Run one side: ``pub`` publishes at 50 Hz; ``sub`` listens.  The joining side prints its match times [s]."""
+    """Run one side: ``pub`` publishes at 50 Hz; ``sub`` listens.  The joining side prints its time to a match [s]."""
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
@@ -42,28 +42,20 @@ def child(role: str) -> int:
     node = rclpy.create_node(f'bench_discovery_{role}')
     t0 = time.monotonic()
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    got = []
     if role == 'pub':
         ep = node.create_publisher(String, TOPIC, qos)
         count = ep.get_subscription_count
         node.create_timer(0.02, lambda: ep.publish(String(data='x')))
     else:
-        ep = node.create_subscription(String, TOPIC, lambda m: got.append(time.monotonic()), qos)
+        ep = node.create_subscription(String, TOPIC, lambda m: None, qos)
         count = ep.get_publisher_count
-    matched = None
     joining = os.environ.get('BENCH_DISCOVERY_JOINING') == '1'
     try:
         while rclpy.ok():
             rclpy.spin_once(node, timeout_sec=0.005)
-            now = time.monotonic()
-            if matched is None and count() > 0:
-                matched = now - t0
-            if joining and matched is not None and (role == 'pub' or got):
-                first = got[0] - t0 if got else float('nan')
-                print(f'{matched:.4f} {first:.4f}', flush=True)
-                return 0
-            if joining and now - t0 > WAIT:
-                print(f'{WAIT:.4f} nan', flush=True)
+            waited = time.monotonic() - t0
+            if joining and (count() > 0 or waited > WAIT):
+                print(f'{min(waited, WAIT):.4f}', flush=True)
                 return 0
     except KeyboardInterrupt:
         pass
