@@ -43,9 +43,18 @@ NODES = ('sensor_driver', 'kf_estimator', 'identifier')
 CORES = 2
 
 
-def start(machine: str, node: str, env: dict, log_dir: Path, params=()) -> subprocess.Popen:
-    """Start one node of ``machine`` in namespace /machine with default parameters (plus ``params``)."""
-    cmd = [sys.executable, '-m', f'bearing_id.nodes.{node}', '--ros-args', '-r', f'__ns:=/{machine}']
+def start(machine: str, node: str, env: dict, log_dir: Path, params=(), floor: bool = False) -> subprocess.Popen:
+    """
+    Start one node of ``machine`` in namespace /machine with default parameters (plus ``params``).
+
+    ``floor``: kf_estimator and identifier are ``transport_floor.py``'s stand-ins (the messages, no computation).
+    """
+    if floor and node != 'sensor_driver':
+        cmd = [sys.executable, str(REPO / 'benchmarks' / 'transport_floor.py'), node]
+        params = ()
+    else:
+        cmd = [sys.executable, '-m', f'bearing_id.nodes.{node}']
+    cmd += ['--ros-args', '-r', f'__ns:=/{machine}']
     for p in params:
         cmd += ['-p', p]
     log = open(log_dir / f'{machine}_{node}.log', 'w')
@@ -69,7 +78,7 @@ def _per_node(c0, c1, wall, machines) -> dict:
     return {n: sum(c1[(mc, n)] - c0[(mc, n)] for mc in machines) / wall / m for n in NODES}
 
 
-def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_s: float) -> dict:
+def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_s: float, floor: bool = False) -> dict:
     """
     Stream ``m`` machines at once (the files in a loop); return the figures of the first pass and of later passes.
 
@@ -87,8 +96,8 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
     try:
         for mc in machines:
             rec = out / mc / 'record'
-            procs[(mc, 'identifier')] = start(mc, 'identifier', env, out, [f'record_dir:={rec}'])
-            procs[(mc, 'kf_estimator')] = start(mc, 'kf_estimator', env, out)
+            procs[(mc, 'identifier')] = start(mc, 'identifier', env, out, [f'record_dir:={rec}'], floor)
+            procs[(mc, 'kf_estimator')] = start(mc, 'kf_estimator', env, out, floor=floor)
             procs[(mc, 'sensor_driver')] = start(mc, 'sensor_driver', env, out, [
                 'wait_for_subscribers:=2', 'source:=file', f"files:=[{','.join(files)}]", f'passes:={passes}'])
         t_end = time.monotonic() + 180
@@ -128,12 +137,17 @@ def main(argv=None) -> int:
     ap.add_argument('--window', type=float, default=20.0, help='measurement window [s] (default 20)')
     ap.add_argument('--settle', type=float, default=5.0, help='seconds into the second pass before the steady window '
                     '(default 5)')
+    ap.add_argument('--floor', action='store_true', help='the transport floor: kf_estimator and identifier replaced by '
+                    'stand-ins that receive (and, for kf_estimator, publish) the same messages and compute nothing '
+                    '(benchmarks/transport_floor.py)')
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         files, pass_s = daq_files(Path(tmp))
         for m in (int(s) for s in args.machines.split(',')):
-            rows.append(run(m, args.window, args.settle, Path(tmp) / f'm{m}', files, pass_s))
+            rows.append(run(m, args.window, args.settle, Path(tmp) / f'm{m}', files, pass_s, args.floor))
+    if args.floor:
+        print('TRANSPORT FLOOR: kf_estimator and identifier are stand-ins that only move the messages')
     print(f'one pass of the files: {pass_s:.1f} s; CPU per machine [core] in the first pass (start-up) and in later '
           f'passes (steady)')
     print('machines  first pass  steady  sensor_driver  kf_estimator  identifier  late blocks  max latency [s]  '

@@ -120,9 +120,10 @@ def peer(spec_path: str, out_path: str) -> int:
             time.sleep(0.004)
     # listen for `listen` s, and on until coefficients at `until_speeds` speeds came (at most 45 s more: an upper
     # bound for a loaded machine, so that no verdict depends on how fast the nodes are)
-    need = int(spec.get('until_speeds', 0))
+    need, need_blocks = int(spec.get('until_speeds', 0)), int(spec.get('until_bearing_blocks', 0))
     t_end, t_hard = time.monotonic() + spec.get('listen', 3.0), time.monotonic() + 45.0
-    while time.monotonic() < t_end or (len(set(got['coefficients'])) < need and time.monotonic() < t_hard):
+    while time.monotonic() < t_end or ((len(set(got['coefficients'])) < need or got['bearing_blocks'] < need_blocks)
+                                       and time.monotonic() < t_hard):
         rclpy.spin_once(node, timeout_sec=0.05)
     Path(out_path).write_text(json.dumps(got))
     node.destroy_node()
@@ -173,12 +174,17 @@ def identifier(tmp_path, env, **kw):
                                 **kw}, env)
 
 
-def drive(recordings, tmp_path, fault, arg=None, listen=4.0, env=None, until_speeds=0):
-    """Publish the recordings with ``fault`` injected; listen ``listen`` s, and on until ``until_speeds`` results."""
+def drive(recordings, tmp_path, fault, arg=None, listen=4.0, env=None, until_speeds=0, until_bearing_blocks=0):
+    """
+    Publish the recordings with ``fault`` injected; listen, and on until enough results and estimates came.
+
+    Listens ``listen`` s, and on (45 s at most) until ``until_speeds`` speeds' coefficients and
+    ``until_bearing_blocks`` bearing-displacement blocks came.
+    """
     spec = tmp_path / f'spec_{fault}.json'
     out = tmp_path / f'out_{fault}.json'
     spec.write_text(json.dumps({'recordings': recordings, 'fault': fault, 'arg': arg, 'listen': listen,
-                                'until_speeds': until_speeds}))
+                                'until_speeds': until_speeds, 'until_bearing_blocks': until_bearing_blocks}))
     r = rosutil.run([rosutil.require_ros(), str(Path(__file__)), 'peer', str(spec), str(out)], timeout=150, env=env)
     assert r.returncode == 0, r.stdout + r.stderr
     return json.loads(out.read_text())
@@ -359,3 +365,20 @@ def test_identifier_restart_resumes_from_its_record(recordings, tmp_path):
             for sym in ('K', 'C'):
                 agreement.assert_coefficients_agree(agreement.floats(b[sym]), getattr(r, sym)[i],
                                                     getattr(r, sym + '_std')[i], r.condition, f'{sym} of bearing {i}')
+
+
+@pytest.mark.parametrize('executor', ['events', 'single_threaded'])
+def test_blocks_waiting_for_their_model_are_estimated_when_it_is_built(recordings, tmp_path, executor):
+    """
+    Every block is estimated, also those still queued for their model when the stream has ended.
+
+    No model is built before the stream (the prebuilt speed is another), and the peer publishes the blocks within
+    a fraction of a second, far faster than a model is built: the last blocks are drained only when the model
+    builder's thread wakes the node, with either executor (the events executor has no guard conditions).
+    """
+    env = rosutil.ros_env()
+    total = -(-load_npz(recordings[0]).samples.shape[0] // BLOCK)      # run A's dwells and ramps
+    with start('kf_estimator', {'prebuild_speeds_rpm': [600.0], 'executor': executor}, env) as node:
+        got = drive(recordings, tmp_path, 'runs', ['A'], listen=1.0, env=env, until_bearing_blocks=total)
+        finish(node)
+    assert got['bearing_blocks'] == total, (got['bearing_blocks'], diag_text(got, 'kf_estimator'))

@@ -59,21 +59,27 @@ def test_params_file_starts_and_sigterm_stops_cleanly(node, tmp_path):
 
 
 @pytest.mark.slow(reason='simulation, three node processes and the offline route (~5-10 s)')
-def test_driver_estimator_identifier_chain_equals_offline(tmp_path):
-    """Simulate -> three processes -> coefficients; the same simulation offline agrees within 0.01 sigma."""
+@pytest.mark.parametrize('executor', ['events', 'single_threaded'])
+def test_driver_estimator_identifier_chain_equals_offline(tmp_path, executor):
+    """
+    Simulate -> three processes -> coefficients; the same simulation offline agrees within 0.01 sigma.
+
+    With either executor the nodes can run (``executor``): the default events executor and the stock one.
+    """
     env = rosutil.ros_env()
     speeds = [1200.0, 2400.0]
     rec_dir = tmp_path / 'rec'
+    ex = ['-p', f'executor:={executor}']
     procs = []
     try:
         procs.append(rosutil.RosProcess([rosutil.script('identifier'), '--ros-args', '-p', 'method:=physical',
-                                         '-p', f'record_dir:={rec_dir}', '-p', 'runs:=[A,B]'], env=env,
+                                         '-p', f'record_dir:={rec_dir}', '-p', 'runs:=[A,B]', *ex], env=env,
                                         hard_timeout=120))
         procs.append(rosutil.RosProcess([rosutil.script('kf_estimator'), '--ros-args', '-p',
-                                         'prebuild_speeds_rpm:=[1200.0,2400.0]'], env=env, hard_timeout=120))
+                                         'prebuild_speeds_rpm:=[1200.0,2400.0]', *ex], env=env, hard_timeout=120))
         drv = rosutil.RosProcess([rosutil.script('sensor_driver'), '--ros-args', '-p', 'speeds_rpm:=[1200.0,2400.0]',
                                   '-p', 'dwell:=1.5', '-p', 'rate_factor:=4.0', '-p', 'wait_for_subscribers:=2',
-                                  '-p', 'exit_when_done:=true'], env=env, hard_timeout=120)
+                                  '-p', 'exit_when_done:=true', *ex], env=env, hard_timeout=120)
         procs.append(drv)
         assert drv.wait(90) == 0, drv.output()
         t_end = time.monotonic() + 30
@@ -113,6 +119,7 @@ from rclpy.node import Node
 
 def make():
     node = Node('raiser')
+    node.declare_parameter('executor', 'EXECUTOR')
     ticks = []
 
     def tick():
@@ -130,8 +137,9 @@ sys.exit(run_node('raiser', 'test node', [], make, ['raiser']))
 """
 
 
-def test_a_failing_callback_is_logged_with_its_traceback_and_the_node_goes_on():
-    r = rosutil.run_python(RAISING_NODE, timeout=60)
+@pytest.mark.parametrize('executor', ['events', 'single_threaded'])
+def test_a_failing_callback_is_logged_with_its_traceback_and_the_node_goes_on(executor):
+    r = rosutil.run_python(RAISING_NODE.replace('EXECUTOR', executor), timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
     assert 'ticks 8' in r.stdout, r.stdout + r.stderr      # the timer kept firing after both failures
     assert r.stderr.count('callback failed') == 2 and "KeyError: 'bug'" in r.stderr, r.stderr

@@ -46,11 +46,10 @@ class KFEstimator(Node):
         self.rig = rig
         self.machine = machine_id(v['machine_id'], self.get_namespace())
         channels = v['channels'] or [p.name for p in rig.probes]
-        # blocks waiting for a model are drained when the builder thread has it (a guard condition wakes the
-        # executor), not by polling: an idle node costs no CPU
-        self._model_ready = self.create_guard_condition(self.drain)
+        # blocks waiting for a model are drained when the builder thread has it (a task handed to the executor
+        # wakes it), not by polling: an idle node costs no CPU
         self.core = EstimatorCore(rig, v['process_noise'], v['measurement_noise'], v['speed_band'],
-                                  v['max_pending_blocks'], v['nis_window'], on_ready=self._model_ready.trigger,
+                                  v['max_pending_blocks'], v['nis_window'], on_ready=self._model_ready,
                                   cutoff=v['model_cutoff'])
         self.monitor = StreamMonitor(TOPIC_DISPLACEMENT, channels, v['max_displacement'])
         self.resolver = RunResolver(v['max_pending_blocks'])
@@ -181,6 +180,12 @@ class KFEstimator(Node):
             return
         self._submit(b, run, speed, chk.contiguous)
         self.drain()
+
+    def _model_ready(self):
+        """Drain the blocks waiting for a model on the executor's thread (called by the model builder's thread)."""
+        ex = self.executor
+        if ex is not None:
+            ex.create_task(self.drain)
 
     def _submit(self, b, run, speed, contiguous):
         err = self.core.submit(b, run, speed, contiguous)

@@ -18,6 +18,7 @@ import traceback
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
@@ -77,6 +78,23 @@ def parse_cli(prog: str, description: str, specs: list[ParamSpec], argv=None):
 CLOSE_TRACE_AFTER = 6.0      # s: a node's close() still running after this prints every thread's stack to stderr
 TEARDOWN_LIMIT = 2.0         # s: the DDS teardown after close() is abandoned after this (see _middleware_teardown)
 TEARDOWN_HARD_LIMIT = 4.0    # s: ... and the process ended from outside the interpreter this long after it began
+EXECUTOR_SHUTDOWN = 1.0      # s: the executor's shutdown waits this long for a callback still running
+
+
+def make_executor(node):
+    """
+    Return the executor the node's ``executor`` parameter names (events unless ``single_threaded``).
+
+    ``events`` is rclpy's :class:`rclpy.experimental.EventsExecutor`: rmw calls back as a message arrives and the
+    callback is dispatched from C++, where the stock executor rebuilds and scans a wait set of every subscription,
+    timer, service and QoS event at each wake-up (a third of a streaming node's CPU on this machine:
+    ``benchmarks/bench_machines.py``).  It has no guard conditions: a node wakes itself from another thread with
+    ``node.executor.create_task(callback)``, which both executors run on their spinning thread.
+    """
+    kind = node.get_parameter('executor').value if node.has_parameter('executor') else 'single_threaded'
+    if kind == 'events':
+        return EventsExecutor()
+    return SingleThreadedExecutor()
 
 
 def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=None) -> int:
@@ -91,6 +109,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
     stop = StopFlag().install()
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
+    ex = None
     code = 0
     try:
         try:
@@ -111,7 +130,7 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
             print(f'{prog}: cannot start: {str(exc).strip()}', file=sys.stderr)
             code = 2
             return code
-        ex = SingleThreadedExecutor()
+        ex = make_executor(node)
         ex.add_node(node)
         failures = 0
         while not stop.event.is_set() and rclpy.ok() and not getattr(node, 'finished', False):
@@ -125,6 +144,8 @@ def run_node(prog: str, description: str, specs: list[ParamSpec], factory, argv=
     finally:
         _trace_later(CLOSE_TRACE_AFTER)      # a close() that hangs leaves its stacks in the log
         try:
+            if ex is not None:
+                ex.shutdown(timeout_sec=EXECUTOR_SHUTDOWN)   # no callback runs once the node is being closed
             if node is not None and hasattr(node, 'close'):
                 node.close()
         finally:

@@ -147,6 +147,8 @@ def is_unset(v) -> bool:
 INPUT_RELIABILITY = ('reliable', 'best_effort')
 
 # Parameters every node declares (appended to its own specs by with_common()).
+EXECUTORS = ('events', 'single_threaded')
+
 COMMON_SPECS = [
     ParamSpec('input_reliability', 'reliable',
               "reliability this node's stream subscriptions request (displacement, speed, bearing displacement; "
@@ -157,6 +159,11 @@ COMMON_SPECS = [
     ParamSpec('machine_id', '', 'the machine this node serves: prefixes its /diagnostics status names and is their '
               "hardware_id, the coefficients' frame_id and the machine named in the identifier's record (empty: the "
               'node namespace without its leading slash; in the root namespace none, and the rig name identifies it)'),
+    ParamSpec('executor', 'events',
+              "how the node's callbacks are dispatched: events = rclpy's events executor (each message or timer "
+              'dispatched from C++ as it arrives: about a third of the CPU the single-threaded executor spends '
+              'rebuilding its wait set on every wake-up); single_threaded = rclpy.executors.SingleThreadedExecutor '
+              '(the stock executor, should the events executor misbehave on a middleware)', choices=EXECUTORS),
 ]
 
 
