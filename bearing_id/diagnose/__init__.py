@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import candidates, EFFECT_NAMES
-from .floor import adopt, chi2_dof, floor_problem, form_row, noise_floor_check, refine
+from .effects import candidates, EFFECT_NAMES, SupportFlexibility
+from .floor import adopt, chi2_dof, effects_row, floor_problem, form_row, noise_floor_check, refine
 from .locate import locate_mismatch, Mismatch, Observations, observe
 from .predict import Problem
 from .selection import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
@@ -180,6 +180,41 @@ def _settle_form(prob, fprob, s, cands, dbic_min):
     return s
 
 
+def _settle_location(prob, fprob, s, cands, dbic_min):
+    """
+    Tell the location the selection took for an effect from the ones that fit about as well, at the noise floor.
+
+    At the model tolerance two placements of one effect can fit about as well (a pedestal under one bearing or the
+    other; a crack in one element or the next); on identify's 1X vectors they can separate.  For each selected
+    effect with such alternatives (``s.ambiguous``), each placement is fitted there with the other effects; the one
+    with the lowest BIC is kept (the selection's final fit re-made with it when it is another) and the ambiguity is
+    dropped when the noise floor resolves it (BIC difference above ``dbic_min``).  A pedestal selected flexible in
+    one direction is also tried flexible in both there (the selection screens one direction at a time: a pedestal
+    soft in both is found by its softer direction).  Bearing model forms are :func:`_settle_form`'s.
+    """
+    for chosen in [e for e in s.final.effects if e.name != 'bearing_model_form']:
+        label = chosen.label
+        rest = [e for e in s.final.effects if e is not chosen]
+        wheres = {w for w, _ in s.ambiguous.get(label, [])}
+        alts = [c for c in cands if c.name == chosen.name and c.where in wheres and c.label != label
+                and not any(conflicts(c, e) for e in rest)]
+        if isinstance(chosen, SupportFlexibility) and len(chosen.directions) == 1:
+            alts.append(SupportFlexibility(chosen.bearing_index, chosen.node, 'xy', chosen.mass, chosen.speeds))
+        if not alts:
+            continue
+        bic = {c.label: fit(fprob, rest + [c], uncertainty=False).bic for c in [chosen] + alts}
+        best = min([chosen] + alts, key=lambda c: bic[c.label])
+        gap = min(abs(bic[c.label] - bic[best.label]) for c in [chosen] + alts if c is not best)
+        if gap <= dbic_min:
+            continue
+        s.ambiguous.pop(label, None)
+        if best is not chosen:
+            effs = [best if e is chosen else e for e in s.final.effects]
+            s.final = fit(prob, effs, theta0=s.final.theta)
+            s.selected = list(effs)
+    return s
+
+
 def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02, nuisance: bool = True,
              effects=EFFECT_NAMES, max_effects: int = 3, dbic_min: float = 10.0, threshold: float = 5.0,
              chi2_floor: float = 1.5, unbalance_planes=None, model=None, noise_floor: bool = True) -> Diagnosis:
@@ -221,6 +256,7 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance) if noise_floor
                     else (None, ''))
     if fprob is not None:
+        s = _settle_location(prob, fprob, s, cands, dbic_min)
         have_form = any(e.name == 'bearing_model_form' for e in s.final.effects)
         if have_form:
             s = _settle_form(prob, fprob, s, cands, dbic_min)
@@ -230,10 +266,11 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         if fc.misfit and fc.adopted is None and forms:
             # a form and an effect may hide each other: run the selection under each form
             others = [c for c in cands if c.name != 'bearing_model_form']
-            best = None
+            best, bare = None, None
             for form in forms:
                 s2 = select(prob, others, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor,
                             peak_sigma=threshold, folds=folds, start=[form], base=s.base)
+                s2 = _settle_location(prob, fprob, s2, others, dbic_min)
                 row, f2 = form_row(fprob, s2.final.effects, form, dbic_min=dbic_min)
                 ok = (row['validated'] and row['chi2_dof'] <= 0.5 * fc.chi2_dof
                       and s2.final.bic <= s.final.bic + dbic_min)
@@ -241,10 +278,32 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                                  'effects': [e.label for e in s2.final.effects if e is not form]})
                 if ok and (best is None or row['chi2_dof'] < best[2]['chi2_dof']):
                     best = (form, s2, row)
+                kept = [e for e in s2.final.effects if e is not form]
+                if not row['validated'] and kept:
+                    # the form adds nothing to the effects found under it once they are placed at the noise floor:
+                    # those effects may explain the misfit on the nominal bearing theory
+                    erow, _ = effects_row(fprob, kept, dbic_min=dbic_min)
+                    fc.effects_rows.append({**erow, 'found_under': form.where})
+                    if erow['validated'] and (bare is None or erow['chi2_dof'] < bare[1]['chi2_dof']):
+                        bare = (kept, erow, s2)
             if best is not None:
                 form, s2, row = best
                 adopt(fc, fprob, s2.final.effects, form, row, path='selection under this form')
                 s = s2
+            elif bare is not None:
+                kept, erow, s2 = bare
+                f = fit(prob, kept)
+                # ... and only when they leave no located mismatch at the model tolerance on the nominal theory
+                left = locate_mismatch(obs, prob.prediction_by_window(f.theta, f.effects, f.nls, f.lin),
+                                       [f.sub_pred.get(k) for k in range(len(obs.windows))] if prob.has_sub else None,
+                                       rel_tol=rel_tol, threshold=threshold)
+                erow['mismatch_left'] = bool(left)
+                if not left:
+                    v = {'validated': True, 'heldout_reduction': erow['heldout_reduction'], 'noise_floor': True,
+                         'row': erow, 'chi2_dof_before': fc.chi2_dof}
+                    s = Selection(base=s.base, final=f, rounds=[(s.base, [(f, v)])], selected=list(kept),
+                                  ambiguous={k: a for k, a in s2.ambiguous.items() if any(e.label == k for e in kept)})
+                    fc.path = 'effects found under a bearing model form, kept without it'
         if fc.adopted is not None:
             # the form and the bearing factors under it come from the noise-floor fit (the data that determine
             # them); the other effects are re-fitted on the diagnosis' data with those bearings

@@ -78,6 +78,7 @@ class FloorCheck:
     threshold: float
     n: int = 0
     forms: list = field(default_factory=list)
+    effects_rows: list = field(default_factory=list)
     adopted: object = None
     adopted_row: dict | None = None
     adopted_fit: object = None
@@ -92,7 +93,8 @@ class FloorCheck:
         return {'chi2_dof_nominal': self.chi2_dof_none, 'threshold_nominal': self.threshold_none,
                 'misfit_nominal': bool(self.chi2_dof_none > self.threshold_none),
                 'chi2_dof': self.chi2_dof, 'misfit': self.misfit, 'threshold': self.threshold, 'n': self.n,
-                'forms': self.forms, 'adopted': None if self.adopted is None else self.adopted.where,
+                'forms': self.forms, 'effects_without_form': self.effects_rows,
+                'adopted': None if self.adopted is None else self.adopted.where,
                 'path': self.path, 'chi2_dof_after': self.chi2_dof_after,
                 'misfit_after': bool(self.chi2_dof_after > self.threshold),
                 'parameters_fitted_at': self.refined or None,
@@ -159,6 +161,38 @@ def form_row(fprob, effects, form, *, dbic_min: float = 10.0, min_reduction: flo
                      folds=folds if folds is not None else speed_folds(fprob))
     row = {'form': form.where, 'chi2_dof': chi2_dof(f), 'delta_bic': dbic, 'explained': float(explained),
            'validated': bool(v and v['validated']),
+           'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
+    return row, f
+
+
+EFFECTS_MIN_REDUCTION = 0.9    # share of the noise-floor chi2 effects found under a form must remove without it
+
+
+def effects_row(fprob, effects, *, dbic_min: float = 10.0, min_reduction: float = EFFECTS_MIN_REDUCTION,
+                folds=None):
+    """
+    Test whether ``effects`` (found by the selection under a bearing model form) explain the noise-floor misfit alone.
+
+    The selection under a form can find an effect the nominal theory's model tolerance hid (its response change below
+    the tolerance), and the form itself may then add nothing at the noise floor (:func:`form_row` not validated).
+    The effects are kept on the nominal bearing theory only when, on identify's 1X vectors, they remove at least
+    ``min_reduction`` of the nominal model's chi2 (default 90 %: far beyond what a generic model imperfection
+    would give), lower the BIC by more than ``dbic_min``, leave every refitted bearing factor within two prior
+    sigmas of nominal (a nuisance that moves beyond its prior band may not absorb what the effects leave), and pass
+    the held-out validation there (fit on half the speeds, predict the other half, both ways).  Returns (row dict,
+    fit): effects, chi2_dof, delta_bic, explained, nuisance_in_band, validated, heldout_reduction.
+    """
+    base = fit(fprob, [], uncertainty=False)
+    f = fit(fprob, list(effects), uncertainty=False)
+    explained = 1.0 - f.chi2 / max(base.chi2, 1e-300)
+    dbic = float(base.bic - f.bic)
+    in_band = bool(np.all(np.abs(np.asarray(f.theta, float)) <= 2.0 * fprob.prior_sigma))
+    v = None
+    if dbic > dbic_min and explained >= min_reduction and in_band:
+        v = validate(fprob, list(effects), [], frac_in=explained,
+                     folds=folds if folds is not None else speed_folds(fprob))
+    row = {'effects': [e.label for e in effects], 'chi2_dof': chi2_dof(f), 'delta_bic': dbic,
+           'explained': float(explained), 'nuisance_in_band': in_band, 'validated': bool(v and v['validated']),
            'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
     return row, f
 
@@ -240,5 +274,5 @@ def refine(prob, fprob, final, threshold: float):
     return f, ff, 'noise floor'
 
 
-__all__ = ['FloorCheck', 'refine', 'floor_problem', 'noise_floor_check', 'form_row', 'adopt', 'identify_vectors',
-           'misfit_threshold']
+__all__ = ['FloorCheck', 'refine', 'floor_problem', 'noise_floor_check', 'form_row', 'effects_row', 'adopt',
+           'identify_vectors', 'misfit_threshold']
