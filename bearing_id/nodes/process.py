@@ -87,7 +87,7 @@ def make_executor(node):
 
     ``events`` is rclpy's :class:`rclpy.experimental.EventsExecutor`: rmw calls back as a message arrives and the
     callback is dispatched from C++, where the stock executor rebuilds and scans a wait set of every subscription,
-    timer, service and QoS event at each wake-up (a third of a streaming node's CPU on this machine:
+    timer, service and QoS event at each wake-up (a machine's three nodes take 17 % more CPU with it on this machine:
     ``benchmarks/bench_machines.py``).  It has no guard conditions: a node wakes itself from another thread with
     ``node.executor.create_task(callback)``, which both executors run on their spinning thread.
     """
