@@ -150,20 +150,22 @@ def _nuisance_words(prob, theta) -> list:
     return out
 
 
-def _settle_form(prob, fprob, s, cands, dbic_min):
-    """
-    Tell the bearing model form the selection took from the other forms at the noise floor.
+def _mismatch_left(prob, f, pred, rel_tol, threshold) -> list:
+    """Return the mismatch located against fit ``f``, ``pred`` its per-window prediction (sub-synchronous: its own)."""
+    sub = [f.sub_pred.get(k) for k in range(len(prob.obs.windows))] if prob.has_sub else None
+    return locate_mismatch(prob.obs, pred, sub, rel_tol=rel_tol, threshold=threshold)
 
-    At the model tolerance two forms can fit about as well (e.g. the short and the finite bearing, each with its
-    factors refitted); on identify's 1X vectors they separate.  The form with the lowest BIC there is kept (the
-    selection's final fit is re-made with it when it is another one) and the tolerance-level ambiguity between forms
-    is dropped when the noise floor resolves it (BIC difference above ``dbic_min``).
+
+def _keep_best_at_floor(prob, fprob, s, chosen, alts, dbic_min):
     """
-    i = next(n for n, e in enumerate(s.final.effects) if e.name == 'bearing_model_form')
-    chosen = s.final.effects[i]
+    Keep whichever of ``chosen`` (a selected effect) and ``alts`` has the lowest BIC on identify's 1X vectors.
+
+    Each is fitted there with the other selected effects.  When the best is ``dbic_min`` or more ahead of every other
+    one, the tolerance-level ambiguity of ``chosen`` is dropped and, if the best is another, the selection's final fit
+    is re-made with it; otherwise ``s`` is left as it is.
+    """
     rest = [e for e in s.final.effects if e is not chosen]
-    alts = [c for c in cands if c.name == 'bearing_model_form' and c.label != chosen.label
-            and not any(conflicts(c, e) for e in rest)]
+    alts = [c for c in alts if c.label != chosen.label and not any(conflicts(c, e) for e in rest)]
     if not alts:
         return s
     bic = {c.label: fit(fprob, rest + [c], uncertainty=False).bic for c in [chosen] + alts}
@@ -173,11 +175,24 @@ def _settle_form(prob, fprob, s, cands, dbic_min):
         return s
     s.ambiguous.pop(chosen.label, None)
     if best is not chosen:
-        effs = list(s.final.effects)
-        effs[i] = best
+        effs = [best if e is chosen else e for e in s.final.effects]
         s.final = fit(prob, effs, theta0=s.final.theta)
         s.selected = list(effs)
     return s
+
+
+def _settle_form(prob, fprob, s, cands, dbic_min):
+    """
+    Tell the bearing model form the selection took from the other forms at the noise floor.
+
+    At the model tolerance two forms can fit about as well (e.g. the short and the finite bearing, each with its
+    factors refitted); on identify's 1X vectors they separate.  The form with the lowest BIC there is kept (the
+    selection's final fit is re-made with it when it is another one) and the tolerance-level ambiguity between forms
+    is dropped when the noise floor resolves it (BIC difference above ``dbic_min``).
+    """
+    chosen = next(e for e in s.final.effects if e.name == 'bearing_model_form')
+    return _keep_best_at_floor(prob, fprob, s, chosen, [c for c in cands if c.name == 'bearing_model_form'],
+                               dbic_min)
 
 
 def _settle_location(prob, fprob, s, cands, dbic_min):
@@ -193,25 +208,11 @@ def _settle_location(prob, fprob, s, cands, dbic_min):
     soft in both is found by its softer direction).  Bearing model forms are :func:`_settle_form`'s.
     """
     for chosen in [e for e in s.final.effects if e.name != 'bearing_model_form']:
-        label = chosen.label
-        rest = [e for e in s.final.effects if e is not chosen]
-        wheres = {w for w, _ in s.ambiguous.get(label, [])}
-        alts = [c for c in cands if c.name == chosen.name and c.where in wheres and c.label != label
-                and not any(conflicts(c, e) for e in rest)]
+        wheres = {w for w, _ in s.ambiguous.get(chosen.label, [])}
+        alts = [c for c in cands if c.name == chosen.name and c.where in wheres]
         if isinstance(chosen, SupportFlexibility) and len(chosen.directions) == 1:
             alts.append(SupportFlexibility(chosen.bearing_index, chosen.node, 'xy', chosen.mass, chosen.speeds))
-        if not alts:
-            continue
-        bic = {c.label: fit(fprob, rest + [c], uncertainty=False).bic for c in [chosen] + alts}
-        best = min([chosen] + alts, key=lambda c: bic[c.label])
-        gap = min(abs(bic[c.label] - bic[best.label]) for c in [chosen] + alts if c is not best)
-        if gap <= dbic_min:
-            continue
-        s.ambiguous.pop(label, None)
-        if best is not chosen:
-            effs = [best if e is chosen else e for e in s.final.effects]
-            s.final = fit(prob, effs, theta0=s.final.theta)
-            s.selected = list(effs)
+        s = _keep_best_at_floor(prob, fprob, s, chosen, alts, dbic_min)
     return s
 
 
@@ -294,9 +295,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                 kept, erow, s2 = bare
                 f = fit(prob, kept)
                 # ... and only when they leave no located mismatch at the model tolerance on the nominal theory
-                left = locate_mismatch(obs, prob.prediction_by_window(f.theta, f.effects, f.nls, f.lin),
-                                       [f.sub_pred.get(k) for k in range(len(obs.windows))] if prob.has_sub else None,
-                                       rel_tol=rel_tol, threshold=threshold)
+                left = _mismatch_left(prob, f, prob.prediction_by_window(f.theta, f.effects, f.nls, f.lin),
+                                      rel_tol, threshold)
                 erow['mismatch_left'] = bool(left)
                 if not left:
                     v = {'validated': True, 'heldout_reduction': erow['heldout_reduction'], 'noise_floor': True,
@@ -382,8 +382,7 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     pred_final = (pred_base if final is base else
                   prob.prediction_by_window(final.theta, final.effects, final.nls, final.lin))
     if names:
-        sub_final = [final.sub_pred.get(k) for k in range(len(obs.windows))] if prob.has_sub else None
-        remaining = locate_mismatch(obs, pred_final, sub_final, rel_tol=rel_tol, threshold=threshold)
+        remaining = _mismatch_left(prob, final, pred_final, rel_tol, threshold)
     sig = None
     if unexplained or misfit_after or remaining:
         sig = residual_signature(prob, final, threshold=3.0, pred=pred_final)

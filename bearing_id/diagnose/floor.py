@@ -153,16 +153,25 @@ def form_row(fprob, effects, form, *, dbic_min: float = 10.0, min_reduction: flo
     effects = [e for e in effects if e is not form]
     base = fit(fprob, effects, uncertainty=False) if base is None else base
     f = fit(fprob, effects + [form], theta0=base.theta, uncertainty=False)
+    return {'form': form.where, **_gain(fprob, base, f, effects, dbic_min, min_reduction, True, folds)}, f
+
+
+def _gain(fprob, base, f, base_effects, dbic_min, min_reduction, allowed, folds) -> dict:
+    """
+    Row of what fit ``f`` gains over ``base`` (of ``base_effects``) on the noise-floor problem.
+
+    chi2_dof (of ``f``), delta_bic, explained (chi2 share removed), validated (held-out, only tried when the BIC drop
+    exceeds ``dbic_min``, the share ``min_reduction`` and ``allowed``), heldout_reduction.
+    """
     explained = 1.0 - f.chi2 / max(base.chi2, 1e-300)
     dbic = float(base.bic - f.bic)
     v = None
-    if dbic > dbic_min and explained >= min_reduction:
-        v = validate(fprob, effects + [form], effects, frac_in=explained,
+    if dbic > dbic_min and explained >= min_reduction and allowed:
+        v = validate(fprob, list(f.effects), list(base_effects), frac_in=explained,
                      folds=folds if folds is not None else speed_folds(fprob))
-    row = {'form': form.where, 'chi2_dof': chi2_dof(f), 'delta_bic': dbic, 'explained': float(explained),
-           'validated': bool(v and v['validated']),
-           'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
-    return row, f
+    return {'chi2_dof': chi2_dof(f), 'delta_bic': dbic, 'explained': float(explained),
+            'validated': bool(v and v['validated']),
+            'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
 
 
 EFFECTS_MIN_REDUCTION = 0.9    # share of the noise-floor chi2 effects found under a form must remove without it
@@ -184,17 +193,9 @@ def effects_row(fprob, effects, *, dbic_min: float = 10.0, min_reduction: float 
     """
     base = fit(fprob, [], uncertainty=False)
     f = fit(fprob, list(effects), uncertainty=False)
-    explained = 1.0 - f.chi2 / max(base.chi2, 1e-300)
-    dbic = float(base.bic - f.bic)
     in_band = bool(np.all(np.abs(np.asarray(f.theta, float)) <= 2.0 * fprob.prior_sigma))
-    v = None
-    if dbic > dbic_min and explained >= min_reduction and in_band:
-        v = validate(fprob, list(effects), [], frac_in=explained,
-                     folds=folds if folds is not None else speed_folds(fprob))
-    row = {'effects': [e.label for e in effects], 'chi2_dof': chi2_dof(f), 'delta_bic': dbic,
-           'explained': float(explained), 'nuisance_in_band': in_band, 'validated': bool(v and v['validated']),
-           'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
-    return row, f
+    return {'effects': [e.label for e in effects], 'nuisance_in_band': in_band,
+            **_gain(fprob, base, f, [], dbic_min, min_reduction, in_band, folds)}, f
 
 
 def noise_floor_check(fprob, effects, form_candidates, *, dbic_min: float = 10.0, min_reduction: float = 0.5,
