@@ -167,6 +167,21 @@ def probe_direction(angle_deg: float = 0.0, gain: float = 1.0) -> str:
     return text if g == 1.0 else f'{text}*{g!r}'
 
 
+def direction_words(direction: str) -> str:
+    """
+    Return a probe direction ('x', 'y', '45deg', '135deg*1.02', ...) in words for a person.
+
+    'horizontal (x)' at 0 deg, 'vertical (y)' at 90 deg, else 'at <angle>° from +x towards +y' (the gain is not
+    part of the direction).
+    """
+    angle = parse_probe_direction(direction)[0]
+    if angle == 0.0:
+        return 'horizontal (x)'
+    if angle == 90.0:
+        return 'vertical (y)'
+    return f'at {angle:g}° from +x towards +y'
+
+
 def parse_probe_direction(direction: str) -> tuple[float, float]:
     """
     Return (angle [deg], gain [-]) of a probe direction text ('x', 'y', '45deg', '135deg*1.02', ...).

@@ -72,3 +72,11 @@ def test_units():
     assert cv.rad_s_to_rpm(2 * math.pi) == pytest.approx(60.0)
     assert np.allclose(cv.rpm_to_rad_s([0, 30]), [0, math.pi])
     assert cv.COEFF_ORDER == ('xx', 'xy', 'yx', 'yy')
+
+
+@pytest.mark.parametrize('direction, words', [('x', 'horizontal (x)'), ('y*1.02', 'vertical (y)'),
+                                              (cv.probe_direction(45.0), 'at 45° from +x towards +y'),
+                                              (cv.probe_direction(-45.0, 0.98), 'at -45° from +x towards +y')])
+def test_a_probe_direction_in_words_names_its_angle(direction, words):
+    # a +-45 deg probe was called "vertical (y)" (issue 24): only 0 and 90 deg are horizontal and vertical
+    assert cv.direction_words(direction) == words

@@ -6,8 +6,8 @@ The recordings are ``test/data/ross/faults/*.npz``, made by ``scripts/ross_fault
 paper rig's shaft (see README.json there: parameters, step-size convergence, and ``truth``: what ROSS's fault object
 says about the fault's size, e.g. the coupling's 2X reaction force computed by ROSS over one revolution).  The
 ``_nominal`` set runs on the project's own nominal bearings (the model diagnose starts from); the reference set on
-ROSS-style constant bearings the model does not have.  ``pedestal_nominal`` (``scripts/ross_pedestal.py``) puts
-bearing 2 on a pedestal ROSS's way (n_link to a support node with a point mass and a support bearing).  1 % white
+ROSS-style constant bearings the model does not have.  ``pedestal*_nominal`` (``scripts/ross_pedestal.py``) put
+a bearing on a pedestal ROSS's way (n_link to a support node with a point mass and a support bearing).  1 % white
 noise (of each channel's RMS) is added here, seeded.
 
 Right answers (issue 24): a library fault is named and sized within 15 % (or its size is reported not determined:
@@ -127,20 +127,25 @@ def test_a_ross_rub_on_bearings_the_model_lacks_gets_no_wrong_name(rig):
         assert set(d.signature['speeds_rpm']) & contact, (d.signature['speeds_rpm'], contact)
 
 
-def test_a_ross_pedestal_is_named_at_its_bearing_and_sized_without_the_bearings_absorbing_it(rig):
+@pytest.mark.parametrize('name, seed', [('pedestal', 4), ('pedestal_b1', 8)])
+def test_a_ross_pedestal_is_named_at_its_bearing_and_sized_without_the_bearings_absorbing_it(rig, name, seed):
     """
-    A pedestal ROSS made under bearing 2 (flexible in x and y; its response change stays below the model tolerance).
+    A pedestal ROSS made is named at its bearing (its response change stays below the model tolerance).
 
-    It was "none": the bearing-2 viscosity refitted to x0.46 absorbed it; then, with the pedestal found only under a
-    finite-bearing form, a wrong form name beside it.  The right answer: support flexibility at bearing 2, the
-    bearing factors left near 1, and each pedestal stiffness and dynamic stiffness within 15 % of ROSS's or not
-    determined.
+    Under bearing 2 it is stiffer in y; under bearing 1 as soft in x as in y, and heavier.
+
+    Under bearing 2 it was "none": the bearing-2 viscosity refitted to x0.46 absorbed it; then, with the pedestal found
+    only under a finite-bearing form, a wrong form name beside it.  Under bearing 1 a disc mass error at node 4 fitted
+    it about as well at the model tolerance and was named, validated, though it misfits identify's vectors at the noise
+    floor (chi2/dof 2.9e3).  The right answer: support flexibility at its bearing, the bearing factors left near 1,
+    and each pedestal stiffness and dynamic stiffness within 15 % of ROSS's or not determined.
     """
-    truth = README['sets']['nominal']['faults']['pedestal']['truth']
-    d = diagnose(noisy('pedestal_nominal', 4), rig)
+    truth = README['sets']['nominal']['faults'][name]['truth']
+    d = diagnose(noisy(f'{name}_nominal', seed), rig)
     assert d.verdict == 'support_flexibility', d.sentences
     (eff,) = d.effects
-    assert f"bearing 2 (node {truth['bearing_node']})" in eff['where'], eff['where']
+    nth = [b.node for b in rig.bearings].index(truth['bearing_node']) + 1
+    assert f"bearing {nth} (node {truth['bearing_node']})" in eff['where'], eff['where']
     p, sd = eff['parameters'], eff['std']
     low, high = (str(r) for r in (min(README['speeds_rpm']), max(README['speeds_rpm'])))
     for dr in 'xy':

@@ -212,12 +212,11 @@ def test_cli_misfit_exits_1_and_allow_misfit_prints_flagged(recordings, tmp_path
 
 
 # ------------------------------------------------------------------ a machine imported from ROSS (test/data/ross)
-@pytest.fixture(scope='module')
-def compressor():
+def compressor_params(dwell: float = 1.0) -> dict:
     """
     Return the 6-stage compressor ROSS 2.3.0 saved, as import-ross gives it, with +-45 deg probe pairs at 3 nodes.
 
-    Returns (params dict, its rig, its model): bearing tables and seal tables as ROSS saved them, no clearance.
+    Bearing tables and seal tables as ROSS saved them, no clearance; two unbalance runs at ``CRPM``, ``dwell`` s each.
     """
     d = ross_import.import_ross(ROSS_DATA / 'compressor.toml')
     d.pop('_notes', None)
@@ -225,11 +224,18 @@ def compressor():
                    for e, a in (('a', 45.0), ('b', 135.0))]
     discs = [x['node'] for x in d['discs']]
     d['simulation'] = {
-        'sample_rate': 4096.0, 'speeds_rpm': CRPM, 'dwell': 1.0, 'noise': 0.01, 'truth': {},
+        'sample_rate': 4096.0, 'speeds_rpm': CRPM, 'dwell': dwell, 'noise': 0.01, 'truth': {},
         'runs': [{'id': 'A', 'excitation': [{'kind': 'unbalance', 'node': discs[1], 'magnitude': 2e-4}]},
                  {'id': 'B', 'excitation': [{'kind': 'unbalance', 'node': discs[-2], 'magnitude': 2e-4,
                                              'phase_deg': 90.0},
                                             {'kind': 'unbalance', 'node': discs[2], 'magnitude': 1e-4}]}]}
+    return d
+
+
+@pytest.fixture(scope='module')
+def compressor():
+    """Return (params dict, its rig, its model) of :func:`compressor_params`."""
+    d = compressor_params()
     rig = parse_rig(d)
     return d, rig, RotorModel.from_params(rig)
 

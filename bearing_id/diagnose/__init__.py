@@ -12,8 +12,9 @@ Library call::
 Pipeline: :mod:`.locate` (harmonic vectors, residuals, significance) -> :mod:`.predict` (model prediction with the
 bearing nuisance) -> :mod:`.effects` (candidate physics) -> :mod:`.selection` (fit, BIC, held-out validation, greedy
 selection) -> :mod:`.floor` (identify's noise-floor misfit test on the result; the bearing model form tried there)
--> :mod:`.signature` (where an unexplained residual lives, what it resembles, what to measure next) -> :mod:`.report`
-(JSON, augmented params YAML, plots).
+-> :mod:`.bearings` (the bearings identify gives on its vectors, judged there against the model with effects: the
+``bearing_mismatch`` verdict) -> :mod:`.signature` (where an unexplained residual lives, what it resembles, what to
+measure next) -> :mod:`.report` (JSON, augmented params YAML, plots).
 
 Bearing uncertainty: the nominal bearing theory is not trusted blindly.  Every hypothesis, "none" included, refits a
 viscosity and a clearance factor per bearing (a Gaussian prior of 0.3 in log units around nominal, bounded to
@@ -37,8 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .bearings import bearing_mismatch
 from .effects import candidates, EFFECT_NAMES, SupportFlexibility
-from .floor import adopt, chi2_dof, effects_row, floor_problem, form_row, noise_floor_check, refine
+from .floor import (adopt, chi2_dof, effects_row, floor_problem, form_row, misfit_threshold, noise_floor_check,
+                    refine)
 from .locate import locate_mismatch, Mismatch, Observations, observe
 from .predict import Problem
 from .selection import conflicts, fit, NUIS_BOUND, run_folds, select, Selection, speed_folds
@@ -113,7 +116,8 @@ def _hyp_row(before, f, v, step):
             'explained_fraction': float(1.0 - f.chi2 / max(before.chi2, 1e-300)),
             'bic': f.bic, 'delta_bic': float(before.bic - f.bic),
             'validated': bool(v and v.get('validated')),
-            'heldout_reduction': None if v is None else float(v['heldout_reduction'])}
+            'heldout_reduction': None if v is None or v.get('heldout_reduction') is None
+            else float(v['heldout_reduction'])}
 
 
 def _entry_residuals(prob, f):
@@ -195,9 +199,27 @@ def _settle_form(prob, fprob, s, cands, dbic_min):
                                dbic_min)
 
 
+def _rivals(s, chosen) -> list:
+    """
+    Return the other effects that validated in the selection round that took ``chosen``, when both are 1X-only.
+
+    At the model tolerance two kinds of effect can both explain a mismatch and validate (a pedestal and a disc mass
+    error both change the 1X response near a critical speed); the greedy step takes the lower BIC there.  Only
+    effects whose whole signature is their 1X response (``only_1x``) are returned: identify's 1X vectors cannot judge
+    a crack's 2X, a rub's harmonics or a misalignment's 2X force.
+    """
+    if not chosen.only_1x:
+        return []
+    for _, rows in s.rounds:
+        if any(f.effects[-1].label == chosen.label for f, _ in rows):
+            return [f.effects[-1] for f, v in rows if v and v.get('validated') and f.effects[-1].only_1x
+                    and f.effects[-1].name not in (chosen.name, 'bearing_model_form')]
+    return []
+
+
 def _settle_location(prob, fprob, s, cands, dbic_min):
     """
-    Tell the location the selection took for an effect from the ones that fit about as well, at the noise floor.
+    Tell the location (or kind) of a selected effect from the ones that fit about as well, at the noise floor.
 
     At the model tolerance two placements of one effect can fit about as well (a pedestal under one bearing or the
     other; a crack in one element or the next); on identify's 1X vectors they can separate.  For each selected
@@ -205,13 +227,20 @@ def _settle_location(prob, fprob, s, cands, dbic_min):
     with the lowest BIC is kept (the selection's final fit re-made with it when it is another) and the ambiguity is
     dropped when the noise floor resolves it (BIC difference above ``dbic_min``).  A pedestal selected flexible in
     one direction is also tried flexible in both there (the selection screens one direction at a time: a pedestal
-    soft in both is found by its softer direction).  Bearing model forms are :func:`_settle_form`'s.
+    soft in both is found by its softer direction).  When the selection misfits identify's vectors (identify's MODEL
+    MISFIT test), the other kinds of effect that validated in the same round are tried there too (:func:`_rivals`):
+    a wrong kind that fits at the tolerance is no answer when a rival fits at the noise floor.  Bearing model forms
+    are :func:`_settle_form`'s.
     """
+    f0 = fit(fprob, list(s.final.effects), uncertainty=False)
+    misfit = chi2_dof(f0) > misfit_threshold(f0.n - f0.k)
     for chosen in [e for e in s.final.effects if e.name != 'bearing_model_form']:
         wheres = {w for w, _ in s.ambiguous.get(chosen.label, [])}
-        alts = [c for c in cands if c.name == chosen.name and c.where in wheres]
-        if isinstance(chosen, SupportFlexibility) and len(chosen.directions) == 1:
-            alts.append(SupportFlexibility(chosen.bearing_index, chosen.node, 'xy', chosen.mass, chosen.speeds))
+        alts = [c for c in cands if c.name == chosen.name and c.where in wheres] + (
+            _rivals(s, chosen) if misfit else [])
+        for c in [chosen] + alts:
+            if isinstance(c, SupportFlexibility) and len(c.directions) == 1:
+                alts.append(SupportFlexibility(c.bearing_index, c.node, 'xy', c.mass, c.speeds))
         s = _keep_best_at_floor(prob, fprob, s, chosen, alts, dbic_min)
     return s
 
@@ -250,12 +279,23 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
     if 'rub' in effects and not residual_signature(prob, base0, threshold=3.0).speed_local:
         effects = tuple(n for n in effects if n != 'rub')      # a rub acts where the orbit is largest: speed-local
     cands = candidates(prob, unbalance_planes=unbalance_planes, names=effects)
+    fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance) if noise_floor
+                    else (None, ''))
+    # the bearings first: when the nominal model misfits identify's vectors and the bearings identify gives on them
+    # reproduce them, one effect at most is tried against the bearings (a greedy selection would otherwise spread
+    # the bearings' mismatch over several invented effects while the model still misfits)
+    bcheck = pre = None
+    if fprob is not None:
+        f0 = fit(fprob, [], uncertainty=False)
+        thr0 = misfit_threshold(f0.n - f0.k)
+        if chi2_dof(f0) > thr0:
+            pre = bearing_mismatch(fprob, rig, prob.model, [], thr0)
+            if pre.wins:
+                max_effects = 1
     s = select(prob, cands, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor, peak_sigma=threshold,
                folds=folds, base=base0)
     # noise-floor check: the same test identify applies; the bearing model form tried there when it trips
     fc = None
-    fprob, fnote = (floor_problem(recordings, rig, model=prob.model, nuisance=nuisance) if noise_floor
-                    else (None, ''))
     if fprob is not None:
         s = _settle_location(prob, fprob, s, cands, dbic_min)
         have_form = any(e.name == 'bearing_model_form' for e in s.final.effects)
@@ -326,6 +366,22 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         if s.final.effects:
             s.final, ff, fc.refined = refine(prob, fprob, s.final, fc.threshold)
             fc.chi2_dof_after = chi2_dof(ff)
+        if fc.chi2_dof_after > fc.threshold and fc.adopted is None:
+            # the bearings identified speed by speed, where the data determine them, against the model with effects
+            bcheck = bearing_mismatch(fprob, rig, prob.model, s.final.effects, fc.threshold,
+                                      results=None if pre is None else pre.results)
+            if bcheck.wins:
+                kept = [e for e in s.final.effects if not e.only_1x]
+                before = s.final
+                f = fit(prob, [bcheck.effect] + kept)
+                row = {'chi2_dof': bcheck.chi2_dof, 'delta_bic': bcheck.bic_model - bcheck.bic,
+                       'explained': 1.0 - bcheck.chi2_dof / max(bcheck.chi2_dof_model, 1e-300),
+                       'heldout_reduction': None}
+                s.rounds.append((before, [(f, {'validated': True, 'noise_floor': True, 'row': row,
+                                               'chi2_dof_before': fc.chi2_dof_after})]))
+                s.final, s.selected = f, list(f.effects)
+                s.ambiguous = {k: a for k, a in s.ambiguous.items() if any(e.label == k for e in kept)}
+                fc.chi2_dof_after, fc.refined = bcheck.chi2_dof, 'noise floor'
     base, final = s.base, s.final
     pred_base = prob.prediction_by_window(base.theta, [], [], np.zeros(0))
     mism = locate_mismatch(obs, pred_base, None, rel_tol=rel_tol, threshold=threshold)
@@ -417,11 +473,17 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                              f'floor; a name needs {MIN_EXPLAINED:.0%})')
         if sig is not None:
             sentences += sig.sentences()
+        if bcheck is not None and bcheck.note:
+            sentences.append(f'not a bearing mismatch alone: the bearings `bearing-id identify` gives on these data: '
+                             f'{bcheck.note}')
     else:
         frac = 1.0 - final.chi2 / max(base.chi2, 1e-300)
         for c in chosen:
             sentences.append(c['sentence'])
-        tol_names = [e.name for e in final.effects if fc is None or e is not fc.adopted]
+        if bcheck is not None and bcheck.wins:
+            sentences.append(bcheck.sentence())
+        tol_names = [e.name for e in final.effects if (fc is None or e is not fc.adopted)
+                     and e.name != 'bearing_mismatch']
         if tol_names:
             sentences.append(f"{'together they explain' if len(tol_names) > 1 else 'explains'} {frac:.0%} of the "
                              f'residual power (RMS {base.rms:.3g} -> {final.rms:.3g} sigma), validated on held-out '
@@ -494,7 +556,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
                      residual_after_m=float(np.sqrt(np.mean(np.abs(ra[mask]) ** 2))),
                      bearing_factors={'viscosity_factor': list(vf), 'clearance_factor': list(cf)},
                      problem=prob, selection=s, notes=notes,
-                     noise_floor=None if fc is None else fc.as_dict(),
+                     noise_floor=None if fc is None else {**fc.as_dict(), 'bearing_mismatch': (
+                         None if bcheck is None else bcheck.as_dict())},
                      signature=None if sig is None else sig.as_dict(),
                      harmonic_data=getattr(fprob.obs, 'harmonic_data', None) if fprob is not None else None)
 

@@ -119,6 +119,7 @@ class BreathingCrack(Effect):
     name = 'breathing_crack'
     n_lin = 4 * len(ORDERS)
     acts_on_1x = True
+    only_1x = False           # its 2X and 3X
     key = 'compliance'
     nl_names = ('c_mean',)
     nl_lo = (0.0,)

@@ -31,6 +31,9 @@ class Effect:
     name = 'none'
     n_lin = 0
     acts_on_1x = True        # False for effects seen only off 1X (2X forcing, a sub-synchronous whirl)
+    # True when the effect's whole signature is its 1X response: identify's 1X vectors at the noise floor can then
+    # judge it against a rival of that kind (False where it also lives at 2X/3X, DC or sub-synchronous)
+    only_1x = True
     nl_names: tuple = ()
     nl_lo: tuple = ()
     nl_hi: tuple = ()

@@ -28,7 +28,7 @@ from .effect import determined, DETERMINED_REL, Effect, pm as _pm
 from .predict import bearing_form, form_label, forward_force, model_forms
 from .rub import Rub
 from ..config.params import ExcitationEntry
-from ..conventions import dof_index, rad_s_to_rpm
+from ..conventions import direction_words, dof_index, rad_s_to_rpm
 from ..excitation import harmonic_forces
 from ..rotor.assembly import add_film_impedance, dynamic_stiffness, RotorModel, static_sag
 
@@ -36,10 +36,6 @@ SLOW_ROLL_RPM = 400.0     # windows below this speed are slow roll (as locate.lo
 
 EFFECT_NAMES = ('support_flexibility', 'residual_unbalance', 'shaft_bow', 'probe_runout', 'misalignment',
                 'oil_whirl', 'probe_orientation', 'disc_mass_error', 'bearing_model_form', 'breathing_crack', 'rub')
-
-
-def _dir_word(d: str) -> str:
-    return 'horizontal (x)' if d == 'x' else 'vertical (y)'
 
 
 def _complex_lin(lin) -> complex:
@@ -67,7 +63,8 @@ class SupportFlexibility(Effect):
     def __init__(self, bearing_index: int, node: int, directions: str, mass: float = 0.0, speeds=None):
         super().__init__()
         self.bearing_index, self.node, self.directions, self.mass = bearing_index, node, directions, float(mass)
-        self.where = f'bearing {bearing_index + 1} (node {node}), ' + ' and '.join(_dir_word(d) for d in directions)
+        self.where = (f'bearing {bearing_index + 1} (node {node}), '
+                      + ' and '.join(direction_words(d) for d in directions))
         self.nl_names = tuple(f'{p}_{d}' for d in directions for p in ('lnk', 'c', 'm'))
         self.nl_lo = tuple(v for _ in directions for v in (math.log(1e3), 0.0, 0.0))
         self.nl_hi = tuple(v for _ in directions for v in (math.log(1e10), 1e5, 50.0))
@@ -377,6 +374,7 @@ class Misalignment(Effect):
     name = 'misalignment'
     n_lin = 4
     acts_on_1x = False
+    only_1x = False
     key = 'force_2x'
 
     def __init__(self, node: int, pair: int | None = None):
@@ -430,7 +428,7 @@ class ProbeRunout(Effect):
     def __init__(self, channel: int, probe):
         super().__init__()
         self.channel, self.probe = channel, probe
-        self.where = f'probe {probe.name} (node {probe.node}, {_dir_word(probe.direction)})'
+        self.where = f'probe {probe.name} (node {probe.node}, {direction_words(probe.direction)})'
 
     def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
         if ratio != 1.0:
@@ -480,7 +478,7 @@ class ProbeOrientation(_Orientation):
         super().__init__()
         self.channel, self.probe = channel, probe
         self.probe_names = (probe.name,)
-        self.where = f'probe {probe.name} (node {probe.node}, {_dir_word(probe.direction)})'
+        self.where = f'probe {probe.name} (node {probe.node}, {direction_words(probe.direction)})'
 
     def measure_columns(self, prob, k, o, ratio, y_nom, y_perp):
         c = prob.channel(k, self.probe.name)
@@ -564,6 +562,7 @@ class OilWhirl(Effect):
     name = 'oil_whirl'
     key = 'ratio'
     acts_on_1x = False
+    only_1x = False
 
     def __init__(self, bearing_index: int, node: int):
         super().__init__()

@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from ..conventions import rad_s_to_rpm
+from ..conventions import direction_words, rad_s_to_rpm
 from ..signals import harmonics as signals
 from ..signals.subsync import subsynchronous_bands
 from ..signals.windows import steady_windows
@@ -277,7 +277,7 @@ class Mismatch:
 
 
 def _probe_text(p) -> str:
-    return f"{p.name} (node {p.node}, {'horizontal x' if p.direction == 'x' else 'vertical y'})"
+    return f'{p.name} (node {p.node}, {direction_words(p.direction)})'
 
 
 def locate_mismatch(obs: Observations, pred_X: list, pred_sub: list | None = None, *, rel_tol: float = 0.02,

@@ -40,6 +40,7 @@ class Rub(Effect):
     """
 
     name = 'rub'
+    only_1x = False           # its DC push, harmonics and sub-harmonics
     n_lin = 2
     key = 'clearance'
     nl_names = ('clearance',)

@@ -9,6 +9,8 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+from ..conventions import direction_words
+
 DPI = 90                       # report figures: readable at 100 % zoom, small enough to embed
 PNG_COMPRESS_LEVEL = 3         # zlib level: a little larger than the default 6, cheaper to encode
 RUN_COLORS = ('C0', 'C1', 'C2', 'C4', 'C5', 'C6', 'C8', 'C9')
@@ -32,7 +34,7 @@ def run_color(i: int) -> str:
 
 
 def probe_text(p) -> str:
-    return f"{p.name} (node {p.node}, {'horizontal x' if p.direction == 'x' else 'vertical y'})"
+    return f'{p.name} (node {p.node}, {direction_words(p.direction)})'
 
 
 def new_figure(figsize, nrows: int = 1, ncols: int = 1, **kw):
