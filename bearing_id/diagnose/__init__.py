@@ -289,7 +289,7 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         f0 = fit(fprob, [], uncertainty=False)
         thr0 = misfit_threshold(f0.n - f0.k)
         if chi2_dof(f0) > thr0:
-            pre = bearing_mismatch(fprob, rig, prob.model, [], thr0)
+            pre = bearing_mismatch(fprob, rig, prob.model, [], thr0, model_fit=f0)
             if pre.wins:
                 max_effects = 1
     s = select(prob, cands, max_effects=max_effects, dbic_min=dbic_min, chi2_floor=chi2_floor, peak_sigma=threshold,
@@ -369,7 +369,8 @@ def diagnose(recordings, rig, *, held_out: str = 'speeds', rel_tol: float = 0.02
         if fc.chi2_dof_after > fc.threshold and fc.adopted is None:
             # the bearings identified speed by speed, where the data determine them, against the model with effects
             bcheck = bearing_mismatch(fprob, rig, prob.model, s.final.effects, fc.threshold,
-                                      results=None if pre is None else pre.results)
+                                      results=None if pre is None else pre.results,
+                                      model_fit=None if s.final.effects else f0)
             if bcheck.wins:
                 kept = [e for e in s.final.effects if not e.only_1x]
                 before = s.final

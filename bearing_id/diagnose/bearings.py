@@ -33,6 +33,7 @@ import numpy as np
 from .effect import determined, Effect
 from .floor import chi2_dof, misfit_threshold
 from .selection import fit
+from ..conventions import COEFF_ORDER
 from ..identify import identify
 from ..rotor.supports import bearing_fn
 
@@ -80,10 +81,10 @@ class IdentifiedBearings(Effect):
         for r in self.results:
             for i, name in enumerate(r.bearings):
                 d = out['bearings'].setdefault(name, {'node': int(r.nodes[i])})
-                for sym in ('K', 'C'):
-                    for a, ax in enumerate('xy'):
-                        for b, bx in enumerate('xy'):
-                            d.setdefault(f'{sym.lower()}{ax}{bx}', []).append(float(getattr(r, sym)[i][a, b]))
+                for sym in ('k', 'c'):
+                    vals = np.asarray(getattr(r, sym.upper())[i], float).reshape(4)
+                    for lab, v in zip(COEFF_ORDER, vals):
+                        d.setdefault(f'{sym}{lab}', []).append(float(v))
         return out
 
     def undetermined(self, phys, std):
@@ -112,9 +113,8 @@ class BearingCheck:
     method : the method identify chose ('direct' or 'physical').   misfit : identify flags a misfit at some speed.
     chi2_dof / bic : the identified bearings on the noise-floor vectors; limit : identify's chi2/dof limit at their
     degrees of freedom.   bic_model : the diagnosis' model there.
-    wins : the bearing mismatch is the answer.   ratios : per bearing name, the identified / model coefficient per
-    speed (dict of 'Kxx' .. 'Cyy' -> list, None where not determined within 7.5 %).
-    effect : the :class:`IdentifiedBearings`.
+    wins : the bearing mismatch is the answer.   effect : the :class:`IdentifiedBearings` (its ``ratios``: per
+    bearing name, the identified / model coefficient per speed, None where not determined within 7.5 %).
     note : why the check did not apply, if it did not.
     """
 
@@ -126,7 +126,6 @@ class BearingCheck:
     bic_model: float = float('nan')
     chi2_dof_model: float = float('nan')
     wins: bool = False
-    ratios: dict | None = None
     effect: IdentifiedBearings | None = None
     results: list | None = None
     note: str = ''
@@ -134,7 +133,7 @@ class BearingCheck:
     def as_dict(self) -> dict:
         return {'method': self.method, 'misfit': self.misfit, 'chi2_dof': self.chi2_dof, 'limit': self.limit,
                 'bic': self.bic, 'bic_model': self.bic_model, 'chi2_dof_model': self.chi2_dof_model, 'wins': self.wins,
-                'ratios': self.ratios, 'note': self.note}
+                'ratios': None if self.effect is None else self.effect.ratios, 'note': self.note}
 
     def sentence(self) -> str:
         """Return the noise-floor line of a bearing-mismatch verdict."""
@@ -160,23 +159,22 @@ def _ratios(results, rig) -> dict:
         for i, (name, node) in enumerate(zip(r.bearings, r.nodes)):
             d = out.setdefault(name, {})
             for sym, k in (('K', 0), ('C', 1)):
-                val, std = getattr(r, sym)[i], getattr(r, sym + '_std')[i]
-                det = getattr(r, sym + '_determined')[i]
-                for a, ax in enumerate('xy'):
-                    for b, bx in enumerate('xy'):
-                        nom = float(np.asarray(t[node][k])[a, b])
-                        ok = bool(det[a, b]) and nom != 0.0 and determined(float(val[a, b]), float(std[a, b]))
-                        d.setdefault(f'{sym}{ax}{bx}', []).append(float(val[a, b]) / nom if ok else None)
+                val, std, det, nom = (np.asarray(x).reshape(4) for x in (
+                    getattr(r, sym)[i], getattr(r, sym + '_std')[i], getattr(r, sym + '_determined')[i], t[node][k]))
+                for j, lab in enumerate(COEFF_ORDER):
+                    ok = bool(det[j]) and nom[j] != 0.0 and determined(float(val[j]), float(std[j]))
+                    d.setdefault(f'{sym}{lab}', []).append(float(val[j]) / float(nom[j]) if ok else None)
     return out
 
 
-def bearing_mismatch(fprob, rig, model, effects, threshold: float, results=None) -> BearingCheck:
+def bearing_mismatch(fprob, rig, model, effects, threshold: float, results=None, model_fit=None) -> BearingCheck:
     """
     Judge the bearing mismatch against the diagnosis' model ``effects`` on the noise-floor problem ``fprob``.
 
     ``fprob`` : :func:`floor.floor_problem` (its ``obs.harmonic_data``: identify's vectors).   ``model`` : the
     RotorModel of ``rig`` (nominal).   ``threshold`` : identify's chi2/dof limit on these vectors.   ``results`` :
-    identify's results on these vectors when already computed (an earlier check's ``results``).
+    identify's results on these vectors when already computed (an earlier check's ``results``).   ``model_fit`` :
+    ``fit(fprob, effects, uncertainty=False)`` when already made.
     """
     data = getattr(fprob.obs, 'harmonic_data', None)
     if data is None:
@@ -201,7 +199,7 @@ def bearing_mismatch(fprob, rig, model, effects, threshold: float, results=None)
     dof = fb.n - k
     out.chi2_dof = float(fb.chi2 / max(dof, 1))
     out.bic = float(fb.chi2 + k * np.log(max(fb.n, 1)))
-    fm = fit(fprob, list(effects), uncertainty=False)
+    fm = fit(fprob, list(effects), uncertainty=False) if model_fit is None else model_fit
     out.bic_model, out.chi2_dof_model = float(fm.bic), chi2_dof(fm)
     if dof < 1:
         out.note = (f'identify fits {k} parameters to {fb.n} numbers: no degree of freedom is left to test the '
@@ -214,7 +212,7 @@ def bearing_mismatch(fprob, rig, model, effects, threshold: float, results=None)
         out.note = (f'identified ({out.method}) they give chi2/dof {out.chi2_dof:.3g} at the noise floor (limit '
                     f'{out.limit:.3g}), BIC {out.bic:.4g} against {out.bic_model:.4g} for the model '
                     'with effects')
-    out.effect, out.ratios = eff, eff.ratios
+    out.effect = eff
     return out
 
 
