@@ -11,12 +11,15 @@ and a ``--window`` in the later passes (steady: what a plant running for months 
 * CPU per machine (the three processes' CPU seconds / wall seconds, from /proc/<pid>/stat) and per node;
 * whether the box kept up (the drivers' late blocks, from /diagnostics);
 * the identifier's latency (last block of a window -> its coefficients published; its /diagnostics values);
-* resident memory per machine (VmRSS of its three processes).
+* resident memory per machine (VmRSS of its three processes), and its proportional share (PSS, from
+  /proc/<pid>/smaps_rollup: the pages of shared libraries divided among the processes that map them -- what a box
+  of many machines really spends per machine).
 
 The machines one 2-core box can serve = 2 / (CPU per machine), given the figures stay put as M grows (they are
 printed for each M to show it).
 
-Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_machines.py [--machines 1,4] [--window 20]
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_machines.py [--machines 1,4] [--window 20] [--floor]
+          [--block-size N] [--dwell S]
 """
 import os
 
@@ -61,10 +64,25 @@ def start(machine: str, node: str, env: dict, log_dir: Path, params=(), floor: b
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def daq_files(out: Path) -> tuple[list[str], float]:
-    """Simulate the packaged rig's runs once into .npz DAQ files (the drivers' file source); (paths, one pass [s])."""
+def pss_mb(pid: int) -> float:
+    """Return the proportional set size [MB] of process ``pid`` (NaN where smaps_rollup is not readable)."""
+    try:
+        for line in open(f'/proc/{pid}/smaps_rollup'):
+            if line.startswith('Pss:'):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return float('nan')
+
+
+def daq_files(out: Path, dwell: float | None = None) -> tuple[list[str], float]:
+    """
+    Simulate the packaged rig's runs once into .npz DAQ files (the drivers' file source); (paths, one pass [s]).
+
+    ``dwell`` [s] at each speed (default: the rig's 2 s, a run-up test: a new steady window every 2.5 s per run).
+    """
     rig = load_rig()
-    recs = [simulate_run(rig, r) for r in rig.simulation.runs]
+    recs = [simulate_run(rig, r, dwell=dwell) for r in rig.simulation.runs]
     paths = [str(save_npz(rec, out / f'run_{r.id}.npz')) for rec, r in zip(recs, rig.simulation.runs)]
     return paths, sum(rec.samples.shape[0] / rec.sample_rate for rec in recs)
 
@@ -78,7 +96,8 @@ def _per_node(c0, c1, wall, machines) -> dict:
     return {n: sum(c1[(mc, n)] - c0[(mc, n)] for mc in machines) / wall / m for n in NODES}
 
 
-def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_s: float, floor: bool = False) -> dict:
+def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_s: float, floor: bool = False,
+        block_size: int = 0) -> dict:
     """
     Stream ``m`` machines at once (the files in a loop); return the figures of the first pass and of later passes.
 
@@ -99,7 +118,8 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
             procs[(mc, 'identifier')] = start(mc, 'identifier', env, out, [f'record_dir:={rec}'], floor)
             procs[(mc, 'kf_estimator')] = start(mc, 'kf_estimator', env, out, floor=floor)
             procs[(mc, 'sensor_driver')] = start(mc, 'sensor_driver', env, out, [
-                'wait_for_subscribers:=2', 'source:=file', f"files:=[{','.join(files)}]", f'passes:={passes}'])
+                'wait_for_subscribers:=2', 'source:=file', f"files:=[{','.join(files)}]", f'passes:={passes}',
+                *([f'block_size:={block_size}'] if block_size else [])])
         t_end = time.monotonic() + 180
         while time.monotonic() < t_end:                 # every driver publishing
             time.sleep(0.1)
@@ -117,6 +137,7 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
         c1 = _cpu(procs)
         wall = time.monotonic() - t0
         rss = {k: memory_mb(p.pid)[0] for k, p in procs.items()}
+        pss = {k: pss_mb(p.pid) for k, p in procs.items()}
         values = dict(listener.diag_values)
     finally:
         codes = stop_processes({f'{a}/{b}': p for (a, b), p in procs.items()})
@@ -128,7 +149,7 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
            if k == 'max_latency_s']
     return {'m': m, 'cpu_machine': sum(per_node.values()), 'per_node': per_node, 'late': late,
             'cpu_first': sum(first.values()), 'max_latency': max(lat) if lat else float('nan'),
-            'rss_machine': sum(rss.values()) / m, 'codes': codes}
+            'rss_machine': sum(rss.values()) / m, 'pss_machine': sum(pss.values()) / m, 'codes': codes}
 
 
 def main(argv=None) -> int:
@@ -140,23 +161,28 @@ def main(argv=None) -> int:
     ap.add_argument('--floor', action='store_true', help='the transport floor: kf_estimator and identifier replaced by '
                     'stand-ins that receive (and, for kf_estimator, publish) the same messages and compute nothing '
                     '(benchmarks/transport_floor.py)')
+    ap.add_argument('--dwell', type=float, default=None, help='seconds at each speed in the DAQ files (default: the '
+                    "packaged rig's 2 s, a run-up; a plant in steady running changes speed far less often)")
+    ap.add_argument('--block-size', type=int, default=0, help="the drivers' samples per DisplacementBlock (default: "
+                    "sensor_driver's own, params/sensor_driver.yaml)")
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        files, pass_s = daq_files(Path(tmp))
+        files, pass_s = daq_files(Path(tmp), args.dwell)
         for m in (int(s) for s in args.machines.split(',')):
-            rows.append(run(m, args.window, args.settle, Path(tmp) / f'm{m}', files, pass_s, args.floor))
+            rows.append(run(m, args.window, args.settle, Path(tmp) / f'm{m}', files, pass_s, args.floor,
+                            args.block_size))
     if args.floor:
         print('TRANSPORT FLOOR: kf_estimator and identifier are stand-ins that only move the messages')
     print(f'one pass of the files: {pass_s:.1f} s; CPU per machine [core] in the first pass (start-up) and in later '
           f'passes (steady)')
     print('machines  first pass  steady  sensor_driver  kf_estimator  identifier  late blocks  max latency [s]  '
-          'RSS/machine [MB]  served by 2 cores')
+          'RSS/machine [MB]  PSS/machine [MB]  served by 2 cores')
     for r in rows:
         n = r['per_node']
         print(f"{r['m']:8d}  {r['cpu_first']:10.3f}  {r['cpu_machine']:6.3f}  {n['sensor_driver']:13.3f}  "
               f"{n['kf_estimator']:12.3f}  {n['identifier']:10.3f}  {r['late']:11d}  {r['max_latency']:15.2f}  "
-              f"{r['rss_machine']:16.0f}  {CORES / r['cpu_machine']:17.1f}")
+              f"{r['rss_machine']:16.0f}  {r['pss_machine']:16.0f}  {CORES / r['cpu_machine']:17.1f}")
     return 0
 
 

@@ -153,15 +153,16 @@ def test_force_plan_bag_direct_equals_offline_cli_and_truth_within_its_std(tmp_p
     """
     The directional-force plan (4 runs), direct fit: node == CLI within 0.01 sigma, truth within the stated 1-sigma.
 
-    With ``segment_timeout`` at its floor (10 ms): the identifier sees a pause between most blocks, and its windows
-    must still be the offline ones (a pause on a loaded CI machine once moved a live result 0.3 %).
+    With ``segment_timeout`` at its floor (10 ms) and ``pause_blocks`` 0: the identifier sees a pause between most
+    blocks, and its windows must still be the offline ones (a pause on a loaded CI machine once moved a live result
+    0.3 %).
     A statistical check of the std the product prints: normalised error RMS below 2, no error beyond 4.5 sigma over the
     64 determined coefficients.
     """
     bag = BAGS / 'force_plan'
     speeds = [1200.0, 2400.0]
     live, rec_out = replay_through_nodes(bag, 'direct', speeds, ['F4x', 'F4y', 'F8x', 'F8y'], tmp_path,
-                                         identifier_params={'segment_timeout': 0.01})
+                                         identifier_params={'segment_timeout': 0.01, 'pause_blocks': 0.0})
     ref = offline(bag, 'direct', tmp_path)
     truth = truth_bearing_fn(load_rig())
     z = []

@@ -10,10 +10,16 @@ ROSS-style constant bearings the model does not have.  ``pedestal*_nominal`` (``
 a bearing on a pedestal ROSS's way (n_link to a support node with a point mass and a support bearing).  1 % white
 noise (of each channel's RMS) is added here, seeded.
 
-Right answers (issue 24): a library fault is named and sized within 15 % (or its size is reported not determined:
-the crack's depth is not given -- diagnose reports the open crack's compliance, which needs a compliance law to be a
-depth); a fault outside the library, or a recording whose bearings differ from the model, gets no validated wrong
-name.
+Right answers (issue 24): a library fault is named and sized within 15 % (or its size is reported not determined);
+a fault outside the library, or a recording whose bearings differ from the model, gets no validated wrong name.
+
+The crack's size is its depth by Papadopoulos & Dimarogonas' c55 law, which ROSS's ``Crack`` reads from its table
+too -- but ROSS's Mayes crack puts the cracked flexibility into the element's clamped-rotation translational
+stiffness alone (its ``_compute_crack_stiffness_gasch_mayes`` keeps the healthy rotation terms).  That loss is
+exactly a hinge at 0.325 of the element eleven times as compliant as c55 (an ad-hoc check with ROSS's own open and
+closed element matrices, depth 0.2 of the diameter on this shaft: 1.40e-4 against 1.27e-5 rad/(N m)).  A depth
+sized from ROSS's recording by the law is so not ROSS's depth; this set's final model misfits at the noise floor
+and the depth is reported not determined, which the test accepts (a number would have to be within 15 %).
 """
 from __future__ import annotations
 
@@ -66,6 +72,12 @@ def test_a_ross_breathing_crack_is_named_at_its_element(rig):
     # its signature: a 3X beside the 2X (Mayes breathing under the sag: about half), the same in both runs
     p = eff['parameters']
     assert 0.3 <= p['kink_3x'] / p['kink_2x'] <= 0.8, p
+    # its depth: within 15 % of ROSS's or reported not determined (with the sentence saying so)
+    depth = README['sets']['nominal']['faults']['crack']['parameters']['depth_ratio']
+    if 'depth_ratio' in eff['undetermined']:
+        assert 'crack depth not determined by these data' in eff['sentence'], eff['sentence']
+    else:
+        assert p['depth_ratio'] == pytest.approx(depth, rel=0.15), eff['sentence']
     # it explains the mismatch (>= 80 % of the residual power)
     assert d.residual_after ** 2 <= 0.2 * d.residual_before ** 2
 

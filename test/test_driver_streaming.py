@@ -11,6 +11,7 @@ and the stream's blocks against the collected Recording sample by sample within 
 """
 from __future__ import annotations
 
+import dataclasses
 import gc
 import time
 import tracemalloc
@@ -152,8 +153,8 @@ def test_files_are_read_one_at_a_time_and_a_bad_one_is_skipped_and_named(tmp_pat
     paths[1].write_bytes(b'not a zip')
     sources = core.load_sources(_values(source='file', files=[str(p) for p in paths]))
     read = []
-    real = core.read_daq
-    monkeypatch.setattr(core, 'read_daq', lambda p: read.append(str(p)) or real(p))
+    real = core.open_daq
+    monkeypatch.setattr(core, 'open_daq', lambda p: read.append(str(p)) or real(p))
     skipped = []
     runs_seen = []
     for topic, _, msg, _ in core.stream_messages(sources, BLOCK, 0, 'rig', on_skip=lambda s, why: skipped.append(
@@ -169,3 +170,31 @@ def test_files_are_read_one_at_a_time_and_a_bad_one_is_skipped_and_named(tmp_pat
 def test_a_missing_file_is_refused_at_start_naming_it(tmp_path):
     with pytest.raises(core.ParamError, match='nope.npz'):
         core.load_sources(_values(source='file', files=[str(tmp_path / 'nope.npz')]))
+
+
+def test_a_npz_file_streams_piece_by_piece_as_the_whole_file_would_and_bad_values_stop_it_named(
+        tmp_path, monkeypatch):
+    # never whole in memory: load_npz (the whole-file reader) must not be called; the blocks are the whole
+    # recording's, cut the same way (the pieces are 4 MB: the 1.5 s run below is one piece, so a smaller piece size
+    # is set to cross piece boundaries inside blocks)
+    rig = load_rig()
+    rec = rigmod.simulate_run(rig, rig.simulation.runs[0], speeds_rpm=[900.0, 1500.0], dwell=0.6)
+    good = recordings.save_npz(rec, tmp_path / 'a.npz')
+    bad = rec.samples.copy()
+    bad[bad.shape[0] * 2 // 3, 0] = np.nan
+    broken = recordings.save_npz(dataclasses.replace(rec, samples=bad), tmp_path / 'nan.npz')
+    monkeypatch.setattr(recordings, 'NPZ_PIECE_BYTES', 8 * 2 * 777)
+    monkeypatch.setattr(recordings, 'load_npz', lambda *a, **k: pytest.fail('a streamed file was read whole'))
+    skipped = []
+    sent = {}
+    for name in ('a', 'nan'):
+        src = core.load_sources(_values(source='file', files=[str(good if name == 'a' else broken)]))
+        sent[name] = [block_from_msg(m) for topic, _, m, _ in core.stream_messages(
+            src, BLOCK, 0, 'rig', on_skip=lambda s, why: skipped.append((s.path, why))) if topic == TOPIC_DISPLACEMENT]
+    whole = list(core.run_blocks(core.RecordingRun(rec), BLOCK))
+    assert len(sent['a']) == len(whole)
+    for b, (i0, w, a, y) in zip(sent['a'], whole):
+        assert np.array_equal(b.samples, y) and np.array_equal(b.angles(), a) and b.speed == float(w[0])
+    # the NaN file: the blocks before the bad piece went out, then the file is named with its reason
+    assert 0 < len(sent['nan']) < len(whole)
+    assert [p for p, _ in skipped] == [str(broken)] and 'its rest not streamed' in skipped[0][1], skipped

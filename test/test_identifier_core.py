@@ -394,3 +394,29 @@ def test_a_per_speed_method_solves_only_the_speeds_that_changed(rig, tmp_path, m
     out, _ = core.solve(record=False)
     assert [o.speed for o in out] == [float(data.speeds[1])]
     core.close()
+
+
+@pytest.mark.parametrize('block', [1024, 4096, 8192])
+def test_a_gap_between_long_blocks_of_a_1x_stream_is_no_pause(rec, rig, tmp_path, block):
+    """
+    Blocks arriving once per block time (a 1x stream) are no pause, however long the blocks; a real pause is.
+
+    With 4096-sample blocks at 10,240 Hz (0.4 s) and ``segment_timeout`` 0.3 s, every gap between two blocks was a
+    pause: the open window was handed out, fitted and solved once per block (the identifier's CPU x6.7).  A pause is
+    now also ``pause_blocks`` (3) blocks' time without a block.
+    """
+    core = IdentifierCore(rig, 'physical', tmp_path)
+    core.add_excitation(rec.run)
+    dt = block / rec.sample_rate
+    now = 0.0
+    for b in blocks(rec, block=block):
+        if b.samples.shape[0] < block:
+            break                                          # whole blocks only
+        core.feed(b, core.runs[b.run_id], True, now)
+        now += dt                                          # the next block arrives one block time later
+        assert core.flush(now - 1e-3, 0.3, 3.0) == [], block
+    last = now - dt                                        # the last block's arrival: the data end there
+    assert core.flush(last + max(0.3, 3 * dt) - 1e-3, 0.3, 3.0) == []
+    out = core.flush(last + max(0.3, 3 * dt) + 1e-3, 0.3, 3.0)
+    assert out and all(w.provisional for w in out)
+    core.close()

@@ -32,8 +32,10 @@ effect's one nonlinear parameter, ``c_mean`` in units of the element's L/(E I), 
     Z -= 1/4 sum_planes c P P^T / (1 + c P^T d),      P = K_e d (the kink's load), d the unit kink's displacement
 
 Its agreement with the compliance from the 2X kink is a check of the crack model (both are printed).  The crack depth
-needs a compliance law (e.g. Papadopoulos & Dimarogonas' c55(a/D)); it is not given.  Element nodes are 1-based;
-phasors as in :mod:`bearing_id.conventions`.
+a / D is the one whose open-crack compliance c55 (Papadopoulos & Dimarogonas' law for a straight-front crack in a
+solid round shaft, :mod:`bearing_id.diagnose.crack_flexibility`) is the compliance from the 2X kink; with its
+1-sigma propagated from the kinks' it is reported not determined with the compliance, and not at all on a hollow
+shaft.  Element nodes are 1-based; phasors as in :mod:`bearing_id.conventions`.
 """
 from __future__ import annotations
 
@@ -41,6 +43,7 @@ import math
 
 import numpy as np
 
+from .crack_flexibility import crack_depth_ratio
 from .effect import determined, Effect, pm
 from ..conventions import DOF_PER_NODE
 from ..rotor.assembly import RotorModel, static_sag
@@ -112,8 +115,9 @@ class BreathingCrack(Effect):
 
     Linear parameters: the kink at the crack [urad] per order (1X, 2X, 3X) and plane (x, y), complex -- 12 reals.
     ``physical`` gives the kinks per order in the sag plane (``kink_2x``) and across it (``kink_2x_cross``) [rad],
-    the open crack's rotational compliance for Mayes breathing [rad/(N m)] (see the module docstring) and its ratio
-    to the element's own bending compliance L/(E I).
+    the open crack's rotational compliance for Mayes breathing [rad/(N m)] (see the module docstring), its ratio
+    to the element's own bending compliance L/(E I) and the crack depth a / D it means (``depth_ratio``; NaN on a
+    hollow shaft or beyond the law's range).
     """
 
     name = 'breathing_crack'
@@ -133,6 +137,7 @@ class BreathingCrack(Effect):
         self.moment = sag_moment(model, self.element, sag)          # N m
         el = model.elements[self.element - 1]
         self.element_compliance = el.length / (el.E * el.inertia)          # rad/(N m)
+        self._section = (el.outer_d, el.inner_d, el.E, el.E / (2.0 * el.G_mod) - 1.0)   # m, m, Pa, Poisson's ratio
         i0 = DOF_PER_NODE * (self.element - 1)
         self._span = slice(i0, i0 + 2 * DOF_PER_NODE)
         self._PPt = sum(np.outer(P[self._span], P[self._span]) for P in (Px, Py))      # (8, 8)
@@ -172,6 +177,7 @@ class BreathingCrack(Effect):
         out['compliance'] = c
         out['relative_compliance'] = c / self.element_compliance
         out['mean_relative_compliance'] = float(nl[0])
+        out['depth_ratio'] = crack_depth_ratio(c, *self._section)
         return out
 
     def missing_signature(self, phys, std):
@@ -188,7 +194,22 @@ class BreathingCrack(Effect):
         return None
 
     def undetermined(self, phys, std):
-        return [p for p in ('compliance',) if not determined(phys[p], std.get(p))]
+        names = ('compliance',) if self._section[1] > 0 else ('compliance', 'depth_ratio')
+        return [p for p in names if not determined(phys[p], std.get(p))]
+
+    def _depth_words(self, phys, std) -> str:
+        """Return the crack depth clause of the sentence (not determined, or outside the law, said so)."""
+        a = phys['depth_ratio']
+        if self._section[1] > 0:
+            return 'crack depth not given (the compliance law is for a solid shaft)'
+        if not math.isfinite(a):
+            return 'crack depth beyond the compliance law (deeper than the shaft centre, a/D > 0.5)'
+        law = "Papadopoulos & Dimarogonas' c55 for a straight-front crack"
+        if 'depth_ratio' in self.undetermined(phys, std):
+            sd = std.get('depth_ratio', math.inf)
+            fit = f' (fit a/D {a:.3g}, 1σ {sd:.2g})' if math.isfinite(sd) else ''
+            return f'crack depth not determined by these data{fit}; {law}'
+        return f"crack depth a/D ≈ {a:.3g}{pm(a, std.get('depth_ratio'))} of the diameter ({law})"
 
     def sentence(self, phys, std):
         k = '/'.join(f"{phys[f'kink_{r:g}x'] * 1e6:.3g}" for r in ORDERS)
@@ -196,9 +217,9 @@ class BreathingCrack(Effect):
         return (f'breathing crack in {self.where}: open-crack rotational compliance {c:.3g} rad/(N·m)'
                 f"{pm(c, std.get('compliance'))} ({phys['relative_compliance']:.3g} of the element's L/EI; Mayes "
                 f'breathing under the static sag moment {abs(self.moment):.3g} N·m; from the mean softening {cm:.3g}'
-                f"{pm(cm, std.get('mean_relative_compliance'))} of L/EI); sag-plane kink 1X/2X/3X {k} µrad, fixed to "
-                f'the key mark at every speed and in every run (a slow roll would show it: the sag is there at any '
-                f'speed)')
+                f"{pm(cm, std.get('mean_relative_compliance'))} of L/EI); {self._depth_words(phys, std)}; sag-plane "
+                f'kink 1X/2X/3X {k} µrad, fixed to the key mark at every speed and in every run (a slow roll would '
+                f'show it: the sag is there at any speed)')
 
     def to_extra(self, phys):
         keys = [f'{p}{r:g}_{c}' for r in ORDERS for p in 'xy' for c in ('re', 'im')]

@@ -34,6 +34,7 @@ from ..conventions import dof_index, parse_probe_direction, probe_direction
 from ..excitation import harmonic_forces
 from ..rotor import supports
 from ..rotor.assembly import add_film_impedance, dynamic_stiffness, measurement_row, RotorModel
+from ..rotor.banded import solve_stack
 
 
 # ------------------------------------------------------------------------------------------------ bearing model forms
@@ -303,7 +304,7 @@ class Problem:
         (n_sel, n_lin) the columns of the effects' linear parameters (concatenated in effect order), and idx (n_sel,)
         the selected entries' indices into ``y``.  ``nls`` holds each effect's nonlinear parameter vector.  The
         dynamic stiffness of every (window, order) is assembled at once (:meth:`systems`), and the systems with
-        right-hand sides of equal shape are solved in one stacked ``numpy.linalg.solve``.
+        right-hand sides of equal shape are solved as one stack (:func:`bearing_id.rotor.banded.solve_stack`).
         """
         windows = range(len(self.obs.windows)) if windows is None else windows
         nlin = [e.n_lin for e in effects]
@@ -333,7 +334,7 @@ class Problem:
         Qs = [None] * len(jobs)
         for members in groups.values():
             Zg = Zs if len(members) == len(solved) else Zs[members]
-            Q = np.linalg.solve(Zg, np.stack([jobs[solved[p]][5] for p in members]))
+            Q = solve_stack(Zg, np.stack([jobs[solved[p]][5] for p in members]))
             for p, q in zip(members, Q):
                 Qs[solved[p]] = q[:ndof]
         idx, y0s, As = [], [], []

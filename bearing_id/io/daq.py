@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .recordings import load_npz
+from .recordings import load_npz, open_npz
 from ..config.params import Probe, Run
 from ..conventions import parse_probe_direction, probe_direction
 from ..signals import keyphasor as _kp
@@ -177,6 +177,24 @@ def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, 
         fh.write('\n'.join(lines) + '\n' + ','.join(names) + '\n')
         np.savetxt(fh, np.column_stack(cols), delimiter=',', fmt='%.12g')
     return path
+
+
+def open_daq(path: str | Path):
+    """
+    Open a DAQ export to be streamed: a .npz piece by piece, a .csv read whole (:func:`read_daq`).
+
+    A .npz goes through :func:`bearing_id.io.recordings.open_npz`: never whole in memory, its values checked as they
+    are read.  Raises DaqError (a ValueError) or FileNotFoundError with the reason.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f'DAQ file {path} does not exist')
+    if path.suffix.lower() == '.npz':
+        try:
+            return open_npz(path)
+        except ValueError as exc:
+            raise DaqError(str(exc)) from None
+    return read_daq(path)
 
 
 def read_daq(path: str | Path):

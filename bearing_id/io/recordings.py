@@ -384,9 +384,11 @@ class NpzRecording:
     speed = property(lambda self: self.whole().speed)
     t = property(lambda self: self.whole().t)
 
-    def pieces(self):
+    def pieces(self, speed: bool = False):
         """
         Yield (samples (n, nch), angle (n,), contiguous) in order, split at ``gaps`` (``contiguous`` False there).
+
+        With ``speed``: (samples, angle, speed (n,) [rad/s], contiguous).
 
         Every value is checked as it is read; a RecordingError (a ValueError) naming the file is raised after the
         last piece when any is unusable (the message :func:`load_npz` gives), or at once for a corrupt member.
@@ -402,7 +404,8 @@ class NpzRecording:
                 got = {k: r.read(b - a) for k, r in readers.items()}
                 check.feed(got['samples'], got['angle'], got['speed'], got.get('t'))
                 if not check.failed:
-                    yield got['samples'], got['angle'], contiguous
+                    yield ((got['samples'], got['angle'], got['speed'], contiguous) if speed else
+                           (got['samples'], got['angle'], contiguous))
             for r in readers.values():
                 r.end()
         check.finish()

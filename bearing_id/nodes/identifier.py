@@ -105,8 +105,10 @@ class Identifier(Node):
         subscribe_latched(self, M.Excitation, relative(TOPIC_EXCITATION), self.on_excitation)
         self.create_subscription(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), self.on_block, qos_input(self))
         self.create_subscription(Temperature, relative(TOPIC_OIL_TEMPERATURE), self.on_temperature, qos_input(self, 50))
-        # a pause is seen within half a segment_timeout of its end (a timer wake costs ~1 ms of CPU: no faster)
-        self.create_timer(0.5 * v['segment_timeout'], self.tick)
+        # a pause is seen within half its length (segment_timeout, or pause_blocks blocks' time when longer: _pace)
+        # of its end (a timer wake costs ~1 ms of CPU: no faster)
+        self._tick_ns = int(0.5e9 * v['segment_timeout'])
+        self._tick_timer = self.create_timer(self._tick_ns * 1e-9, self.tick)
         self.create_timer(v['diagnostics_period'], self.diagnostics)
         self._worker.start()
         r = self.core.resumed
@@ -178,6 +180,14 @@ class Identifier(Node):
             self._problem(f'measured block seq {b.seq} not accumulated: {exc}')
             return
         self._close(wins, now)
+        self._pace()
+
+    def _pace(self):
+        """Wake for pauses at half the pause length the blocks now give (long blocks need no 0.15 s wake-up)."""
+        ns = int(0.5e9 * self.core.pause_after(self.values['segment_timeout'], self.values['pause_blocks']))
+        if abs(ns - self._tick_ns) > 0.01 * self._tick_ns:
+            self._tick_timer.timer_period_ns = ns
+            self._tick_ns = ns
 
     def _close(self, windows, now):
         # the harmonic fit of a closed window (tens of ms when modes ring) runs in the worker thread, in
@@ -188,7 +198,7 @@ class Identifier(Node):
 
     def tick(self):
         now = time.monotonic()
-        self._close(self.core.flush(now, self.values['segment_timeout']), now)
+        self._close(self.core.flush(now, self.values['segment_timeout'], self.values['pause_blocks']), now)
 
     def _work(self):
         t_req = None              # when the oldest window not yet solved closed (latency reference)

@@ -8,12 +8,12 @@ Data path (the offline route, call for call)
     feeds a whole recording or bag through: the speed of every sample from the angle, steady windows by the same
     rule, the same cut whatever the block boundaries.  A lost or rejected block ends the open window (the rest of
     the dwell becomes a second window, and the two vectors are combined); a change of run or probe set closes the
-    stream.  A pause (no block for ``segment_timeout``: the end of a run's data, or a loaded machine, a paused
-    replay) does not: the open window is handed out provisionally, fitted and used at once, and when the stream goes
-    on, its final cut replaces that vector -- the wall clock never cuts the data, so the live vectors are the
-    offline ones whatever the arrival timing.  Each closed window is fitted in a worker thread
-    (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions, transient-aware
-    fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
+    stream.  A pause (no block for ``segment_timeout``, and for ``pause_blocks`` blocks' time: the end of a run's
+    data, or a loaded machine, a paused replay) does not: the open window is handed out provisionally, fitted and
+    used at once, and when the stream goes on, its final cut replaces that vector -- the wall clock never cuts the
+    data, so the live vectors are the offline ones whatever the arrival timing.  Each closed window is fitted in a
+    worker thread (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions,
+    transient-aware fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
     runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured
     method (the data path never waits for a fit or a solve; while windows queue a solve starts no sooner than
     ``SOLVE_BACKLOG`` times the last one's duration after it ended, so a burst of windows is fitted first and shares
@@ -91,8 +91,11 @@ SPECS = [
               '(transient after a speed step)', '-', lo=0.0, hi=0.9),
     ParamSpec('min_window', defaults.MIN_WINDOW, 'shortest usable steady window', 's', lo=0.01, hi=3600.0),
     ParamSpec('segment_timeout', 0.3, 'the open steady window is used provisionally when no block arrived for this '
-              'long (the next contiguous block continues it)', 's',
+              "long and for pause_blocks blocks' time (the next contiguous block continues it)", 's',
               lo=0.01, hi=3600.0),
+    ParamSpec('pause_blocks', 3.0, "a pause is also at least this many blocks' time without a block (blocks longer "
+              'than segment_timeout would otherwise make every gap between two a pause: a provisional fit and a solve '
+              'per block); 0 = segment_timeout alone', 'blocks', lo=0.0, hi=1000.0),
     ParamSpec('max_waiting_blocks', 400, "blocks held while their run's excitation has not arrived yet (the oldest "
               'is dropped and counted beyond this)', 'blocks', lo=1, hi=100000),
     ParamSpec('max_segment', defaults.MAX_WINDOW, 'a steady window is fitted in pieces of at most this length, then '
@@ -120,6 +123,7 @@ class _Stream:
     stream: object                 # identify.harmonics.RunStream
     last_arrival: float = 0.0
     peeked: bool = False           # its open windows were handed out provisionally and nothing was fed since
+    block_s: float = 0.0           # the last block's duration [s] (samples / sample rate)
 
 
 def _probe_key(probes) -> tuple:
@@ -415,11 +419,16 @@ class IdentifierCore:
         out += cur.stream.feed(block.samples, block.angles(), contiguous=contiguous, stamp=block.stamp,
                                seq=block.seq)
         cur.last_arrival, cur.peeked = now, False
+        cur.block_s = len(block.samples) / float(block.sample_rate)
         return out
 
-    def flush(self, now: float, timeout: float) -> list:
+    def flush(self, now: float, timeout: float, pause_blocks: float = 0.0) -> list:
         """
-        Return the stream's open windows, provisionally, when no block arrived for ``timeout`` [s].
+        Return the stream's open windows, provisionally, when no block arrived for a while (:meth:`pause_after`).
+
+        A while: ``timeout`` [s], and ``pause_blocks`` times the last block's duration (a 1x stream sends a block
+        per block time: with blocks longer than ``timeout`` every gap between two would otherwise be a pause, a
+        provisional fit and a solve per block).
 
         The end of a run's data, or only a pause in their arrival (a loaded machine, a paused replay): either way the
         windows are cut as if the stream ended now (:meth:`RunStream.peek`) so that their vectors are used at once,
@@ -428,10 +437,15 @@ class IdentifierCore:
         the arrival timing.  Once per pause.
         """
         cur = self.stream
-        if cur is None or cur.peeked or now - cur.last_arrival < timeout:
+        if cur is None or cur.peeked or now - cur.last_arrival < self.pause_after(timeout, pause_blocks):
             return []
         cur.peeked = True
         return cur.stream.peek()
+
+    def pause_after(self, timeout: float, pause_blocks: float = 0.0) -> float:
+        """Return how long [s] without a block is a pause (:meth:`flush`) for the blocks the stream has now."""
+        cur = self.stream
+        return max(timeout, pause_blocks * (cur.block_s if cur is not None else 0.0))
 
     def wants(self, win, min_duration: float) -> bool:
         """Whether a window is worth fitting: ``min_duration`` [s] long, or a later cut of one stored already."""

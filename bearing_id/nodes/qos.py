@@ -2,7 +2,8 @@
 The QoS of the bearing_id topics (the choice, documented also in params/*.yaml and docs/ROS.md).
 
 * displacement blocks (``/rotor/displacement``, ``/bearing_id/bearing_displacement``, ``/bearing_id/innovation``):
-  RELIABLE, KEEP_LAST with a deep queue (``QOS_STREAM_DEPTH`` blocks = 40 s of data at 1024 samples/10,240 Hz):
+  RELIABLE, KEEP_LAST with a deep queue (``QOS_STREAM_DEPTH`` blocks = 40 s of data at 1024 samples/10,240 Hz; the
+  sensor_driver's publisher holds ``QOS_STREAM_SECONDS`` whatever its block size, :func:`stream_depth`):
   identification needs contiguous blocks, so a slow subscriber must get back-pressure, not silent loss; the depth
   absorbs a model rebuild or a garbage-collection pause.  VOLATILE: a late joiner starts at the present.
 * ``/rotor/speed``: RELIABLE, KEEP_LAST 50.
@@ -20,6 +21,8 @@ The QoS of the bearing_id topics (the choice, documented also in params/*.yaml a
 """
 from __future__ import annotations
 
+import math
+
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -27,6 +30,7 @@ from .specs import INPUT_RELIABILITY
 from ..config.params import ParamError
 
 QOS_STREAM_DEPTH = 400
+QOS_STREAM_SECONDS = 40.0     # s of data a stream publisher keeps for a slow subscriber (400 x 1024 / 10,240 Hz)
 QOS_LATCHED_DEPTH = 20
 
 
@@ -45,6 +49,16 @@ def qos_stream(depth: int = QOS_STREAM_DEPTH, reliability: str = 'reliable'):
     """
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=_reliability(reliability),
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def stream_depth(sample_rate: float, block_size: int) -> int:
+    """
+    Return the KEEP_LAST depth [blocks] that holds ``QOS_STREAM_SECONDS`` of data for a stream publisher.
+
+    The publisher's history holds that many whole messages: a fixed 400 blocks of 8192 samples (0.8 s each) were
+    320 s of data, ~80 MB that the sensor_driver kept (its RSS +100 MB over its first pass).  At least 10 blocks.
+    """
+    return max(10, math.ceil(QOS_STREAM_SECONDS * float(sample_rate) / max(int(block_size), 1)))
 
 
 def input_reliability(node) -> str:

@@ -26,7 +26,7 @@ from .declare import declare_parameters
 from .diagnostics import diagnostics_msg
 from .machine import label, machine_id
 from .process import run_node
-from .qos import qos_latched, qos_stream
+from .qos import qos_latched, qos_stream, stream_depth
 from .sensor_driver_core import (blocks_total, load_sources, NAME, opened, Prefetch, sim_temperature, SPECS,
                                  stream_messages)
 from .status import DiagItem, ERROR, OK, WARN
@@ -54,7 +54,8 @@ class SensorDriver(Node):
         self.frame_id = v['frame_id'] or label(self.machine, first.rig_name)
         self.blocks_total = blocks_total(self.sources, v['block_size'])
         self.skipped = []        # (source, reason) of runs that could not be streamed
-        self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT), qos_stream())
+        self.pub_disp = self.create_publisher(M.DisplacementBlock, relative(TOPIC_DISPLACEMENT),
+                                              qos_stream(stream_depth(self.sample_rate, v['block_size'])))
         self.pub_speed = self.create_publisher(M.RotorSpeed, relative(TOPIC_SPEED), qos_stream(50))
         self.pub_exc = self.create_publisher(M.Excitation, relative(TOPIC_EXCITATION), qos_latched())
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)

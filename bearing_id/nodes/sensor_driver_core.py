@@ -22,7 +22,7 @@ from .specs import ParamSpec
 from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
 from ..config.params import load_rig, ParamError, parse_probes
 from ..io import messages as M
-from ..io.daq import read_daq
+from ..io.daq import open_daq
 from ..rotor.assembly import RotorModel
 from ..signals.recording import Recording
 from ..simulation import rig as rigmod
@@ -98,15 +98,32 @@ class RecordingRun:
         yield 0, r.speed, r.angle, r.samples
 
 
+class StreamedRun:
+    """A .npz DAQ export read piece by piece as it streams (never whole in memory), served like a RecordingRun."""
+
+    def __init__(self, rec):
+        self.rec = rec                     # bearing_id.io.recordings.NpzRecording
+        self.sample_rate, self.probes, self.run, self.rig_name = rec.sample_rate, rec.probes, rec.run, rec.rig_name
+        self.n_samples = rec.n_samples
+
+    def pieces(self):
+        """Yield (i0, speed (n,) [rad/s], angle (n,) [rad], samples (n, nch) [m]) piece by piece."""
+        i0 = 0
+        for y, a, w, _ in self.rec.pieces(speed=True):
+            yield i0, w, a, y
+            i0 += y.shape[0]
+
+
 class DaqFile:
-    """A DAQ export read only when its turn comes (:meth:`read`), so a list of files is never in memory at once."""
+    """A DAQ export opened only when its turn comes (:meth:`read`): a .npz streamed piece by piece, a .csv whole."""
 
     def __init__(self, path: str):
         self.path = str(path)
 
-    def read(self) -> RecordingRun:
-        """Read the file (:func:`bearing_id.io.daq.read_daq`); raises DaqError/FileNotFoundError with the reason."""
-        return RecordingRun(read_daq(self.path))
+    def read(self):
+        """Open the file (:func:`bearing_id.io.daq.open_daq`); raises DaqError/FileNotFoundError with the reason."""
+        src = open_daq(self.path)
+        return RecordingRun(src) if isinstance(src, Recording) else StreamedRun(src)
 
 
 def load_sources(values: dict) -> Sequence:
@@ -306,7 +323,17 @@ def stream_messages(sources, block_size: int, t0_ns: int, frame_id: str, types=N
             continue
         fs = fs or src.sample_rate
         first = True
-        for i0, w, a, y in run_blocks(src, block_size):
+        blocks = run_blocks(src, block_size)
+        while True:
+            try:
+                i0, w, a, y = next(blocks)
+            except StopIteration:
+                break
+            except (ValueError, OSError) as exc:      # a streamed file's values fail their check mid-way
+                if on_skip is None:
+                    raise
+                on_skip(source, f'{exc} (its rest not streamed)')
+                break
             t_ns = t0_ns + int(round((t_off + i0 / fs) * 1e9))
             end_ns = t0_ns + int(round((t_off + (i0 + w.size) / fs) * 1e9))
             if first:
