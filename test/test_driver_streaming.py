@@ -153,8 +153,8 @@ def test_files_are_read_one_at_a_time_and_a_bad_one_is_skipped_and_named(tmp_pat
     paths[1].write_bytes(b'not a zip')
     sources = core.load_sources(_values(source='file', files=[str(p) for p in paths]))
     read = []
-    real = core.open_daq
-    monkeypatch.setattr(core, 'open_daq', lambda p: read.append(str(p)) or real(p))
+    real = core.read_daq
+    monkeypatch.setattr(core, 'read_daq', lambda p, **kw: read.append(str(p)) or real(p, **kw))
     skipped = []
     runs_seen = []
     for topic, _, msg, _ in core.stream_messages(sources, BLOCK, 0, 'rig', on_skip=lambda s, why: skipped.append(

@@ -82,9 +82,9 @@ def crack_depth_ratio(compliance: float, diameter: float, inner_diameter: float,
         return 0.0
     R = 0.5 * diameter
     target = compliance * E * R ** 3 / (1.0 - nu ** 2)
-    if target >= dimensionless_c55(1.0):
+    if target >= dimensionless_c55(2.0 * MAX_DEPTH_RATIO):
         return math.nan
-    q = brentq(lambda q: dimensionless_c55(q) - target, 0.0, 1.0, xtol=1e-14, rtol=1e-14)
+    q = brentq(lambda q: dimensionless_c55(q) - target, 0.0, 2.0 * MAX_DEPTH_RATIO, xtol=1e-14, rtol=1e-14)
     return 0.5 * q
 
 

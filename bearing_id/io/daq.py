@@ -179,32 +179,19 @@ def write_csv(rec, path: str | Path, units: str = 'm', keyphasor: bool = False, 
     return path
 
 
-def open_daq(path: str | Path):
+def read_daq(path: str | Path, stream: bool = False):
     """
-    Open a DAQ export to be streamed: a .npz piece by piece, a .csv read whole (:func:`read_daq`).
+    Read a DAQ export by extension (.csv or .npz) -> Recording; raises DaqError (a ValueError) with the reason.
 
-    A .npz goes through :func:`bearing_id.io.recordings.open_npz`: never whole in memory, its values checked as they
-    are read.  Raises DaqError (a ValueError) or FileNotFoundError with the reason.
+    ``stream``: a .npz is only opened, to be read piece by piece (:func:`bearing_id.io.recordings.open_npz`: never
+    whole in memory, its values checked as they are read); a .csv is read whole either way.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f'DAQ file {path} does not exist')
     if path.suffix.lower() == '.npz':
         try:
-            return open_npz(path)
-        except ValueError as exc:
-            raise DaqError(str(exc)) from None
-    return read_daq(path)
-
-
-def read_daq(path: str | Path):
-    """Read a DAQ export by extension (.csv or .npz) -> Recording; raises DaqError (a ValueError) with the reason."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f'DAQ file {path} does not exist')
-    if path.suffix.lower() == '.npz':
-        try:
-            return load_npz(path)
+            return open_npz(path) if stream else load_npz(path)
         except ValueError as exc:
             raise DaqError(str(exc)) from None
     if path.suffix.lower() in ('.csv', '.txt'):

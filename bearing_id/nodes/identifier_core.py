@@ -13,9 +13,9 @@ Data path (the offline route, call for call)
     used at once, and when the stream goes on, its final cut replaces that vector -- the wall clock never cuts the
     data, so the live vectors are the offline ones whatever the arrival timing.  Each closed window is fitted in a
     worker thread (:func:`bearing_id.identify.harmonics.window_vector`: settling part dropped, whole revolutions,
-    transient-aware fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a new speed, the
-    runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the configured
-    method (the data path never waits for a fit or a solve; while windows queue a solve starts no sooner than
+    transient-aware fit), giving one 1X vector per (run, speed).  As soon as every required run has a vector at a
+    new speed, the runs are stacked into a ``HarmonicData`` and :func:`bearing_id.identify.identify` solves with the
+    configured method (the data path never waits for a fit or a solve; while windows queue a solve starts no sooner than
     ``SOLVE_BACKLOG`` times the last one's duration after it ended, so a burst of windows is fitted first and shares
     one solve).  Results the data do not determine are not published as numbers (unless ``publish_undetermined``);
     /diagnostics reports their rank and condition instead.

@@ -22,7 +22,7 @@ from .specs import ParamSpec
 from .topics import TOPIC_DISPLACEMENT, TOPIC_EXCITATION, TOPIC_OIL_TEMPERATURE, TOPIC_SPEED
 from ..config.params import load_rig, ParamError, parse_probes
 from ..io import messages as M
-from ..io.daq import open_daq
+from ..io.daq import read_daq
 from ..rotor.assembly import RotorModel
 from ..signals.recording import Recording
 from ..simulation import rig as rigmod
@@ -121,8 +121,8 @@ class DaqFile:
         self.path = str(path)
 
     def read(self):
-        """Open the file (:func:`bearing_id.io.daq.open_daq`); raises DaqError/FileNotFoundError with the reason."""
-        src = open_daq(self.path)
+        """Open the file (:func:`bearing_id.io.daq.read_daq`); raises DaqError/FileNotFoundError with the reason."""
+        src = read_daq(self.path, stream=True)
         return RecordingRun(src) if isinstance(src, Recording) else StreamedRun(src)
 
 
