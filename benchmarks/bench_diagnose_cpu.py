@@ -7,9 +7,10 @@ Cases (recordings simulated here, 1 % noise; the CPU is ``time.process_time`` of
   over its 9 speeds (2 s dwells, 0.5 s ramps), the simulated truth's bearings off theory as in params/rig.yaml and a
   pedestal under bearing 2 in y (1.5e5 N/m, 0.2 kg): target <= 20 s.
 * ``compressor`` / ``compressor_force``: ROSS's 6-stage compressor as ``bearing-id import-ross`` gives it (56
-  nodes, bearing and seal tables), +-45 deg probe pairs at nodes 9, 28 and 48, 7 speeds 4400-8000 rpm, 2 s dwells;
-  both bearing tables scaled coefficient by coefficient in the truth (factors below, not the tests'); two unbalance
-  runs, or four 200 N directional-force runs (x and y at two discs): target <= 60 s.
+  nodes, bearing and seal tables), +-45 deg probe pairs at nodes 9, 28 and 48, 7 speeds 4400-8000 rpm, 2 s dwells
+  (``compressor_params`` of test/test_identify_tables.py); both bearing tables scaled coefficient by coefficient in
+  the truth (factors below, not the tests'); its two unbalance runs, or four 200 N directional-force runs (x and y
+  at two discs): target <= 60 s.
 
 CPU time is less sensitive than wall time to the other load on this machine, but a busy machine still slows it
 (shared caches, frequency); the load average is printed.  Each case prints its verdict so a change that speeds
@@ -20,7 +21,6 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose_cpu.py [--cases ri
 from __future__ import annotations
 
 import argparse
-import copy
 import os
 from pathlib import Path
 import sys
@@ -30,18 +30,18 @@ import yaml
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / 'test'))
 from bearing_id.config.params import parse_rig  # noqa: E402, I100  (after the sys.path insert above)
 from bearing_id.diagnose import diagnose  # noqa: E402
-from bearing_id.io import ross_import  # noqa: E402
 from bearing_id.rotor.assembly import RotorModel  # noqa: E402
 from bearing_id.rotor.supports import bearing_fn  # noqa: E402
 from bearing_id.simulation import effects as te, rig as rigmod  # noqa: E402
+from test_identify_tables import compressor_params, scaled_tables  # noqa: E402
 
 TARGET_S = {'rig3': 20.0, 'compressor': 60.0, 'compressor_force': 60.0}
 # the truth's table factors (bearing 1, bearing 2): each coefficient scaled on its own
 FACTORS = ({'kxx': 0.82, 'kxy': 1.25, 'kyx': 1.3, 'kyy': 1.18, 'cxx': 1.12, 'cxy': 0.78, 'cyx': 1.2, 'cyy': 0.88},
            {'kxx': 1.15, 'kxy': 0.8, 'kyx': 0.85, 'kyy': 0.9, 'cxx': 0.85, 'cxy': 1.22, 'cyx': 0.9, 'cyy': 1.1})
-CRPM = [4400, 5000, 5600, 6200, 6800, 7400, 8000]
 
 
 def rig3_case():
@@ -58,27 +58,15 @@ def rig3_case():
 
 def compressor_case(force: bool):
     """Return (recordings, rig, model) of the ``compressor`` or ``compressor_force`` case."""
-    d = ross_import.import_ross(REPO / 'test' / 'data' / 'ross' / 'compressor.toml')
-    d.pop('_notes', None)
-    d['probes'] = [{'name': f'p{n}{e}', 'node': n, 'angle_deg': a} for n in (9, 28, 48)
-                   for e, a in (('a', 45.0), ('b', 135.0))]
-    discs = [x['node'] for x in d['discs']]
+    d = compressor_params(dwell=2.0)          # the tests' machine and plan (test/test_identify_tables.py)
     if force:
-        runs = [{'id': f'F{n}{a}', 'excitation': [{'kind': 'force', 'node': n, 'magnitude': 200.0, 'direction': a}]}
-                for n in (discs[1], discs[-2]) for a in 'xy']
-    else:
-        runs = [{'id': 'A', 'excitation': [{'kind': 'unbalance', 'node': discs[1], 'magnitude': 2e-4}]},
-                {'id': 'B', 'excitation': [{'kind': 'unbalance', 'node': discs[-2], 'magnitude': 2e-4,
-                                            'phase_deg': 90.0}]}]
-    d['simulation'] = {'sample_rate': 4096.0, 'speeds_rpm': CRPM, 'dwell': 2.0, 'noise': 0.01, 'truth': {},
-                       'runs': runs}
+        discs = [x['node'] for x in d['discs']]
+        d['simulation']['runs'] = [
+            {'id': f'F{n}{a}', 'excitation': [{'kind': 'force', 'node': n, 'magnitude': 200.0, 'direction': a}]}
+            for n in (discs[1], discs[-2]) for a in 'xy']
     rig = parse_rig(d)
-    truth = copy.deepcopy(d)
-    for b, f in zip([b for b in truth['bearings'] if b.get('identify', True)], FACTORS):
-        for k, v in f.items():
-            b['table'][k] = [x * v for x in b['table'][k]]
     model = RotorModel.from_params(rig)
-    truth_fn = bearing_fn(parse_rig(truth))
+    truth_fn = bearing_fn(parse_rig(scaled_tables(d, FACTORS)))
     recs = [rigmod.simulate_run(rig, r, bearing_fn=truth_fn, model=model, seed=3 + i)
             for i, r in enumerate(rig.simulation.runs)]
     return recs, rig, model
