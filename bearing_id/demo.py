@@ -97,10 +97,11 @@ def stop_processes(procs: dict, timeout: float = 10.0) -> dict:
 class Listener:
     """In-process rclpy node collecting /bearing_id/coefficients and /diagnostics."""
 
-    def __init__(self):
+    def __init__(self, domain_id: int | None = None):
+        """Listen on ``domain_id`` (default: ROS_DOMAIN_ID of this process's environment)."""
         self.rclpy = rclpy
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node('bearing_id_demo', context=self.context)
         self.results = {}                # speed [rad/s] -> coefficients dict (latest)
         self.last_result_time = None

@@ -32,14 +32,23 @@ from bearing_id.demo import Listener, ros_env, start_node, stop_processes  # noq
 CLK = os.sysconf('SC_CLK_TCK')
 
 
-def _domain_id() -> int | None:
-    """Return a ROS_DOMAIN_ID reserved for this process (test/rosutil.py lock files), or None (ros_env's own)."""
+def _domain_ids(n: int) -> list:
+    """
+    Return ``n`` ROS_DOMAIN_IDs reserved for this process (test/rosutil.py lock files).
+
+    Without test/rosutil.py: [None] for one (ros_env's own), consecutive ids from 10 for more.
+    """
     try:
         sys.path.insert(0, str(REPO / 'test'))
-        from rosutil import domain_id
-        return domain_id()
+        from rosutil import domain_ids
+        return domain_ids(n)
     except ImportError:
-        return None
+        return [None] if n == 1 else list(range(10, 10 + n))
+
+
+def _domain_id() -> int | None:
+    """Return a ROS_DOMAIN_ID reserved for this process (test/rosutil.py lock files), or None (ros_env's own)."""
+    return _domain_ids(1)[0]
 
 
 def cpu_seconds(pid: int) -> float:

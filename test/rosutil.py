@@ -43,6 +43,7 @@ DDS_PROFILE = REPO / 'params' / 'fastdds_localhost.xml'
 DOMAIN_RANGE = range(1, 101)
 STOP_WITHIN = 30.0  # s: how long a stopping process may take -- a generous upper bound, never a verdict on speed
 _domain_lock = None  # (domain id, open lock file) held for the life of this process
+_more_domain_locks = []  # further (domain id, open lock file) of domain_ids(n)
 
 
 # ------------------------------------------------------------------------------------------------ interpreters
@@ -118,17 +119,9 @@ def script(name: str) -> str:
 
 
 # -------------------------------------------------------------------------------------------------- environment
-def domain_id() -> int:
-    """
-    Reserve a ROS_DOMAIN_ID in 1..100 for this process (flock on /tmp/bearing_id_ros_domain_<id>.lock).
-
-    Starts from a pid-derived id and takes the first free one, so concurrent test processes never collide.
-    """
-    global _domain_lock
-    if _domain_lock is not None:
-        return _domain_lock[0]
+def _reserve_domain_id(start: int) -> tuple:
+    """Flock the first free ROS_DOMAIN_ID of DOMAIN_RANGE from index ``start`` on; (id, open lock file)."""
     n = len(DOMAIN_RANGE)
-    start = os.getpid() % n
     lock_dir = Path(tempfile.gettempdir())
     for k in range(n):
         d = DOMAIN_RANGE[(start + k) % n]
@@ -138,9 +131,29 @@ def domain_id() -> int:
         except OSError:
             f.close()
             continue
-        _domain_lock = (d, f)
-        return d
+        return d, f
     raise RuntimeError('all ROS domain ids 1..100 are taken by other test processes')
+
+
+def domain_id() -> int:
+    """
+    Reserve a ROS_DOMAIN_ID in 1..100 for this process (flock on /tmp/bearing_id_ros_domain_<id>.lock).
+
+    Starts from a pid-derived id and takes the first free one, so concurrent test processes never collide.
+    """
+    global _domain_lock
+    if _domain_lock is None:
+        _domain_lock = _reserve_domain_id(os.getpid() % len(DOMAIN_RANGE))
+    return _domain_lock[0]
+
+
+def domain_ids(n: int) -> list[int]:
+    """Reserve ``n`` ROS_DOMAIN_IDs for this process: :func:`domain_id` first, then further free ones."""
+    ids = [domain_id()] + [d for d, _ in _more_domain_locks]
+    while len(ids) < n:
+        _more_domain_locks.append(_reserve_domain_id(DOMAIN_RANGE.index(ids[-1]) + 1))
+        ids.append(_more_domain_locks[-1][0])
+    return ids[:n]
 
 
 def _base_env() -> dict:

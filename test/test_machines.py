@@ -139,3 +139,17 @@ def test_a_best_effort_publisher_that_cannot_connect_is_explained(tmp_path, reli
     finally:
         ident.interrupt()
         ident.close()
+
+
+def test_more_machines_than_a_domain_holds_get_distinct_reserved_domain_ids():
+    """rosutil.domain_ids (benchmarks put machines beyond 39 on further domains): distinct ids, each locked."""
+    import fcntl
+    import tempfile
+
+    ids = rosutil.domain_ids(3)
+    assert ids[0] == rosutil.domain_id() and len(set(ids)) == 3 and rosutil.domain_ids(2) == ids[:2]
+    for d in ids:
+        assert d in rosutil.DOMAIN_RANGE
+        with open(Path(tempfile.gettempdir()) / f'bearing_id_ros_domain_{d}.lock', 'a+') as f:
+            with pytest.raises(OSError):                # held by this process's reservation
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
