@@ -8,8 +8,10 @@ exit 2 and one line naming the key and the nearest known one.
 """
 from __future__ import annotations
 
+import fcntl
 import os
 from pathlib import Path
+import tempfile
 import time
 
 from bearing_id.config.params import load_rig
@@ -143,9 +145,6 @@ def test_a_best_effort_publisher_that_cannot_connect_is_explained(tmp_path, reli
 
 def test_more_machines_than_a_domain_holds_get_distinct_reserved_domain_ids():
     """rosutil.domain_ids (benchmarks put machines beyond 39 on further domains): distinct ids, each locked."""
-    import fcntl
-    import tempfile
-
     ids = rosutil.domain_ids(3)
     assert ids[0] == rosutil.domain_id() and len(set(ids)) == 3 and rosutil.domain_ids(2) == ids[:2]
     for d in ids:
