@@ -47,7 +47,7 @@ from bearing_id.config.params import load_rig  # noqa: E402, I100
 from bearing_id.demo import Listener, ros_env, stop_processes  # noqa: E402
 from bearing_id.io.recordings import save_npz  # noqa: E402
 from bearing_id.simulation.rig import simulate_run  # noqa: E402
-from bench_streaming import _domain_ids, CLK, cpu_seconds, memory_mb  # noqa: E402
+from bench_streaming import _domain_ids, cpu_seconds, memory_mb, stat_cpu_seconds  # noqa: E402
 
 NODES = ('sensor_driver', 'kf_estimator', 'identifier')
 CORES = 2
@@ -114,17 +114,15 @@ def _late(listeners, machines) -> int:
 
 def dds_cpu(procs) -> float:
     """Return the CPU seconds so far of the processes' Fast DDS threads (``dds.*``: discovery, events, transports)."""
-    total = 0
+    total = 0.0
     for p in procs.values():
         for task in Path(f'/proc/{p.pid}/task').glob('*'):
             try:
-                comm = (task / 'comm').read_text().strip()
-                if comm.startswith('dds.'):
-                    f = (task / 'stat').read_text().rsplit(')', 1)[1].split()
-                    total += int(f[11]) + int(f[12])
+                if (task / 'comm').read_text().startswith('dds.'):
+                    total += stat_cpu_seconds(task / 'stat')
             except (OSError, IndexError, ValueError):      # a thread that ended meanwhile
                 pass
-    return total / CLK
+    return total
 
 
 def _cpu(procs) -> dict:
@@ -157,11 +155,10 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
     procs, row = {}, None
     listeners = [(Listener(int(env['ROS_DOMAIN_ID'])), group) for env, group in zip(envs, groups)]
     try:
-        for k, mc in enumerate(machines):
+        for k, (mc, env) in enumerate((mc, env) for env, group in zip(envs, groups) for mc in group):
             if available_mb() < MEM_RESERVE_MB:
                 raise RuntimeError(f'{available_mb():.0f} MB available after {k} machine(s): '
                                    f'not starting {m} (logs in {out})')
-            env = next(e for e, g in zip(envs, groups) if mc in g)
             rec = out / mc / 'record'
             procs[(mc, 'identifier')] = start(mc, 'identifier', env, out, [f'record_dir:={rec}'], floor)
             procs[(mc, 'kf_estimator')] = start(mc, 'kf_estimator', env, out, floor=floor)

@@ -40,7 +40,7 @@ from bearing_id.demo import ros_env, stop_processes  # noqa: E402, I100
 from bearing_id.history import HistoryStore, sqlite_url  # noqa: E402
 from bearing_id.history.trend import changes, parameter_series  # noqa: E402
 from bearing_id.nodes import sensor_driver_core  # noqa: E402
-from bench_streaming import _domain_id  # noqa: E402
+from bench_streaming import _domain_id, cpu_seconds  # noqa: E402
 from bench_tracking import start  # noqa: E402
 
 OIL = ['-p', 'oil_viscosities:=[4.6e-05,6.8e-06]', '-p', 'oil_density:=870.0']
@@ -182,13 +182,11 @@ def _data_covered(db: Path) -> float:
 
 def _sample_cpu(procs: dict, cpu: dict) -> None:
     """Update ``cpu`` [s] (user + system) of each running process in ``procs`` from /proc (Linux; else nothing)."""
-    tick = os.sysconf('SC_CLK_TCK')
     for name, p in procs.items():
         try:
-            fields = Path(f'/proc/{p.pid}/stat').read_text().rsplit(')', 1)[1].split()
+            cpu[name] = cpu_seconds(p.pid)
         except (OSError, IndexError):            # exited (or not Linux): its last sample stands
             continue
-        cpu[name] = (int(fields[11]) + int(fields[12])) / tick
 
 
 def _gaps_logged(log: Path) -> tuple[int, int]:

@@ -51,9 +51,14 @@ def _domain_id() -> int | None:
     return _domain_ids(1)[0]
 
 
+def stat_cpu_seconds(stat: Path) -> float:
+    """Return the CPU seconds (utime + stime) of a /proc ``stat`` file: a process's, or one thread's (task/<tid>)."""
+    f = stat.read_text().rsplit(')', 1)[1].split()
+    return (int(f[11]) + int(f[12])) / CLK
+
+
 def cpu_seconds(pid: int) -> float:
-    f = open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()
-    return (int(f[11]) + int(f[12])) / CLK           # utime + stime
+    return stat_cpu_seconds(Path(f'/proc/{pid}/stat'))
 
 
 def memory_mb(pid: int) -> tuple[float, float]:
