@@ -36,10 +36,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+import math
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.special import chdtri
+from scipy.special import chdtri, ndtri
 
 from ..config import defaults
 from ..conventions import dof_index
@@ -367,13 +368,20 @@ class KFResult:
         return bool(self.nis_band[0] <= self.nis_mean <= self.nis_band[1])
 
 
-def nis_band(n_steps: int, m: int, level: float = 0.95) -> tuple:
+def nis_band(n_steps: int, m: int, level: float = 0.95, rel_std: float = 0.0) -> tuple:
     """
     Two-sided ``level`` band of the mean of n_steps NIS values of dimension m (chi-square with n_steps m dof).
 
-    Kept per (n_steps, m, level): the windows of one speed usually have equal lengths.
+    ``rel_std``: the relative 1-sigma of the noise covariance the NIS is normalised by, when that is itself estimated
+    from data (the mean NIS scales with its inverse).  The chi-square band assumes it known; with ``rel_std`` > 0 each
+    half-width is combined in quadrature with the normal ``level`` quantile of m x ``rel_std``.  Kept per
+    (n_steps, m, level): the windows of one speed usually have equal lengths.
     """
-    return _nis_band(int(n_steps), int(m), float(level))
+    lo, hi = _nis_band(int(n_steps), int(m), float(level))
+    if not rel_std > 0:
+        return lo, hi
+    w = float(ndtri(0.5 + float(level) / 2)) * int(m) * float(rel_std)
+    return m - math.hypot(m - lo, w), m + math.hypot(hi - m, w)
 
 
 @lru_cache(maxsize=512)
