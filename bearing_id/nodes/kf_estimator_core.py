@@ -14,7 +14,8 @@ Model cache
     most ``max_pending_blocks``) while the callback returns at once.  Expected speeds (``prebuild_speeds_rpm``) are
     built at start-up.  When a channel's noise moves by more than ``NOISE_STEP`` from the model's, or the process noise
     the innovations imply by more than ``Q_STEP`` (``process_noise`` 0, the default:
-    :meth:`EstimatorCore._fit_process_noise`), its gain is re-solved (and cached).  The filter starts from the model's
+    :meth:`EstimatorCore._fit_process_noise`; on a speed ramp at least ``RAMP_PROCESS_NOISE``), its gain is re-solved
+    (and cached).  The filter starts from the model's
     steady state (kalman.StreamingKF) at a new run or after lost data; when only the model changes (speed band,
     bearings, noise) the state carries over (``continue_from``).
 
@@ -40,7 +41,7 @@ from .specs import ParamSpec
 from .status import DiagItem, OK, WARN
 from ..config import defaults
 from ..config.params import Probe
-from ..conventions import rad_s_to_rpm
+from ..conventions import phasor_to_time, rad_s_to_rpm
 from ..estimation.kalman import nis_band, rotor_kalman_model, StreamingKF
 from ..estimation.process_noise import process_noise_scale
 from ..estimation.uncertainty import coefficient_sigma, filter_std
@@ -50,6 +51,7 @@ from ..rotor import stability, supports
 from ..rotor.assembly import probe_matrix, RotorModel
 from ..rotor.reduction import craig_bampton, kf_kept_dofs, receptance_error
 from ..signals.harmonics import harmonic_vectors
+from ..signals.noise import difference_noise
 
 NAME = 'kf_estimator'
 # the default reduction: modes above the Nyquist frequency are left out (88 -> 52 states on the packaged rig at
@@ -101,6 +103,9 @@ NOISE_STEP = 1.01       # a channel's noise std moving by more than this factor 
 NOISE_FLOOR = 1e-12     # m: the smallest noise std used (a noise-free signal still needs R > 0)
 Q_STEP = 2.0            # the process noise the innovations imply moving by more than this factor re-solves the gain
 Q_RANGE = 1e6           # the fitted process noise stays within this factor of defaults.KF_PROCESS_NOISE either way
+# on a speed ramp (a block's speed more than the band from the last one's) the process noise is at least the paper's:
+# the model follows the speed in steps and its response lags the machine's, a model error the dwells' fit never sees
+RAMP_PROCESS_NOISE = defaults.KF_PROCESS_NOISE
 DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
 MODEL_MOVE = 0.25       # an identified coefficient moving less than this times its 1-sigma keeps the models
 MODEL_TOL = 0.01        # ... or less than this fraction of its bearing's largest K (C) entry (IdentifiedBearings)
@@ -374,6 +379,7 @@ class EstimatorCore:
         self._noise_dof: deque = deque(maxlen=NOISE_BLOCKS)
         self.R_rel_std = 0.0          # relative 1-sigma of the estimated R (_clean; 0 when R is fixed)
         self._dc_used = (0, 0.0, 0.0)  # (blocks since the last fit, the DC [m] used, the speed [rad/s] of that fit)
+        self._prev_speed = 0.0        # the last block's speed [rad/s]: a change beyond the band is a ramp
         self.errors: list = []
         self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
         self._worker.start()
@@ -506,14 +512,17 @@ class EstimatorCore:
                 self._noise.clear()
                 self._noise_dof.clear()
                 self._dc_used = (0, 0.0, 0.0)
-            z, dc = self._clean(block.samples, angle, speed)
+            ramp = same_stream and abs(speed - self._prev_speed) > self.band * self._prev_speed
+            self._prev_speed = speed
+            z, dc = self._clean(block.samples, angle, speed, ramp)
             R = None if self.R_fixed else np.broadcast_to(self.R, (block.samples.shape[1],))
+            q = self.Q if self.Q_fixed or not ramp else max(self.Q, RAMP_PROCESS_NOISE)
             if (not same_stream or act[0] != key or (R is not None and _noise_moved(R, np.diag(act[2].km.R)))
-                    or self._q_moved(act[2].km)):
+                    or self._q_moved(act[2].km, q)):
                 r_moved = R is not None and _noise_moved(R, np.diag(km.R))
-                if r_moved or self._q_moved(km):
+                if r_moved or self._q_moved(km, q):
                     # the cached model's noise is not the data's: its gain re-solved, and cached for the next visit
-                    km = km.with_noise(R=R if r_moved else None, Q=km.Q * (self.Q / self._q_of(km)))
+                    km = km.with_noise(R=R if r_moved else None, Q=km.Q * (q / self._q_of(km)))
                     km.steady_state()
                     with self._lock:
                         if key in self._models:
@@ -555,9 +564,9 @@ class EstimatorCore:
             self._q_unit[fs] = unit
         return float(np.trace(km.Q)) / unit[1]
 
-    def _q_moved(self, km) -> bool:
-        """Whether the process noise to use moved by more than ``Q_STEP`` from model ``km``'s."""
-        return not self.Q_fixed and abs(math.log(self.Q / self._q_of(km))) > math.log(Q_STEP)
+    def _q_moved(self, km, q: float) -> bool:
+        """Whether the process noise to use, ``q`` [m^2 per step], moved by more than ``Q_STEP`` from model ``km``'s."""
+        return not self.Q_fixed and abs(math.log(q / self._q_of(km))) > math.log(Q_STEP)
 
     def _fit_process_noise(self, km, terms: dict) -> None:
         """
@@ -601,33 +610,39 @@ class EstimatorCore:
             for k in [k for k in self._models if k not in needed][:len(self._models) - MAX_MODELS]:
                 del self._models[k]
 
-    def _clean(self, samples, angle, speed: float):
+    def _clean(self, samples, angle, speed: float, ramp: bool = False):
         """
         Return (samples with their DC removed, the DC removed (m,) [m]) for the filter; update the noise ``R``.
 
-        A block's DC and noise are those of a DC + 1X + 2X least-squares fit
-        (:func:`bearing_id.signals.harmonics.harmonic_vectors`; noise = its residual's std over its degrees of
-        freedom, not its RMS, which is low by their share: 0.5 % in variance at 1024 samples); the values used are the
-        medians over the last ``NOISE_BLOCKS`` fitted blocks of the stream (a probe gap offset never reaches the
-        filter).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted, and every block whose ``speed``
-        [rad/s] is more than the band width from the last fitted one's (a ramp: the fit's residual grows with the
-        speed's change); at a steady speed every ``NOISE_EVERY``-th (DC and noise move over seconds; a step in them
-        is followed within ``NOISE_BLOCKS * NOISE_EVERY / 2`` blocks).  Unless ``measurement_noise`` is fixed, ``R``
+        A block's DC is the offset of a DC + 1X + 2X least-squares fit
+        (:func:`bearing_id.signals.harmonics.harmonic_vectors`), its noise the white part of that fit's residual
+        (:func:`bearing_id.signals.noise.difference_noise`: the free vibration a speed ramp leaves ringing is the
+        filter's to track, not noise; the residual's RMS counted it, up to ~1000 times the noise's variance on the
+        packaged rig); the values used are the medians over the last ``NOISE_BLOCKS`` fitted blocks of the stream (a
+        probe gap offset never reaches the filter).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted,
+        and every block whose ``speed`` [rad/s] is more than the band width from the last fitted one's: the noise
+        starts afresh there (a new operating point), and a ``ramp`` block's DC is not taken (the 1X moves within the
+        block); at a steady speed every ``NOISE_EVERY``-th (DC and noise move over seconds; a step in them is
+        followed within ``NOISE_BLOCKS * NOISE_EVERY / 2`` blocks).  Unless ``measurement_noise`` is fixed, ``R``
         [m^2] per channel becomes that noise: the filter's gain is re-solved when it moves by more than ``NOISE_STEP``
         (in std), so R follows the real noise of each channel; ``R_rel_std`` is the estimate's relative 1-sigma.
         """
         since, dc, fitted_at = self._dc_used
-        if (len(self._dc) < NOISE_BLOCKS or since + 1 >= NOISE_EVERY
-                or abs(speed - fitted_at) > self.band * abs(fitted_at)):
+        moved = abs(speed - fitted_at) > self.band * abs(fitted_at)
+        if moved:                 # a new operating point: its own noise
+            self._noise.clear()
+            self._noise_dof.clear()
+        if len(self._noise) < NOISE_BLOCKS or since + 1 >= NOISE_EVERY or moved:
             try:
                 fit = harmonic_vectors(samples, angle, (1, 2), whole_revs=False)
             except ValueError:            # too few samples for the fit: the previous blocks' values
                 fit = None
             if fit is not None:
-                self._dc.append(np.asarray(fit.offset, float))
-                n_fit = fit.i1 - fit.i0 - fit.n_dropped
-                dof = max(n_fit - (1 + 2 * len(fit.orders)), 1)     # less the fitted DC, cos and sin per order
-                self._noise.append(np.asarray(fit.residual_rms, float) * math.sqrt(n_fit / dof))
+                if not ramp or not self._dc:     # a ramp's DC fit carries the 1X's change within the block
+                    self._dc.append(np.asarray(fit.offset, float))
+                slow = fit.offset + sum(phasor_to_time(X, order * angle).T for X, order in zip(fit.X, fit.orders))
+                var, dof = difference_noise(np.asarray(samples, float) - slow)
+                self._noise.append(np.sqrt(var))
                 self._noise_dof.append(dof)
                 dc = np.median(np.array(self._dc), axis=0)
                 if not self.R_fixed:
