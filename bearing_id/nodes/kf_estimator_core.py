@@ -23,7 +23,7 @@ Filter consistency
     The mean NIS over the last ``nis_window`` blocks is judged against its 95 % chi-square band widened by the
     relative 1-sigma of the R it is normalised by when R comes from the data (:meth:`EstimatorCore.noise_rel_std`,
     :func:`bearing_id.estimation.kalman.nis_band`): the chi-square band alone assumes R known, and at long windows
-    it is narrower than any R a few blocks can estimate (20 s at 10,240 Hz, 2 probes: +-0.44 %, against ~2 % for
+    it is narrower than any R a few blocks can estimate (20 s at 10,240 Hz, 2 probes: +-0.44 %, against ~3 % for
     R from 8 blocks of 1024 samples).
 """
 from __future__ import annotations
@@ -65,13 +65,15 @@ SPECS = [
     ParamSpec('rig_params', '', 'rig YAML with the nominal model (empty: the packaged params/rig.yaml)'),
     ParamSpec('process_noise', 0.0, 'Q, process noise variance per step times identity (paper: 1e-16 .. '
               '1e-18); 0: from the data (the multiple of 1e-16 I the broadband innovations imply, refitted every 8 '
-              'blocks, kept within 1e-6 .. 1e6 of it, starting at its bottom: none until the data show some)', 'm^2',
-              lo=0.0, hi=1.0),
+              'blocks, kept within 1e-6 .. 1e6 of it, starting at its bottom: none until the data show some; on a '
+              'speed ramp at least 1e-16)', 'm^2', lo=0.0, hi=1.0),
     ParamSpec('bearing_source', 'identified', "the model's bearing coefficients: the identifier's latest fully "
               'determined ones (subscribed on bearing_id/coefficients; theory where none cover the speed), or always '
               'the theory', choices=('identified', 'theory')),
     ParamSpec('measurement_noise', 0.0, 'probe noise standard deviation (R = value^2 times identity); 0: per '
-              'channel from the data (the residual of a DC + 1X + 2X fit, median over the last 8 blocks)', 'm',
+              'channel from the data (the white part of the residual of a DC + 1X + 2X fit, from its third '
+              'differences; median over the last 8 blocks, afresh at a new speed; the NIS band then allows for its '
+              'uncertainty)', 'm',
               lo=0.0, hi=1e-3),
     ParamSpec('model_cutoff', MODEL_CUTOFF, "the filter's FE model is Craig-Bampton reduced: the probe and bearing "
               'DOFs kept, and the rotor modes (bearings fixed) below this fraction of the sample rate (0.5: every '
