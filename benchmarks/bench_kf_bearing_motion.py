@@ -123,10 +123,11 @@ def main(argv=None) -> int:
     first = [R.simulate_run(rig, run, **plan) for run in sim.runs]
     results = identify('physical', RotorModel.from_params(rig), rig, harmonics.from_recordings(first))
     used = [r for r in results if r.fully_determined]          # what the node takes (kf_estimator: coefficients)
-    left = ', '.join(f'{r.speed_rpm:.0f}' for r in results if not r.fully_determined) or 'none'
+    left = ', '.join(f'{r.speed_rpm:.0f}' for r in results if not r.fully_determined)
+    where = f' (not at {left} rpm: the filter interpolates there)' if left else ''
     misfit = ', MISFIT' if any(r.misfit for r in results) else ''
-    print(f'identified (first pass): every coefficient determined at {len(used)} of {len(results)} speeds (not at '
-          f'{left} rpm: the filter interpolates there){misfit}\n')
+    print(f'identified (first pass): every coefficient determined at {len(used)} of {len(results)} speeds'
+          f'{where}{misfit}\n')
     run = sim.runs[0]
     rec = R.simulate_run(rig, run, seed=R.run_seed(sim.seed, run.id, 1), **plan)      # the second pass
     truth = R.simulate_run(rig, run, probes=at, noise=0.0, **plan)

@@ -239,6 +239,21 @@ class KalmanModel:
                            input_phasors(self.A, self.B, forces, sp), self.out_names, self.meas_names, self._ss,
                            self._chunked)
 
+    def bias_gain(self) -> np.ndarray:
+        """
+        (m, m) mean innovation of the steady-state filter per unit constant bias on the measurements (cached).
+
+        M = I - H (I - Phi (I - K H))^-1 Phi K: a bias b leaves the innovations a mean M b, the filter takes the rest
+        into its state (M ~ I with a small Q, ~ 0 with a large one).
+        """
+        M = self._chunked.get('bias_gain')
+        if M is None:
+            P, K, S = self.steady_state()
+            F = self.Phi @ (np.eye(self.n) - K @ self.H)
+            M = np.eye(self.m) - self.H @ np.linalg.solve(np.eye(self.n) - F, self.Phi @ K)
+            self._chunked['bias_gain'] = M
+        return M
+
     def with_noise(self, R=None, Q=None) -> 'KalmanModel':
         """
         Return the same system (A, B, H, E, Phi, excitation) with another R and/or Q (the gain is re-solved lazily).

@@ -108,6 +108,7 @@ Q_RANGE = 1e6           # the fitted process noise stays within this factor of d
 # on a speed ramp (a block's speed more than the band from the last one's) the process noise is at least the paper's:
 # the model follows the speed in steps and its response lags the machine's, a model error the dwells' fit never sees
 RAMP_PROCESS_NOISE = defaults.KF_PROCESS_NOISE
+DC_REG = 0.1            # Tikhonov weight of the DC step through the filter's bias gain (_track_dc)
 DEFAULT_R_STD = 1e-7    # m: R of the cached models before the data give theirs
 MODEL_MOVE = 0.25       # an identified coefficient moving less than this times its 1-sigma keeps the models
 MODEL_TOL = 0.01        # ... or less than this fraction of its bearing's largest K (C) entry (IdentifiedBearings)
@@ -381,6 +382,8 @@ class EstimatorCore:
         self._noise_dof: deque = deque(maxlen=NOISE_BLOCKS)
         self.R_rel_std = 0.0          # relative 1-sigma of the estimated R (_clean; 0 when R is fixed)
         self._dc_used = (0, 0.0, 0.0)  # (blocks since the last fit, the DC [m] used, the speed [rad/s] of that fit)
+        self._dc_track = None         # (m,) the DC [m] once it follows the innovations (_track_dc), else None
+        self._dc_fit = None           # the innovations' DC + 1X + 2X normal equations since the last step (_track_dc)
         self._prev_speed = 0.0        # the last block's speed [rad/s]: a change beyond the band is a ramp
         self.errors: list = []
         self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
@@ -514,6 +517,7 @@ class EstimatorCore:
                 self._noise.clear()
                 self._noise_dof.clear()
                 self._dc_used = (0, 0.0, 0.0)
+                self._dc_track = self._dc_fit = None
             ramp = same_stream and abs(speed - self._prev_speed) > self.band * self._prev_speed
             self._prev_speed = speed
             z, dc = self._clean(block.samples, angle, speed, ramp)
@@ -542,6 +546,7 @@ class EstimatorCore:
                 self._bb = None
             kf = act[2]
             est, nu, nis = kf.step_block(z, angle, speed)
+            self._track_dc(kf.km, nu, angle, ramp)
             u = self.noise_rel_std(kf.km)
             self.nis_hist.append((float(np.sum(nis)), n, u * u * n))
             terms = innovation_health_terms(nu, angle)
@@ -621,7 +626,8 @@ class EstimatorCore:
         (:func:`bearing_id.signals.noise.difference_noise`: the free vibration a speed ramp leaves ringing is the
         filter's to track, not noise; the residual's RMS counted it, up to ~1000 times the noise's variance on the
         packaged rig); the values used are the medians over the last ``NOISE_BLOCKS`` fitted blocks of the stream (a
-        probe gap offset never reaches the filter).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted,
+        probe gap offset never reaches the filter), the DC's only until ``NOISE_BLOCKS`` fits are in: from then on it
+        follows the innovations (:meth:`_track_dc`).  The first ``NOISE_BLOCKS`` blocks of a stream are all fitted,
         and every block whose ``speed`` [rad/s] is more than the band width from the last fitted one's: the noise
         starts afresh there (a new operating point), and a ``ramp`` block's DC is not taken (the 1X moves within the
         block); at a steady speed every ``NOISE_EVERY``-th (DC and noise move over seconds; a step in them is
@@ -640,13 +646,16 @@ class EstimatorCore:
             except ValueError:            # too few samples for the fit: the previous blocks' values
                 fit = None
             if fit is not None:
-                if not ramp or not self._dc:     # a ramp's DC fit carries the 1X's change within the block
+                if self._dc_track is None and (not ramp or not self._dc):   # a ramp's: the 1X moves within it
                     self._dc.append(np.asarray(fit.offset, float))
                 slow = fit.offset + sum(phasor_to_time(X, order * angle).T for X, order in zip(fit.X, fit.orders))
                 var, dof = difference_noise(np.asarray(samples, float) - slow)
                 self._noise.append(np.sqrt(var))
                 self._noise_dof.append(dof)
-                dc = np.median(np.array(self._dc), axis=0)
+                if self._dc_track is None:
+                    dc = np.median(np.array(self._dc), axis=0)
+                    if len(self._dc) >= NOISE_BLOCKS:
+                        self._dc_track = dc
                 if not self.R_fixed:
                     self.R = np.maximum(np.median(np.array(self._noise), axis=0), NOISE_FLOOR) ** 2
                     k = len(self._noise)   # a variance from dof samples: relative variance 2 / dof; a median of
@@ -655,8 +664,38 @@ class EstimatorCore:
             since, fitted_at = 0, speed
         else:
             since += 1
+        if self._dc_track is not None:
+            dc = self._dc_track
         self._dc_used = (since, dc, fitted_at)
         return np.asarray(samples, float) - dc, dc
+
+    def _track_dc(self, km, nu, angle, ramp: bool) -> None:
+        """
+        Move the DC removed by the innovations' own offset, once ``NOISE_BLOCKS`` fits of the stream gave a start.
+
+        Every ``NOISE_EVERY`` steady blocks: the offset of a DC + 1X + 2X least-squares fit to the innovations ``nu``
+        (n, m) [m] over them (``angle`` (n,) [rad]; no leak from a 1X the model mispredicts) is M (b - dc) for a true
+        DC b, M = ``km.bias_gain()`` (the filter takes the rest into its state); the DC moves by that offset through
+        M, regularised by ``DC_REG`` (a full step where M ~ I, the offset itself where M ~ 0, whose noise M^-1
+        would amplify).  The
+        filter explains the free vibration a speed ramp leaves ringing, so what its innovations keep as a mean is the
+        DC's error; a fit to the samples alone takes part of that ringing for DC (0.4-0.7 of the noise's sigma for a
+        whole 2 s dwell after a ramp on an unequal-bearing rig).  A ramp block restarts the sums.
+        """
+        if self._dc_track is None or ramp:
+            self._dc_fit = None
+            return
+        D = np.column_stack([np.ones_like(angle), np.cos(angle), np.sin(angle), np.cos(2 * angle), np.sin(2 * angle)])
+        acc = self._dc_fit or [np.zeros((5, 5)), np.zeros((5, nu.shape[1])), 0]
+        acc[0] += D.T @ D
+        acc[1] += D.T @ nu
+        acc[2] += 1
+        self._dc_fit = acc
+        if acc[2] >= NOISE_EVERY:
+            mean = np.linalg.lstsq(acc[0], acc[1], rcond=None)[0][0]        # = M (b - dc), M = km.bias_gain()
+            M = km.bias_gain()
+            self._dc_track = self._dc_track + np.linalg.solve(M.T @ M + DC_REG ** 2 * np.eye(M.shape[0]), M.T @ mean)
+            self._dc_fit = None
 
     def noise_rel_std(self, km) -> float:
         """
