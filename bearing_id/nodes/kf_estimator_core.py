@@ -383,7 +383,7 @@ class EstimatorCore:
         self.R_rel_std = 0.0          # relative 1-sigma of the estimated R (_clean; 0 when R is fixed)
         self._dc_used = (0, 0.0, 0.0)  # (blocks since the last fit, the DC [m] used, the speed [rad/s] of that fit)
         self._dc_track = None         # (m,) the DC [m] once it follows the innovations (_track_dc), else None
-        self._dc_fit = None           # the innovations' DC + 1X + 2X normal equations since the last step (_track_dc)
+        self._dc_buf: list = []       # (innovations (n, m), angles (n,)) of the steady blocks since the last DC step
         self._prev_speed = 0.0        # the last block's speed [rad/s]: a change beyond the band is a ramp
         self.errors: list = []
         self._worker = threading.Thread(target=self._work, name='kf_model_builder', daemon=True)
@@ -517,7 +517,8 @@ class EstimatorCore:
                 self._noise.clear()
                 self._noise_dof.clear()
                 self._dc_used = (0, 0.0, 0.0)
-                self._dc_track = self._dc_fit = None
+                self._dc_track = None
+                self._dc_buf = []
             ramp = same_stream and abs(speed - self._prev_speed) > self.band * self._prev_speed
             self._prev_speed = speed
             z, dc = self._clean(block.samples, angle, speed, ramp)
@@ -677,25 +678,25 @@ class EstimatorCore:
         (n, m) [m] over them (``angle`` (n,) [rad]; no leak from a 1X the model mispredicts) is M (b - dc) for a true
         DC b, M = ``km.bias_gain()`` (the filter takes the rest into its state); the DC moves by that offset through
         M, regularised by ``DC_REG`` (a full step where M ~ I, the offset itself where M ~ 0, whose noise M^-1
-        would amplify).  The
-        filter explains the free vibration a speed ramp leaves ringing, so what its innovations keep as a mean is the
-        DC's error; a fit to the samples alone takes part of that ringing for DC (0.4-0.7 of the noise's sigma for a
-        whole 2 s dwell after a ramp on an unequal-bearing rig).  A ramp block restarts the sums.
+        would amplify).  The filter explains the free vibration a speed ramp leaves ringing, so what its innovations
+        keep as a mean is the DC's error; a fit to the samples alone takes part of that ringing for DC (0.4-0.7 of the
+        noise's sigma for a whole 2 s dwell after a ramp on an unequal-bearing rig).  A ramp block restarts the
+        collection.
         """
         if self._dc_track is None or ramp:
-            self._dc_fit = None
+            self._dc_buf = []
             return
-        D = np.column_stack([np.ones_like(angle), np.cos(angle), np.sin(angle), np.cos(2 * angle), np.sin(2 * angle)])
-        acc = self._dc_fit or [np.zeros((5, 5)), np.zeros((5, nu.shape[1])), 0]
-        acc[0] += D.T @ D
-        acc[1] += D.T @ nu
-        acc[2] += 1
-        self._dc_fit = acc
-        if acc[2] >= NOISE_EVERY:
-            mean = np.linalg.lstsq(acc[0], acc[1], rcond=None)[0][0]        # = M (b - dc), M = km.bias_gain()
-            M = km.bias_gain()
-            self._dc_track = self._dc_track + np.linalg.solve(M.T @ M + DC_REG ** 2 * np.eye(M.shape[0]), M.T @ mean)
-            self._dc_fit = None
+        self._dc_buf.append((nu, angle))
+        if len(self._dc_buf) < NOISE_EVERY:
+            return
+        nus, angles = zip(*self._dc_buf)
+        self._dc_buf = []
+        try:
+            mean = harmonic_vectors(np.concatenate(nus), np.concatenate(angles), (1, 2), whole_revs=False).offset
+        except ValueError:            # too few samples for the fit: the DC stays
+            return
+        M = km.bias_gain()            # mean = M (b - dc) for a true DC b
+        self._dc_track = self._dc_track + np.linalg.solve(M.T @ M + DC_REG ** 2 * np.eye(M.shape[0]), M.T @ mean)
 
     def noise_rel_std(self, km) -> float:
         """
