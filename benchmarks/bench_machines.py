@@ -203,6 +203,11 @@ def run(m: int, window: float, settle: float, out: Path, files: list[str], pass_
         codes = stop_processes({f'{a}/{b}': p for (a, b), p in procs.items()}, timeout=10.0 + 0.5 * len(procs))
         print(f'{m} machines, node exits: ' + ', '.join(
             f'{c} x{n}' for c, n in sorted(Counter(map(str, codes.values())).items())), flush=True)
+        for (mc, node), p in procs.items():      # a node that did not exit 0: the end of its log (deleted after)
+            code = codes.get(f'{mc}/{node}')
+            if code != 0:
+                tail = (out / f'{mc}_{node}.log').read_text(errors='replace').splitlines()[-12:]
+                print(f'{mc}/{node} exit {code}; its log ends:\n  ' + '\n  '.join(tail), flush=True)
         # Fast DDS's teardown can hang holding the GIL (eProsima/Fast-DDS#6513), where Listener.close's watchdog
         # thread cannot run: faulthandler's own thread ends the process then (exit 1), the figures already printed
         faulthandler.dump_traceback_later(60.0, exit=True)

@@ -57,7 +57,10 @@ def filtered_outputs(core, rec, run):
                   samples=rec.samples[i0:i1], sample_angles=rec.angle[i0:i1], run_id=run.id)
         core.submit(b, run, float(np.mean(rec.speed[i0:i1])), k > 0)
         while core.pending:
-            out += core.drain()
+            got = core.drain()
+            out += got
+            if not got:                 # its models are being built (a thread): do not spin against it
+                time.sleep(0.002)
     return out
 
 
@@ -174,23 +177,27 @@ def test_a_dc_step_at_a_steady_speed_is_followed_from_the_innovations(case):
     assert np.all(np.abs(tail.mean(axis=0)) <= 2 * sigma), (tail.mean(axis=0), sigma)
 
 
-def test_an_unequal_bearing_rig_through_ramps_is_estimated_and_consistent_at_every_dwell(tmp_path):
+def test_an_unequal_bearing_rig_through_fast_ramps_is_estimated_and_consistent_at_every_dwell(tmp_path):
     """
-    An unequal-bearing rig through ramps: every dwell's bearing-node 1X within 1 % and 1 degree, its NIS in band.
+    An unequal-bearing rig through fast ramps: every dwell within 1 % and 1 degree, NIS in band; ramps followed.
 
-    The variant: bearings of unequal length, clearance and oil, truth factors unequal, 0.8 s ramps between 2 s
-    dwells.  Identified from a first pass over its speeds (`physical`, as the identifier fits them), a second pass
-    (new noise) filtered by one core through the whole stream, ramps included.  At every dwell (last 3/4) the
-    bearing-node 1X is within 1 % and 1 degree of the simulator's noise-free truth and the mean NIS inside its 95 %
-    band (chi-square widened by the estimated R's stated 1-sigma).  After each ramp the free vibration rings on: the
-    R from a harmonic fit's residual counted it as noise (NIS 0.0004-1.4 at 1600-2500 rpm) and, with that mended, a
-    DC fit of the samples took part of it (2500 rpm: 2.39).
+    The variant: bearings of unequal length, clearance and oil, truth factors unequal, 0.3 s ramps between 2 s dwells
+    (up to 8 % of speed per 1024-sample block, through the first critical speed).  Identified from a first pass over
+    its speeds (`physical`, as the identifier fits them), a second pass (new noise) filtered by one core through the
+    whole stream, ramps included.  At every dwell (last 3/4) the bearing-node 1X is within 1 % and 1 degree of the
+    simulator's noise-free truth and the mean NIS inside its 95 % band (chi-square widened by the estimated R's stated
+    1-sigma).  After each ramp the free vibration rings on: the R from a harmonic fit's residual counted it as noise
+    (NIS 0.0004-1.4 at 1600-2500 rpm) and, with that mended, a DC fit of the samples took part of it (2500 rpm: 2.39).
+    On the ramps (each with the block after it) the estimated bearing motion stays within a tenth of the orbit
+    warning limit (``ORBIT_LIMIT`` of clearance) of the truth, sample by sample, so no orbit warning is raised that the
+    truth is not within 10 % of: with one model per block (its mean speed) it was 29 % of the limit off through the
+    critical speed.
     """
     d = yaml.safe_load((REPO / 'params' / 'rig.yaml').read_text())
     d['bearings'][0]['clearance'] = 4.5e-5
     d['bearings'][1].update(length=0.0095, clearance=6.0e-5, viscosity=0.025)
     sim = d['simulation']
-    sim.update(speeds_rpm=[700, 1100, 1600, 2000, 2500, 2900], ramp=0.8, seed=11)
+    sim.update(speeds_rpm=[700, 1100, 1600, 2000, 2500, 2900], ramp=0.3, seed=11)
     sim['truth'].update(viscosity_factor=[1.15, 1.3], clearance_factor=[0.85, 0.9])
     for r in sim['runs']:
         for e in r['excitation']:
@@ -213,14 +220,47 @@ def test_an_unequal_bearing_rig_through_ramps_is_estimated_and_consistent_at_eve
     est = np.concatenate([o.estimates for o in out])
     nis = np.concatenate([o.nis for o in out])
     u2 = np.concatenate([np.full(o.nis.size, o.nis_rel_std ** 2) for o in out])
+    steady = np.zeros(rec.speed.size, bool)
     for rpm in rig.simulation.speeds_rpm:
         idx = np.flatnonzero(np.abs(rec.speed - rpm * math.pi / 30) <= 1e-9 * rpm)
+        steady[idx] = True
         w = slice(idx[0] + idx.size // 4, idx[-1] + 1)
         got, ref = one_x(est[w], rec.angle[w]), one_x(truth.samples[w], truth.angle[w])
         assert np.all(np.abs(np.abs(got) / np.abs(ref) - 1) <= 0.01), (rpm, got, ref)
         assert np.all(np.abs(np.degrees(np.angle(got / ref))) <= 1.0), (rpm, got, ref)
         lo, hi = nis_band(nis[w].size, 2, rel_std=float(np.sqrt(np.mean(u2[w]))))
         assert lo <= np.mean(nis[w]) <= hi, (rpm, np.mean(nis[w]), lo, hi)
+    ramps = np.flatnonzero(~steady)
+    ramps = np.unique(np.concatenate([np.arange(i, min(i + 1024, steady.size)) for i in ramps]))
+    for j, b in enumerate(rig.bearings):
+        err = np.hypot(*(est[ramps, 2 * j + k] - truth.samples[ramps, 2 * j + k] for k in (0, 1)))
+        assert np.max(err) <= 0.1 * kf_estimator_core.ORBIT_LIMIT * b.clearance, (b.name, np.max(err))
+
+
+def test_a_block_is_split_at_the_speed_bands_a_ramp_crosses_and_a_dwell_is_not():
+    """
+    speed_pieces against a constant-acceleration ramp's closed form, and a dwell with keyphasor jitter.
+
+    Angle phi(t) = w0 t + a t^2 / 2: the pieces cover the block in order, each piece's speed is the mean of w over
+    its samples (w0 + a (t_first + t_last) / 2), every sample's true speed is within the band width plus one
+    ``SPEED_PIECE`` step of its piece's, and neighbouring pieces lie in different bands.  A steady block whose angles
+    carry 1 mrad of jitter, and one whose angles run backwards, are one piece at the speed given.
+    """
+    fs, n, width = 10240.0, 1024, 0.01
+    t = np.arange(n) / fs
+    w0, a = 180.0, 600.0                      # rad/s, rad/s^2: 8 % of the speed within the block
+    pieces = kf_estimator_core.speed_pieces(w0 * t + 0.5 * a * t ** 2, fs, w0 + a * t.mean(), width)
+    assert pieces[0][0] == 0 and pieces[-1][1] == n and len(pieces) > 2
+    step = a * kf_estimator_core.SPEED_PIECE / fs
+    for (i0, i1, sp), nxt in zip(pieces, pieces[1:] + [None]):
+        assert sp == pytest.approx(w0 + a * (t[i0] + t[i1 - 1]) / 2, rel=1e-9)
+        assert np.all(np.abs(w0 + a * t[i0:i1] - sp) <= width * sp + step)
+        if nxt is not None:
+            assert nxt[0] == i1
+            assert kf_estimator_core.band_key(nxt[2], width) != kf_estimator_core.band_key(sp, width)
+    jitter = np.random.default_rng(3).normal(0.0, 1e-3, n)
+    assert kf_estimator_core.speed_pieces(w0 * t + jitter, fs, w0, width) == [(0, n, w0)]
+    assert kf_estimator_core.speed_pieces(-w0 * t, fs, w0, width) == [(0, n, w0)]
 
 
 def test_speed_ramps_carry_the_state_over(case):
